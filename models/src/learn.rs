@@ -1,0 +1,69 @@
+//! Learning modules (libtorch through `tch`). The only part of `models` that knows tch.
+//!
+//! For now this holds the bridge between the state vectors built by [`crate::human`] and
+//! [`crate::character_state`] and tensors, and device selection; the networks build on it.
+
+use tch::{Device, Kind, Tensor};
+
+/// Errors raised when data handed to the learning code has the wrong shape.
+#[derive(Debug, thiserror::Error)]
+pub enum ShapeError {
+    #[error("state rows have inconsistent widths: row 0 has {expected} values, row {row} has {found}")]
+    Ragged { expected: usize, row: usize, found: usize },
+    #[error("expected a 2-D float tensor of width {expected}, got shape {found:?}")]
+    Tensor { expected: usize, found: Vec<i64> },
+}
+
+/// The device training and inference run on: the first CUDA device when libtorch sees one, else the CPU.
+pub fn default_device() -> Device {
+    Device::cuda_if_available()
+}
+
+/// Stacks equally wide state rows (frames × features) into a `[frames, width]` f32 tensor on `device`.
+pub fn rows_to_tensor<R: AsRef<[f32]>>(rows: &[R], device: Device) -> Result<Tensor, ShapeError> {
+    let width = rows.first().map_or(0, |r| r.as_ref().len());
+    let mut flat = Vec::with_capacity(rows.len() * width);
+    for (row, r) in rows.iter().enumerate() {
+        let r = r.as_ref();
+        if r.len() != width {
+            return Err(ShapeError::Ragged { expected: width, row, found: r.len() });
+        }
+        flat.extend_from_slice(r);
+    }
+    Ok(Tensor::from_slice(&flat).view([rows.len() as i64, width as i64]).to_device(device))
+}
+
+/// The inverse of [`rows_to_tensor`]: a `[frames, width]` tensor back to rows, checking the width.
+pub fn tensor_to_rows(t: &Tensor, width: usize) -> Result<Vec<Vec<f32>>, ShapeError> {
+    let size = t.size();
+    if size.len() != 2 || size[1] != width as i64 {
+        return Err(ShapeError::Tensor { expected: width, found: size });
+    }
+    let flat: Vec<f32> = Vec::<f32>::try_from(t.to_kind(Kind::Float).to_device(Device::Cpu).flatten(0, -1))
+        .map_err(|_| ShapeError::Tensor { expected: width, found: size.clone() })?;
+    Ok(flat.chunks(width).map(<[f32]>::to_vec).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_round_trip_through_libtorch() {
+        let rows = vec![vec![1.0f32, 2.0, 3.0], vec![4.0, 5.0, 6.5]];
+        let t = rows_to_tensor(&rows, Device::Cpu).unwrap();
+        assert_eq!(t.size(), vec![2, 3]);
+        assert_eq!(t.sum(Kind::Float).double_value(&[]), 21.5);
+        assert_eq!(tensor_to_rows(&t, 3).unwrap(), rows);
+    }
+
+    #[test]
+    fn wrong_shapes_are_named() {
+        let ragged = vec![vec![1.0f32, 2.0], vec![3.0]];
+        let e = rows_to_tensor(&ragged, Device::Cpu).unwrap_err();
+        assert_eq!(e.to_string(), "state rows have inconsistent widths: row 0 has 2 values, row 1 has 1");
+        let t = Tensor::zeros([4, 5], (Kind::Float, Device::Cpu));
+        let e = tensor_to_rows(&t, 92).unwrap_err();
+        assert!(e.to_string().contains("width 92") && e.to_string().contains("[4, 5]"), "{e}");
+    }
+}

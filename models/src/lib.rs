@@ -1,0 +1,18 @@
+//! # ace_models
+//!
+//! The Bevy-free core of ACE retargeting (Adversarial Correspondence Embedding, SIGGRAPH Asia 2023):
+//! human motion import (BVH → canonical skeleton → human state x^h), character import
+//! (URDF → kinematic tree → forward kinematics, morphology, character state x^r) and, behind the
+//! `learn` feature, the learning modules that use libtorch.
+//!
+//! Conventions everywhere in this crate: right-handed, z up, metres, seconds, `f32`.
+
+pub mod character_state;
+pub mod frame;
+pub mod geometry;
+pub mod human;
+pub mod kinematics;
+#[cfg(feature = "learn")]
+pub mod learn;
+pub mod morphology;
+pub mod urdf;
