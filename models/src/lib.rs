@@ -7,6 +7,8 @@
 //!
 //! Conventions everywhere in this crate: right-handed, z up, metres, seconds, `f32`.
 
+pub use nalgebra;
+
 pub mod character_state;
 pub mod frame;
 pub mod geometry;

@@ -1,1 +1,73 @@
+//! # bevy_ace
+//!
+//! The Bevy layer of ACE retargeting: asset loaders for `.urdf` characters and `.bvh` human clips,
+//! characters spawned as one entity per link and posed from a [`Pose`] component, and a human clip
+//! player. The core (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_ace::prelude::*;
+//!
+//! fn setup(mut commands: Commands, assets: Res<AssetServer>) {
+//!     commands.spawn(Character::new(assets.load("characters/spot.urdf")));
+//!     commands.spawn((HumanClipPlayer::new(assets.load("motions/walk.bvh")), Transform::from_xyz(-1.5, 0.0, 0.0)));
+//! }
+//!
+//! App::new().add_plugins((DefaultPlugins, AcePlugin)).add_systems(Startup, setup).run();
+//! ```
 
+pub mod assets;
+pub mod character;
+pub mod convert;
+pub mod human;
+#[cfg(feature = "render")]
+pub mod render;
+
+pub use ace_models;
+
+use bevy::prelude::*;
+use bevy::transform::TransformSystems;
+
+/// Commonly used items.
+pub mod prelude {
+    pub use crate::assets::{BvhAsset, BvhSettings, UrdfAsset};
+    pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
+    pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};
+    pub use crate::{AcePlugin, AceSystems};
+}
+
+/// The plugin's systems, chained in this order in `PostUpdate`, before transform propagation.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AceSystems {
+    /// Spawn link and joint entities for newly loaded characters and clips.
+    Spawn,
+    /// Advance clip players and sample their clips.
+    Advance,
+    /// Turn poses into link and joint [`Transform`]s.
+    Apply,
+}
+
+/// Registers the `.urdf` and `.bvh` assets and the systems that spawn, play and pose them.
+/// Needs an `AssetPlugin` and Bevy's transform plugin (both in `DefaultPlugins`).
+pub struct AcePlugin;
+
+impl Plugin for AcePlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<assets::UrdfAsset>()
+            .init_asset::<assets::BvhAsset>()
+            .register_asset_loader(assets::UrdfLoader)
+            .register_asset_loader(assets::BvhLoader)
+            .configure_sets(
+                PostUpdate,
+                (AceSystems::Spawn, AceSystems::Advance, AceSystems::Apply).chain().before(TransformSystems::Propagate),
+            )
+            .add_systems(
+                PostUpdate,
+                (
+                    (character::spawn_characters, human::spawn_human_joints).in_set(AceSystems::Spawn),
+                    human::advance_players.in_set(AceSystems::Advance),
+                    (character::apply_poses, human::apply_human_poses).in_set(AceSystems::Apply),
+                ),
+            );
+    }
+}

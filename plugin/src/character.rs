@@ -1,0 +1,110 @@
+//! Characters: a URDF asset spawned as one entity per link, posed by a [`Pose`] component.
+
+use ace_models::kinematics::CharacterPose;
+use ace_models::nalgebra::{Isometry3, Translation3};
+use bevy::prelude::*;
+
+use crate::assets::UrdfAsset;
+use crate::convert;
+
+/// A character driven by this plugin. Spawn it with a handle to a URDF asset; once the asset is
+/// loaded, one child entity per link is spawned ([`CharacterLinks`]) and a neutral [`Pose`] is
+/// inserted unless one is already there.
+///
+/// The entity's own [`Transform`] places the character's world (z-up ground plane at the origin)
+/// in the Bevy scene.
+#[derive(Component, Clone, Debug)]
+#[require(Transform)]
+pub struct Character {
+    /// The character's URDF.
+    pub urdf: Handle<UrdfAsset>,
+}
+
+impl Character {
+    /// A character from a URDF handle.
+    pub fn new(urdf: Handle<UrdfAsset>) -> Self {
+        Self { urdf }
+    }
+}
+
+/// The pose a character shows: root link pose (in the character's z-up world) and one position per
+/// actuated DoF, in the URDF's DoF order. Write it from any system; [`crate::AceSystems::Apply`] turns
+/// it into link [`Transform`]s before transform propagation.
+#[derive(Component, Clone, Debug, PartialEq, Deref, DerefMut)]
+pub struct Pose(pub CharacterPose);
+
+/// Link entities of a spawned character, in the URDF's topological link order.
+#[derive(Component, Clone, Debug)]
+pub struct CharacterLinks(pub Vec<Entity>);
+
+/// Marks a link entity: its character and its index in the kinematic tree.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct CharacterLink {
+    /// The entity holding [`Character`].
+    pub character: Entity,
+    /// Index into `KinematicTree::links`.
+    pub index: usize,
+}
+
+/// The neutral pose of a character: neutral joint positions, root at its standing height.
+pub fn neutral_pose(urdf: &UrdfAsset) -> CharacterPose {
+    CharacterPose {
+        root: Isometry3::from_parts(Translation3::new(0.0, 0.0, urdf.tree.standing_root_height()), Default::default()),
+        q: urdf.tree.neutral_q(),
+    }
+}
+
+/// Spawns link entities for characters whose URDF has finished loading.
+pub(crate) fn spawn_characters(
+    mut commands: Commands,
+    characters: Query<(Entity, &Character, Option<&Pose>), Without<CharacterLinks>>,
+    urdfs: Res<Assets<UrdfAsset>>,
+    #[cfg(feature = "render")] mut visuals: crate::render::VisualAssets,
+) {
+    for (entity, character, pose) in &characters {
+        let Some(urdf) = urdfs.get(&character.urdf) else { continue };
+        let mut links: Vec<Entity> = Vec::with_capacity(urdf.tree.links.len());
+        for (index, link) in urdf.tree.links.iter().enumerate() {
+            let parent = link.parent.map_or(entity, |p| links[p]);
+            let id = commands
+                .spawn((Name::new(link.name.clone()), CharacterLink { character: entity, index }, Transform::default(), ChildOf(parent)))
+                .id();
+            #[cfg(feature = "render")]
+            visuals.spawn_link_visuals(&mut commands, id, link);
+            links.push(id);
+        }
+        let mut e = commands.entity(entity);
+        e.insert(CharacterLinks(links));
+        if pose.is_none() {
+            e.insert(Pose(neutral_pose(urdf)));
+        }
+        #[cfg(feature = "render")]
+        e.insert_if_new(Visibility::default());
+    }
+}
+
+/// Writes each link's [`Transform`] (relative to its parent link) from the character's [`Pose`].
+pub(crate) fn apply_poses(
+    characters: Query<(&Character, &Pose, &CharacterLinks), Or<(Changed<Pose>, Added<CharacterLinks>)>>,
+    mut transforms: Query<&mut Transform, With<CharacterLink>>,
+    urdfs: Res<Assets<UrdfAsset>>,
+    mut world_poses: Local<Vec<Isometry3<f32>>>,
+) {
+    for (character, pose, links) in &characters {
+        let Some(urdf) = urdfs.get(&character.urdf) else { continue };
+        if pose.q.len() != urdf.tree.dof() {
+            warn_once!("a Pose with {} joint positions was given to a character with {} DoF", pose.q.len(), urdf.tree.dof());
+            continue;
+        }
+        urdf.tree.forward_kinematics_into(pose, &mut world_poses);
+        for (index, link) in urdf.tree.links.iter().enumerate() {
+            let local = match link.parent {
+                Some(p) => world_poses[p].inv_mul(&world_poses[index]),
+                None => world_poses[index],
+            };
+            if let Ok(mut t) = transforms.get_mut(links.0[index]) {
+                *t = convert::transform(&local);
+            }
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! `ace inspect`: summaries of BVH clips and URDF characters, as text or JSON.
+
+use std::path::Path;
+
+use ace::models::human::{HumanClip, ImportOptions};
+use ace::models::kinematics::KinematicTree;
+use ace::models::morphology::{Morphology, Profile};
+use anyhow::{Context, Result, bail};
+use serde_json::{Value, json};
+
+/// A BVH file's summary.
+pub fn bvh_summary(path: &Path) -> Result<(HumanClip, Value)> {
+    let clip = HumanClip::from_bvh_file(path, &ImportOptions::default())?;
+    let mapping: serde_json::Map<String, Value> = ace::models::human::Joint::ALL
+        .iter()
+        .map(|j| (j.name().to_string(), Value::from(clip.source_joints[j.index()].clone())))
+        .collect();
+    let v = json!({
+        "kind": "bvh",
+        "file": path.display().to_string(),
+        "frames": clip.frames.len(),
+        "fps": clip.fps,
+        "duration_s": clip.duration(),
+        "height_m": clip.height_m,
+        "convention": clip.convention,
+        "unit": clip.unit,
+        "canonical_joints": clip.mapped_joints,
+        "joint_mapping": mapping,
+    });
+    Ok((clip, v))
+}
+
+/// Loads a URDF with its morphology (a `<stem>.profile.toml` beside it overrides the analysis).
+pub fn load_character(path: &Path) -> Result<(KinematicTree, Morphology)> {
+    let tree = KinematicTree::from_urdf_file(path)?;
+    let profile_path = path.with_extension("profile.toml");
+    let morphology = if profile_path.exists() {
+        let profile = Profile::from_file(&profile_path)?;
+        Morphology::with_profile(&tree, &profile).with_context(|| format!("profile {}", profile_path.display()))?
+    } else {
+        Morphology::analyze(&tree)
+    };
+    Ok((tree, morphology))
+}
+
+/// A URDF file's summary.
+pub fn urdf_summary(path: &Path) -> Result<(KinematicTree, Morphology, Value)> {
+    let (tree, morphology) = load_character(path)?;
+    let names = |links: &[usize]| -> Vec<String> { links.iter().map(|&i| tree.links[i].name.clone()).collect() };
+    let v = json!({
+        "kind": "urdf",
+        "file": path.display().to_string(),
+        "name": tree.name,
+        "links": tree.links.len(),
+        "dof": tree.dof(),
+        "dof_names": tree.dof_names(),
+        "feet": names(&morphology.feet),
+        "manipulators": names(&morphology.manipulators),
+        "wheels": names(&morphology.wheels),
+        "head": morphology.head.map(|h| tree.links[h].name.clone()),
+        "standing_height_m": tree.standing_root_height(),
+    });
+    Ok((tree, morphology, v))
+}
+
+fn kind_of(path: &Path) -> Result<&'static str> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("bvh") => Ok("bvh"),
+        Some("urdf") => Ok("urdf"),
+        _ => bail!("{}: unknown file type (expected .bvh or .urdf)", path.display()),
+    }
+}
+
+/// Human-readable lines of a summary.
+pub fn text(v: &Value) -> String {
+    let mut out = String::new();
+    for (k, val) in v.as_object().into_iter().flatten() {
+        let shown = match val {
+            Value::String(s) => s.clone(),
+            Value::Array(a) => a.iter().map(|x| x.as_str().map_or_else(|| x.to_string(), str::to_string)).collect::<Vec<_>>().join(", "),
+            Value::Object(o) => o.iter().map(|(a, b)| format!("{a}={}", b.as_str().unwrap_or_default())).collect::<Vec<_>>().join(" "),
+            Value::Number(n) if n.is_f64() => format!("{:.3}", n.as_f64().unwrap_or_default()),
+            other => other.to_string(),
+        };
+        out.push_str(&format!("{k:>18}: {shown}\n"));
+    }
+    out
+}
+
+/// `ace inspect FILE [--json]`.
+pub fn run(path: &Path, as_json: bool) -> Result<()> {
+    let v = match kind_of(path)? {
+        "bvh" => bvh_summary(path)?.1,
+        _ => urdf_summary(path)?.2,
+    };
+    if as_json {
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print!("{}", text(&v));
+    }
+    Ok(())
+}
