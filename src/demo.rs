@@ -4,8 +4,7 @@
 
 use std::path::Path;
 
-use ace::models::kinematics::CharacterPose;
-use ace::models::nalgebra::{Isometry3, Translation3, Vector3};
+use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result};
 
 use crate::{inspect, picture};
@@ -22,10 +21,7 @@ pub fn run(character: &Path, clip_path: &Path, out: &Path) -> Result<()> {
     let summary_path = out.join("summary.json");
     std::fs::write(&summary_path, serde_json::to_string_pretty(&summary)?).with_context(|| format!("writing {}", summary_path.display()))?;
 
-    let pose = CharacterPose {
-        root: Isometry3::from_parts(Translation3::new(0.0, 0.0, tree.standing_root_height()), Default::default()),
-        q: tree.neutral_q(),
-    };
+    let pose = tree.standing_pose();
     let mut segments = picture::ground_segments(2.5);
     segments.extend(picture::character_segments(&tree, &pose, [214, 140, 30]));
     // The human stands 1.5 m to the character's left; its path is shifted so that it starts there.

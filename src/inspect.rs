@@ -4,8 +4,8 @@ use std::path::Path;
 
 use ace::models::human::{HumanClip, ImportOptions};
 use ace::models::kinematics::KinematicTree;
-use ace::models::morphology::{Morphology, Profile};
-use anyhow::{Context, Result, bail};
+use ace::models::morphology::{Morphology, load_character};
+use anyhow::{Result, bail};
 use serde_json::{Value, json};
 
 /// A BVH file's summary.
@@ -28,19 +28,6 @@ pub fn bvh_summary(path: &Path) -> Result<(HumanClip, Value)> {
         "joint_mapping": mapping,
     });
     Ok((clip, v))
-}
-
-/// Loads a URDF with its morphology (a `<stem>.profile.toml` beside it overrides the analysis).
-pub fn load_character(path: &Path) -> Result<(KinematicTree, Morphology)> {
-    let tree = KinematicTree::from_urdf_file(path)?;
-    let profile_path = path.with_extension("profile.toml");
-    let morphology = if profile_path.exists() {
-        let profile = Profile::from_file(&profile_path)?;
-        Morphology::with_profile(&tree, &profile).with_context(|| format!("profile {}", profile_path.display()))?
-    } else {
-        Morphology::analyze(&tree)
-    };
-    Ok((tree, morphology))
 }
 
 /// A URDF file's summary.

@@ -13,8 +13,8 @@ use image::{Rgb, RgbImage};
 /// A coloured 3-D line segment (metres, z up).
 pub type Segment = (Vector3<f32>, Vector3<f32>, [u8; 3]);
 
-/// Segments outlining every primitive geometry of a posed character (visual geometry, or the
-/// collision geometry of links whose visuals are meshes), plus a line from each link to its parent.
+/// Segments outlining the visual geometry of a posed character (meshes as their bounding boxes),
+/// plus a line from each link to its parent.
 pub fn character_segments(tree: &KinematicTree, pose: &CharacterPose, color: [u8; 3]) -> Vec<Segment> {
     let world = tree.forward_kinematics(pose);
     let mut out = Vec::new();
@@ -22,12 +22,7 @@ pub fn character_segments(tree: &KinematicTree, pose: &CharacterPose, color: [u8
         if let Some(p) = link.parent {
             out.push((world[p].translation.vector, world[i].translation.vector, [120, 120, 120]));
         }
-        let primitive = |g: &&ace::models::geometry::Geometry| !matches!(g.shape, Shape::Mesh { .. });
-        let geometry: Vec<_> = if link.visuals.iter().any(|g| primitive(&g)) { &link.visuals } else { &link.collisions }
-            .iter()
-            .filter(primitive)
-            .collect();
-        for g in geometry {
+        for g in &link.visuals {
             shape_segments(&(world[i] * g.origin), &g.shape, color, &mut out);
         }
     }
@@ -73,7 +68,13 @@ fn shape_segments(frame: &Isometry3<f32>, shape: &Shape, color: [u8; 3], out: &m
                 circle(frame, Vector3::zeros(), u, v, *radius, color, out);
             }
         }
-        Shape::Mesh { .. } => {}
+        // Mesh files are drawn as their bounding box when it could be read.
+        Shape::Mesh { bounds: Some(b), scale, .. } => {
+            let size = (b.max - b.min).component_mul(scale);
+            let center = frame * Isometry3::translation(b.center().x * scale.x, b.center().y * scale.y, b.center().z * scale.z);
+            shape_segments(&center, &Shape::Box { size }, color, out);
+        }
+        Shape::Mesh { bounds: None, .. } => {}
     }
 }
 

@@ -1,0 +1,767 @@
+//! Morphology: which links of a character are its feet, manipulators, wheels and head — found from
+//! the kinematic tree and its geometry, never from link names — and the optional per-character
+//! profile file that overrides the analysis.
+//!
+//! # Analysis ([`Morphology::analyze`])
+//! The tree is posed at [`KinematicTree::neutral_q`] with the root at the origin. The *root body* is
+//! the root link plus everything fixed to it; every movable joint hanging off the root body starts a
+//! *limb*. Sizes below are relative to the character's neutral bounding box (height `H`, largest
+//! extent `S`); "touching the ground" means within `max(1 cm, 3 % H)` of the lowest point.
+//! - **Wheels**: limbs with a single joint that is continuous (or revolute with ≥ 2π range), whose axis
+//!   is horizontal, whose geometry touches the ground and is centred on the axis.
+//! - Every other limb is followed down its chain of movable joints to its **tips**. Where a chain
+//!   branches after at least 3 joints into short branches (≤ 3 joints each) the branches are gripper
+//!   fingers and the tip is the link before them; other branchings give one tip per branch (tips on
+//!   branches under a quarter of the longest sibling's reach can only become the head).
+//! - **Feet**: tips whose lowest geometry touches the ground, on chains with ≥ 2 rotational joints, on a
+//!   character that rests neither on its root body (e.g. a caster) nor on two or more wheels. The foot
+//!   point is the lowest point of the tip's geometry at the neutral pose (the bottom of a sphere, else
+//!   the bottom centre of the lowest box), attached to the nearest link rigidly fixed to the tip.
+//! - **Head**: the highest remaining tip in the top 30 % of the character whose chain after the limb's
+//!   last branching (a neck) is short (reach < S/4) and has at most 3 joints, all rotational. The head
+//!   end effector is the last moving link.
+//! - **Manipulators**: remaining tips of chains with ≥ 2 joints and reach ≥ 0.15 S. The end effector is
+//!   the link rigidly fixed to the tip that lies farthest from the tip's joint (a gripper's
+//!   tool/grasp frame when the URDF has one).
+//!
+//! Feet, manipulators and wheels are listed in link order (the URDF's depth-first order).
+//!
+//! # Profile
+//! A TOML file `<urdf stem>.profile.toml` beside the URDF ([`Profile::beside`]); every key optional:
+//! ```toml
+//! feet = ["fl_foot", "fr_foot"]      # replaces the analysed feet (link names)
+//! manipulators = ["gripper_tip"]
+//! wheels = []
+//! head = ""                          # link name; "" = no head
+//! [rest_pose]                        # joint name = position (rad or m); becomes neutral_q
+//! fl_knee = -1.2
+//! [tip_offsets]                      # end-effector point in the link frame (m)
+//! fl_foot = [0.0, 0.0, -0.02]
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::geometry::{Aabb, Shape};
+use crate::kinematics::{JointKind, KinematicTree};
+use crate::urdf::UrdfError;
+
+/// End effectors and wheels of a character, as link indices.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Morphology {
+    /// Feet (ground contacts of legs).
+    pub feet: Vec<usize>,
+    /// Manipulator end effectors (gripper or tool links).
+    pub manipulators: Vec<usize>,
+    /// Wheels (their links spin with the wheel).
+    pub wheels: Vec<usize>,
+    /// Head, if any.
+    pub head: Option<usize>,
+    /// Point that stands for an end effector, in its link's frame; links not listed use their origin.
+    /// Use [`Morphology::ee_point`] rather than the link origin wherever end-effector positions matter
+    /// (state vectors, IK targets, contact checks).
+    pub tip_offsets: BTreeMap<usize, Vector3<f32>>,
+}
+
+/// [`Morphology`] with link names instead of indices.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MorphologyNames {
+    pub feet: Vec<String>,
+    pub manipulators: Vec<String>,
+    pub wheels: Vec<String>,
+    pub head: Option<String>,
+}
+
+impl Morphology {
+    /// Finds feet, manipulators, wheels and head from topology and geometry (see the module docs).
+    pub fn analyze(tree: &KinematicTree) -> Morphology {
+        Analysis::new(tree).run()
+    }
+
+    /// Analysis, then every field the profile sets replaces the analysed one. Also applies the
+    /// profile's tip offsets (the rest pose is applied to the tree by [`Profile::apply_rest_pose`]).
+    pub fn with_profile(tree: &KinematicTree, profile: &Profile) -> Result<Morphology, ProfileError> {
+        let mut m = Morphology::analyze(tree);
+        let file = profile.source.clone().unwrap_or_else(|| "<profile>".into());
+        let err = |p: ProfileProblem| ProfileError {
+            file: file.clone(),
+            problem: p,
+        };
+        let find = |n: &String| {
+            tree.link_index(n)
+                .ok_or_else(|| err(ProfileProblem::UnknownLink(n.clone())))
+        };
+        let list = |names: &Vec<String>| names.iter().map(find).collect::<Result<Vec<_>, _>>();
+        if let Some(f) = &profile.feet {
+            m.feet = list(f)?;
+        }
+        if let Some(f) = &profile.manipulators {
+            m.manipulators = list(f)?;
+        }
+        if let Some(f) = &profile.wheels {
+            m.wheels = list(f)?;
+        }
+        if let Some(h) = &profile.head {
+            m.head = if h.is_empty() { None } else { Some(find(h)?) };
+        }
+        let ees = m.end_effectors();
+        m.tip_offsets.retain(|l, _| ees.contains(l));
+        for (name, o) in &profile.tip_offsets {
+            m.tip_offsets.insert(find(name)?, Vector3::from(*o));
+        }
+        Ok(m)
+    }
+
+    /// End-effector links in the order the character state uses: feet, then manipulators, then the head.
+    pub fn end_effectors(&self) -> Vec<usize> {
+        self.feet
+            .iter()
+            .chain(&self.manipulators)
+            .chain(&self.head)
+            .copied()
+            .collect()
+    }
+
+    /// Number of end effectors (feet + manipulators + head).
+    pub fn n_end_effectors(&self) -> usize {
+        self.feet.len() + self.manipulators.len() + usize::from(self.head.is_some())
+    }
+
+    /// The point of end-effector link `link` (its tip offset, else origin) in its link frame.
+    pub fn tip_offset(&self, link: usize) -> Vector3<f32> {
+        self.tip_offsets.get(&link).copied().unwrap_or_else(Vector3::zeros)
+    }
+
+    /// World position of end-effector link `link` given all link poses (e.g. from forward kinematics).
+    pub fn ee_point(&self, link: usize, link_poses: &[Isometry3<f32>]) -> Point3<f32> {
+        link_poses[link].transform_point(&Point3::from(self.tip_offset(link)))
+    }
+
+    /// Link names of every role.
+    pub fn names(&self, tree: &KinematicTree) -> MorphologyNames {
+        let n = |v: &[usize]| v.iter().map(|&l| tree.links[l].name.clone()).collect();
+        MorphologyNames {
+            feet: n(&self.feet),
+            manipulators: n(&self.manipulators),
+            wheels: n(&self.wheels),
+            head: self.head.map(|h| tree.links[h].name.clone()),
+        }
+    }
+}
+
+/// Per-character overrides read from TOML (see the module docs). Every field is optional.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Profile {
+    /// Foot links replacing the analysed ones.
+    pub feet: Option<Vec<String>>,
+    /// Manipulator links replacing the analysed ones.
+    pub manipulators: Option<Vec<String>>,
+    /// Wheel links replacing the analysed ones.
+    pub wheels: Option<Vec<String>>,
+    /// Head link; `""` means no head.
+    pub head: Option<String>,
+    /// Rest pose: joint name → position; unnamed DoFs stay at zero (clamped).
+    #[serde(default)]
+    pub rest_pose: BTreeMap<String, f32>,
+    /// End-effector points in their link frames: link name → `[x, y, z]`.
+    #[serde(default)]
+    pub tip_offsets: BTreeMap<String, [f32; 3]>,
+    /// File the profile was read from (for error messages).
+    #[serde(skip)]
+    pub source: Option<String>,
+}
+
+/// An error reading or applying a profile: which file and what is wrong.
+#[derive(Debug, Clone, Error, PartialEq)]
+#[error("{file}: {problem}")]
+pub struct ProfileError {
+    pub file: String,
+    pub problem: ProfileProblem,
+}
+
+/// What [`ProfileError`] reports.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum ProfileProblem {
+    #[error("cannot read the file: {0}")]
+    Io(String),
+    #[error("malformed profile TOML: {0}")]
+    Parse(String),
+    #[error("no link named `{0}`")]
+    UnknownLink(String),
+    #[error("no movable joint with its own DoF named `{0}`")]
+    UnknownJoint(String),
+}
+
+impl Profile {
+    /// Parses profile TOML; `file` names the source in errors.
+    pub fn from_toml(text: &str, file: &str) -> Result<Profile, ProfileError> {
+        let mut p: Profile = toml::from_str(text).map_err(|e| ProfileError {
+            file: file.into(),
+            problem: ProfileProblem::Parse(e.to_string()),
+        })?;
+        p.source = Some(file.into());
+        Ok(p)
+    }
+
+    /// Reads a profile file.
+    pub fn from_file(path: &Path) -> Result<Profile, ProfileError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ProfileError {
+            file: file.clone(),
+            problem: ProfileProblem::Io(e.to_string()),
+        })?;
+        Profile::from_toml(&text, &file)
+    }
+
+    /// The conventional profile path of a URDF: `<stem>.profile.toml` in the same directory.
+    pub fn path_beside(urdf_path: &Path) -> PathBuf {
+        let stem = urdf_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        urdf_path.with_file_name(format!("{stem}.profile.toml"))
+    }
+
+    /// Reads the profile beside `urdf_path` if there is one.
+    pub fn beside(urdf_path: &Path) -> Result<Option<Profile>, ProfileError> {
+        let p = Profile::path_beside(urdf_path);
+        if p.is_file() {
+            Profile::from_file(&p).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// Sets the tree's rest pose (its `neutral_q`) from `rest_pose`, if the profile has one.
+    pub fn apply_rest_pose(&self, tree: &mut KinematicTree) -> Result<(), ProfileError> {
+        if self.rest_pose.is_empty() {
+            return Ok(());
+        }
+        let mut q = vec![0.0; tree.dof()];
+        for (name, v) in &self.rest_pose {
+            let d = tree.dof_index(name).ok_or_else(|| ProfileError {
+                file: self.source.clone().unwrap_or_else(|| "<profile>".into()),
+                problem: ProfileProblem::UnknownJoint(name.clone()),
+            })?;
+            q[d] = *v;
+        }
+        tree.set_rest_q(q);
+        Ok(())
+    }
+}
+
+/// An error loading a character (URDF plus optional profile).
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum CharacterError {
+    #[error(transparent)]
+    Urdf(#[from] UrdfError),
+    #[error(transparent)]
+    Profile(#[from] ProfileError),
+}
+
+/// Loads a character: the URDF, the profile beside it if any (rest pose and overrides), and its
+/// morphology.
+pub fn load_character(urdf_path: &Path) -> Result<(KinematicTree, Morphology), CharacterError> {
+    let mut tree = KinematicTree::from_urdf_file(urdf_path)?;
+    let morph = match Profile::beside(urdf_path)? {
+        Some(p) => {
+            p.apply_rest_pose(&mut tree)?;
+            Morphology::with_profile(&tree, &p)?
+        }
+        None => Morphology::analyze(&tree),
+    };
+    Ok((tree, morph))
+}
+
+/// Working data of [`Morphology::analyze`].
+struct Analysis<'a> {
+    tree: &'a KinematicTree,
+    poses: Vec<Isometry3<f32>>,
+    children: Vec<Vec<usize>>,
+    boxes: Vec<Option<Aabb>>,
+    ground: f32,
+    height: f32,
+    size: f32,
+    tol: f32,
+}
+
+/// Joint counts along a chain.
+#[derive(Clone, Copy, Debug, Default)]
+struct Chain {
+    /// Movable joints.
+    joints: usize,
+    /// How many of them rotate.
+    rotational: usize,
+}
+
+impl Chain {
+    fn with(self, kind: Option<JointKind>) -> Chain {
+        Chain {
+            joints: self.joints + 1,
+            rotational: self.rotational + usize::from(kind.is_some_and(|k| k.is_rotational())),
+        }
+    }
+}
+
+/// A tip found by walking a limb.
+struct Tip {
+    link: usize,
+    /// Joints from the limb root to `link` inclusive.
+    limb: Chain,
+    /// Potential reach of the whole limb (m).
+    limb_reach: f32,
+    /// Joints after the last branching of the limb (the whole limb if it does not branch).
+    branch: Chain,
+    /// Potential reach from the first joint after the last branching (m).
+    branch_reach: f32,
+    /// On a branch much shorter than its siblings (a sensor mount, a neck): can only be a head.
+    minor: bool,
+}
+
+impl<'a> Analysis<'a> {
+    fn new(tree: &'a KinematicTree) -> Self {
+        let poses = tree.forward_kinematics(&tree.neutral_pose(Isometry3::identity()));
+        let mut children = vec![Vec::new(); tree.links.len()];
+        for (i, l) in tree.links.iter().enumerate() {
+            if let Some(p) = l.parent {
+                children[p].push(i);
+            }
+        }
+        let boxes: Vec<_> = tree.links.iter().zip(&poses).map(|(l, p)| l.aabb(p)).collect();
+        let all = tree.aabb(&poses);
+        let ext = all.max - all.min;
+        let height = ext.z.max(1e-3);
+        Analysis {
+            tree,
+            children,
+            boxes,
+            ground: all.min.z,
+            height,
+            size: ext.max().max(1e-3),
+            tol: (0.03 * height).max(0.01),
+            poses,
+        }
+    }
+
+    fn movable(&self, l: usize) -> bool {
+        self.tree.links[l].joint.as_ref().is_some_and(|j| j.kind.is_movable())
+    }
+
+    /// `l` and every link fixed to it (below it).
+    fn rigid_set(&self, l: usize) -> Vec<usize> {
+        let mut out = vec![l];
+        let mut i = 0;
+        while i < out.len() {
+            out.extend(self.children[out[i]].iter().filter(|&&c| !self.movable(c)));
+            i += 1;
+        }
+        out
+    }
+
+    /// Movable links hanging off the rigid set of `l`.
+    fn next_segments(&self, l: usize) -> Vec<usize> {
+        let mut out: Vec<usize> = self
+            .rigid_set(l)
+            .iter()
+            .flat_map(|&r| self.children[r].iter().copied())
+            .filter(|&c| self.movable(c))
+            .collect();
+        out.sort_unstable();
+        out
+    }
+
+    fn subtree(&self, l: usize) -> Vec<usize> {
+        let mut out = vec![l];
+        let mut i = 0;
+        while i < out.len() {
+            out.extend(self.children[out[i]].iter().copied());
+            i += 1;
+        }
+        out
+    }
+
+    fn lowest(&self, links: &[usize]) -> f32 {
+        links
+            .iter()
+            .map(|&l| self.boxes[l].map_or(self.poses[l].translation.vector.z, |b| b.min.z))
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    /// Path length from the joint of `from` to the farthest point below it, counting prismatic
+    /// travel and the geometry at the end of the chain.
+    fn reach(&self, from: usize) -> f32 {
+        let mut best = 0.0f32;
+        let mut stack = vec![(from, 0.0f32)];
+        while let Some((l, acc)) = stack.pop() {
+            let link = &self.tree.links[l];
+            let mut here = acc;
+            if l != from
+                && let Some(j) = &link.joint
+            {
+                here += j.origin.translation.vector.norm();
+            }
+            if let Some(j) = &link.joint
+                && j.kind == JointKind::Prismatic
+                && let Some(lim) = j.limits
+            {
+                let travel = lim.lower.abs().max(lim.upper.abs());
+                here += if travel.is_finite() { travel } else { 0.0 };
+            }
+            let geom = link
+                .extent_geometry()
+                .iter()
+                .filter_map(|g| g.bounding_sphere())
+                .map(|(c, r)| c.coords.norm() + r)
+                .fold(0.0, f32::max);
+            best = best.max(here + geom);
+            stack.extend(self.children[l].iter().map(|&c| (c, here)));
+        }
+        best
+    }
+
+    fn count_movable(&self, l: usize) -> usize {
+        self.subtree(l).into_iter().filter(|&x| self.movable(x)).count()
+    }
+
+    /// Walks a limb from movable link `l`, pushing its tips. `branch` is the first movable link after
+    /// the last branching and the joints since; `minor` marks tips on insignificant branches.
+    fn collect_tips(
+        &self,
+        l: usize,
+        limb: Chain,
+        branch: (usize, Chain),
+        minor: bool,
+        limb_reach: f32,
+        out: &mut Vec<Tip>,
+    ) {
+        let kind = self.tree.links[l].joint.as_ref().map(|j| j.kind);
+        let (limb, branch) = (limb.with(kind), (branch.0, branch.1.with(kind)));
+        let next = self.next_segments(l);
+        if next.is_empty() || (next.len() > 1 && limb.joints >= 3 && next.iter().all(|&n| self.count_movable(n) <= 3)) {
+            // End of the chain, or a gripper's fingers.
+            out.push(Tip {
+                link: l,
+                limb,
+                limb_reach,
+                branch: branch.1,
+                branch_reach: self.reach(branch.0),
+                minor,
+            });
+        } else if next.len() == 1 {
+            self.collect_tips(next[0], limb, branch, minor, limb_reach, out);
+        } else {
+            let reaches: Vec<f32> = next.iter().map(|&n| self.reach(n)).collect();
+            let longest = reaches.iter().copied().fold(0.0, f32::max);
+            for (n, r) in next.into_iter().zip(reaches) {
+                self.collect_tips(
+                    n,
+                    limb,
+                    (n, Chain::default()),
+                    minor || r < 0.25 * longest,
+                    limb_reach,
+                    out,
+                );
+            }
+        }
+    }
+
+    fn is_wheel(&self, l: usize) -> bool {
+        let Some(j) = &self.tree.links[l].joint else {
+            return false;
+        };
+        let spins = match j.kind {
+            JointKind::Continuous => true,
+            JointKind::Revolute => j
+                .limits
+                .is_some_and(|lim| lim.upper - lim.lower >= 2.0 * std::f32::consts::PI - 0.05),
+            _ => false,
+        };
+        if !spins || self.count_movable(l) != 1 {
+            return false;
+        }
+        let axis = self.poses[l].rotation * j.axis.into_inner();
+        if axis.z.abs() > 0.3 {
+            return false;
+        }
+        let sub = self.subtree(l);
+        if self.lowest(&sub) - self.ground > self.tol {
+            return false;
+        }
+        let mut b = Aabb::empty();
+        for &s in &sub {
+            if let Some(x) = self.boxes[s] {
+                b.merge(&x);
+            }
+        }
+        if b.is_empty() {
+            // No extent known: accept a low axle.
+            return self.poses[l].translation.vector.z - self.ground < 0.15 * self.height;
+        }
+        let d = b.center() - Point3::from(self.poses[l].translation.vector);
+        let off_axis = (d - axis * d.dot(&axis)).norm();
+        off_axis < 0.3 * b.half_extents().max() + 0.005
+    }
+
+    /// Lowest point of the geometry below `l` (bottom of a sphere when a sphere is lowest, else bottom
+    /// centre of the lowest box, else the lowest link origin).
+    fn contact_point(&self, l: usize) -> Point3<f32> {
+        let mut best: Option<(f32, Point3<f32>, bool)> = None;
+        for s in self.subtree(l) {
+            let link = &self.tree.links[s];
+            for g in link.extent_geometry() {
+                let Some(b) = g.aabb(&self.poses[s]) else { continue };
+                let is_sphere = matches!(g.shape, Shape::Sphere { .. });
+                let p = Point3::new(b.center().x, b.center().y, b.min.z);
+                let better = match best {
+                    None => true,
+                    Some((z, _, sph)) => b.min.z < z - 0.002 || (b.min.z < z + 0.002 && is_sphere && !sph),
+                };
+                if better {
+                    best = Some((b.min.z, p, is_sphere));
+                }
+            }
+        }
+        best.map(|(_, p, _)| p).unwrap_or_else(|| {
+            let s = self
+                .subtree(l)
+                .into_iter()
+                .min_by(|&a, &b| {
+                    self.poses[a]
+                        .translation
+                        .vector
+                        .z
+                        .total_cmp(&self.poses[b].translation.vector.z)
+                })
+                .unwrap_or(l);
+            Point3::from(self.poses[s].translation.vector)
+        })
+    }
+
+    fn run(&self) -> Morphology {
+        let mut m = Morphology::default();
+        let root_body = self.rigid_set(0);
+        let resting_on_body = self.lowest(&root_body) - self.ground <= self.tol;
+        let mut tips = Vec::new();
+        for limb in self.next_segments(0) {
+            if self.is_wheel(limb) {
+                m.wheels.push(limb);
+            } else {
+                let reach = self.reach(limb);
+                self.collect_tips(
+                    limb,
+                    Chain::default(),
+                    (limb, Chain::default()),
+                    false,
+                    reach,
+                    &mut tips,
+                );
+            }
+        }
+        let supported = resting_on_body || m.wheels.len() >= 2;
+        let mut rest = Vec::new();
+        for t in tips {
+            let p = self.contact_point(t.link);
+            if !supported && !t.minor && t.limb.rotational >= 2 && p.z - self.ground <= self.tol {
+                // Foot point on the nearest link rigidly fixed to the tip.
+                let host = self
+                    .rigid_set(t.link)
+                    .into_iter()
+                    .min_by(|&a, &b| {
+                        let da = (self.poses[a].translation.vector - p.coords).norm();
+                        let db = (self.poses[b].translation.vector - p.coords).norm();
+                        da.total_cmp(&db)
+                    })
+                    .unwrap_or(t.link);
+                let offset = self.poses[host].inverse_transform_point(&p).coords;
+                if offset.norm() > 1e-3 {
+                    m.tip_offsets.insert(host, offset);
+                }
+                m.feet.push(host);
+            } else {
+                rest.push(t);
+            }
+        }
+        let top = self.ground + 0.7 * self.height;
+        let head = rest
+            .iter()
+            .filter(|t| t.branch.joints <= 3 && t.branch.rotational == t.branch.joints)
+            .filter(|t| t.branch_reach < 0.25 * self.size)
+            .filter(|t| self.poses[t.link].translation.vector.z >= top)
+            .max_by(|a, b| {
+                self.poses[a.link]
+                    .translation
+                    .vector
+                    .z
+                    .total_cmp(&self.poses[b.link].translation.vector.z)
+            })
+            .map(|t| t.link);
+        m.head = head;
+        for t in rest.iter().filter(|t| Some(t.link) != head) {
+            if !t.minor && t.limb.joints >= 2 && t.limb_reach >= 0.15 * self.size {
+                let origin = self.poses[t.link].translation.vector;
+                let ee = self
+                    .rigid_set(t.link)
+                    .into_iter()
+                    .max_by(|&a, &b| {
+                        let da = (self.poses[a].translation.vector - origin).norm();
+                        let db = (self.poses[b].translation.vector - origin).norm();
+                        // Ties go to the earlier link.
+                        da.total_cmp(&db).then(b.cmp(&a))
+                    })
+                    .unwrap_or(t.link);
+                m.manipulators.push(ee);
+            }
+        }
+        m.feet.sort_unstable();
+        m.manipulators.sort_unstable();
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn joint(name: &str, kind: &str, parent: &str, child: &str, xyz: &str, axis: &str) -> String {
+        format!(
+            r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>
+               <origin xyz="{xyz}"/><axis xyz="{axis}"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>"#
+        )
+    }
+
+    fn link(name: &str, geometry: &str) -> String {
+        format!(r#"<link name="{name}"><collision><geometry>{geometry}</geometry></collision></link>"#)
+    }
+
+    /// A humanoid: two legs from the pelvis; a waist joint carrying two arms with two-finger hands and a
+    /// pan–tilt head. Exercises branching (waist → arms + neck) and gripper detection (fingers).
+    fn humanoid() -> KinematicTree {
+        let mut x = String::from(r#"<robot name="humanoid">"#);
+        x += &link("pelvis", r#"<box size="0.3 0.3 0.1"/>"#);
+        for (s, y) in [("l", 0.1), ("r", -0.1)] {
+            x += &joint(
+                &format!("{s}_hip"),
+                "revolute",
+                "pelvis",
+                &format!("{s}_thigh"),
+                &format!("0 {y} -0.05"),
+                "0 1 0",
+            );
+            x += &link(&format!("{s}_thigh"), r#"<box size="0.1 0.1 0.4"/>"#);
+            x += &joint(
+                &format!("{s}_knee"),
+                "revolute",
+                &format!("{s}_thigh"),
+                &format!("{s}_shin"),
+                "0 0 -0.4",
+                "0 1 0",
+            );
+            x += &link(&format!("{s}_shin"), r#"<box size="0.08 0.08 0.4"/>"#);
+            x += &joint(
+                &format!("{s}_ankle"),
+                "revolute",
+                &format!("{s}_shin"),
+                &format!("{s}_foot"),
+                "0 0 -0.4",
+                "0 1 0",
+            );
+            x += &link(&format!("{s}_foot"), r#"<sphere radius="0.05"/>"#);
+        }
+        x += &joint("waist", "revolute", "pelvis", "chest", "0 0 0.1", "0 0 1");
+        x += &link("chest", r#"<box size="0.25 0.35 0.4"/>"#);
+        for (s, y) in [("l", 0.22), ("r", -0.22)] {
+            x += &joint(
+                &format!("{s}_sh_pitch"),
+                "revolute",
+                "chest",
+                &format!("{s}_sh"),
+                &format!("0 {y} 0.35"),
+                "0 1 0",
+            );
+            x += &link(&format!("{s}_sh"), r#"<sphere radius="0.04"/>"#);
+            x += &joint(
+                &format!("{s}_sh_roll"),
+                "revolute",
+                &format!("{s}_sh"),
+                &format!("{s}_upper"),
+                "0 0 0",
+                "1 0 0",
+            );
+            x += &link(&format!("{s}_upper"), r#"<box size="0.06 0.06 0.3"/>"#);
+            x += &joint(
+                &format!("{s}_elbow"),
+                "revolute",
+                &format!("{s}_upper"),
+                &format!("{s}_fore"),
+                "0 0 -0.3",
+                "0 1 0",
+            );
+            x += &link(&format!("{s}_fore"), r#"<box size="0.05 0.05 0.25"/>"#);
+            x += &joint(
+                &format!("{s}_wrist"),
+                "revolute",
+                &format!("{s}_fore"),
+                &format!("{s}_hand"),
+                "0 0 -0.25",
+                "1 0 0",
+            );
+            x += &link(&format!("{s}_hand"), r#"<box size="0.08 0.03 0.08"/>"#);
+            for f in ["a", "b"] {
+                let fy = if f == "a" { 0.02 } else { -0.02 };
+                x += &joint(
+                    &format!("{s}_finger_{f}"),
+                    "prismatic",
+                    &format!("{s}_hand"),
+                    &format!("{s}_finger_{f}"),
+                    &format!("0 {fy} -0.06"),
+                    "0 1 0",
+                );
+                x += &link(&format!("{s}_finger_{f}"), r#"<box size="0.02 0.01 0.05"/>"#);
+            }
+        }
+        x += &joint("neck_pan", "revolute", "chest", "neck", "0 0 0.42", "0 0 1");
+        x += &link("neck", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("neck_tilt", "revolute", "neck", "head", "0 0 0.05", "0 1 0");
+        x += &link("head", r#"<sphere radius="0.1"/>"#);
+        x += "</robot>";
+        KinematicTree::from_urdf_str(&x).unwrap()
+    }
+
+    #[test]
+    fn humanoid_branches_into_arms_and_head() {
+        let t = humanoid();
+        let m = Morphology::analyze(&t);
+        let n = m.names(&t);
+        assert_eq!(n.feet, ["l_foot", "r_foot"]);
+        assert_eq!(n.manipulators, ["l_hand", "r_hand"]);
+        assert_eq!(n.head.as_deref(), Some("head"));
+        assert!(n.wheels.is_empty());
+        assert_eq!(m.end_effectors().len(), 5);
+        // Feet are sphere bottoms.
+        let stand = t.forward_kinematics(&t.standing_pose());
+        for &f in &m.feet {
+            assert!(m.ee_point(f, &stand).z.abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn a_robot_resting_on_its_body_has_no_feet() {
+        // A single arm on a box lying on the ground, with its tip touching the ground too.
+        let mut x = String::from(r#"<robot name="arm">"#);
+        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
+        x += &joint("a", "revolute", "base", "l1", "0 0 0.1", "0 0 1");
+        x += &link("l1", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("b", "revolute", "l1", "l2", "0.3 0 0", "0 1 0");
+        x += &link("l2", r#"<sphere radius="0.2"/>"#);
+        x += "</robot>";
+        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let m = Morphology::analyze(&t);
+        assert!(m.feet.is_empty());
+        assert_eq!(m.manipulators, [2]);
+    }
+}

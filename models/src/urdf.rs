@@ -1,0 +1,590 @@
+//! URDF → [`KinematicTree`]: every conversion from `urdf_rs` types lives here (like the `k` crate), plus
+//! the checks that turn a parsed robot into a well-formed tree and the errors they raise.
+//!
+//! Decisions, documented once:
+//! - `rpy` is fixed-axis XYZ: R = Rz(yaw)·Ry(pitch)·Rx(roll), as in the URDF specification.
+//! - Links are ordered depth-first from the root, children in the order their joints appear in the
+//!   file; movable joints get DoF indices in that link order.
+//! - `floating` and `planar` joints are treated as **fixed** with a warning in
+//!   [`KinematicTree::warnings`]: the character root is already free (see
+//!   [`crate::kinematics::CharacterPose::root`]), and such joints are nearly always a `world → base`
+//!   anchor. `spherical` and any other type are errors.
+//! - `<mimic>` joints get no DoF of their own: their position is `multiplier · q[target] + offset`.
+//!   A mimic whose target is fixed or itself a mimic joint is an error.
+//! - The axis of fixed joints is ignored (files often write `0 0 0` there); a movable joint with a zero
+//!   axis is an error. Continuous joints have infinite position limits. A velocity or effort limit of
+//!   0 (what an absent `<limit>` reads as) means "not given" and becomes +∞.
+//! - Mesh files are not loaded, but [`KinematicTree::from_urdf_file`] reads the bounding box of STL/OBJ
+//!   meshes it can find (see [`resolve_mesh_path`]) so that meshes have an extent for morphology.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use thiserror::Error;
+
+use crate::geometry::{Geometry, Shape, read_mesh_bounds};
+use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link, Mimic};
+
+/// An error while importing a URDF: which file (or `<string>`), and what is wrong with it.
+#[derive(Debug, Clone, Error, PartialEq)]
+#[error("{file}: {problem}")]
+pub struct UrdfError {
+    /// The file the URDF came from, or `<string>`.
+    pub file: String,
+    /// What is wrong.
+    pub problem: UrdfProblem,
+}
+
+/// The problems [`UrdfError`] reports.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum UrdfProblem {
+    #[error("cannot read the file: {0}")]
+    Io(String),
+    #[error("malformed URDF/XML: {0}")]
+    Parse(String),
+    #[error("the robot has no links")]
+    NoLinks,
+    #[error("link `{0}` is defined more than once")]
+    DuplicateLink(String),
+    #[error("joint `{0}` is defined more than once")]
+    DuplicateJoint(String),
+    #[error("joint `{joint}` names parent link `{link}`, which is not defined")]
+    MissingParent { joint: String, link: String },
+    #[error("joint `{joint}` names child link `{link}`, which is not defined")]
+    MissingChild { joint: String, link: String },
+    #[error("link `{link}` is the child of several joints: {}", .joints.join(", "))]
+    SeveralParents { link: String, joints: Vec<String> },
+    #[error("kinematic cycle through links {}", .links.join(" → "))]
+    Cycle { links: Vec<String> },
+    #[error("no root link: every link is the child of some joint")]
+    NoRoot,
+    #[error("several root links (links that are no joint's child): {}", .links.join(", "))]
+    MultipleRoots { links: Vec<String> },
+    #[error(
+        "joint `{joint}` has unknown type `{kind}` (expected revolute, continuous, prismatic, fixed, floating or planar)"
+    )]
+    UnknownJointType { joint: String, kind: String },
+    #[error("joint `{joint}` has type `{kind}`, which is not supported")]
+    UnsupportedJointType { joint: String, kind: String },
+    #[error("non-finite value in {0}")]
+    NonFinite(String),
+    #[error("joint `{0}` is movable but its axis is zero")]
+    ZeroAxis(String),
+    #[error("joint `{joint}` mimics `{target}`, which is not a movable joint with its own DoF")]
+    BadMimic { joint: String, target: String },
+}
+
+impl UrdfProblem {
+    /// Attaches the file name.
+    pub fn in_file(self, file: impl Into<String>) -> UrdfError {
+        UrdfError {
+            file: file.into(),
+            problem: self,
+        }
+    }
+}
+
+/// Name used in errors for URDFs that do not come from a file.
+pub const STRING_SOURCE: &str = "<string>";
+
+/// Parses URDF text and converts it. `file` only names the source in errors and `base_dir` (when
+/// given) is where relative and `package://` mesh paths are looked for to read mesh bounds.
+pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<KinematicTree, UrdfError> {
+    if let Some((joint, kind)) = scan_joint_types(xml)
+        .into_iter()
+        .find(|(_, k)| !KNOWN_TYPES.contains(&k.as_str()))
+    {
+        return Err(UrdfProblem::UnknownJointType { joint, kind }.in_file(file));
+    }
+    let robot = urdf_rs::read_from_string(xml).map_err(|e| UrdfProblem::Parse(e.to_string()).in_file(file))?;
+    let mut tree = robot_to_tree(&robot).map_err(|p| p.in_file(file))?;
+    if let Some(dir) = base_dir {
+        load_mesh_bounds(&mut tree, dir);
+    }
+    Ok(tree)
+}
+
+/// Reads and converts a URDF file; errors name the file.
+pub fn read_urdf_file(path: &Path) -> Result<KinematicTree, UrdfError> {
+    let file = path.display().to_string();
+    let xml = std::fs::read_to_string(path).map_err(|e| UrdfProblem::Io(e.to_string()).in_file(&file))?;
+    let mut tree = parse_urdf(&xml, &file, path.parent())?;
+    tree.source = Some(path.to_path_buf());
+    Ok(tree)
+}
+
+const KNOWN_TYPES: [&str; 7] = [
+    "revolute",
+    "continuous",
+    "prismatic",
+    "fixed",
+    "floating",
+    "planar",
+    "spherical",
+];
+
+/// `(name, type)` of every `<joint … type="…">` tag outside comments (transmission `<joint>` tags have
+/// no type and are skipped). urdf-rs would otherwise only say "unknown variant".
+fn scan_joint_types(xml: &str) -> Vec<(String, String)> {
+    let mut text = String::with_capacity(xml.len());
+    let mut rest = xml;
+    while let Some(start) = rest.find("<!--") {
+        text.push_str(&rest[..start]);
+        rest = rest[start..].find("-->").map_or("", |end| &rest[start + end + 3..]);
+    }
+    text.push_str(rest);
+    let mut out = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(start) = rest.find("<joint") {
+        rest = &rest[start + 6..];
+        if !rest.starts_with(|c: char| c.is_whitespace()) {
+            continue;
+        }
+        let tag = &rest[..rest.find('>').unwrap_or(rest.len())];
+        if let Some(kind) = attribute(tag, "type") {
+            out.push((attribute(tag, "name").unwrap_or_default(), kind));
+        }
+    }
+    out
+}
+
+/// Value of attribute `name` in the inside of a start tag.
+fn attribute(tag: &str, name: &str) -> Option<String> {
+    let mut rest = tag;
+    while let Some(i) = rest.find(name) {
+        let before_ok = i == 0 || rest[..i].ends_with(|c: char| c.is_whitespace());
+        let after = rest[i + name.len()..].trim_start();
+        rest = &rest[i + name.len()..];
+        if !before_ok {
+            continue;
+        }
+        if let Some(after) = after.strip_prefix('=') {
+            let after = after.trim_start();
+            let quote = after.chars().next()?;
+            if quote == '"' || quote == '\'' {
+                let body = &after[1..];
+                return body.find(quote).map(|end| body[..end].to_string());
+            }
+        }
+    }
+    None
+}
+
+fn finite3(v: &urdf_rs::Vec3, what: impl Fn() -> String) -> Result<Vector3<f32>, UrdfProblem> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vector3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+    } else {
+        Err(UrdfProblem::NonFinite(what()))
+    }
+}
+
+fn finite(v: f64, what: impl Fn() -> String) -> Result<f32, UrdfProblem> {
+    if v.is_finite() {
+        Ok(v as f32)
+    } else {
+        Err(UrdfProblem::NonFinite(what()))
+    }
+}
+
+/// URDF `<origin xyz rpy>` → isometry (rpy fixed-axis XYZ: R = Rz(y)·Ry(p)·Rx(r)).
+pub fn pose_to_isometry(pose: &urdf_rs::Pose, what: &str) -> Result<Isometry3<f32>, UrdfProblem> {
+    let t = finite3(&pose.xyz, || format!("the origin xyz of {what}"))?;
+    let r = finite3(&pose.rpy, || format!("the origin rpy of {what}"))?;
+    Ok(Isometry3::from_parts(Translation3::from(t), rpy_to_quat(r.x, r.y, r.z)))
+}
+
+/// Roll-pitch-yaw (fixed axes X, Y, Z) → quaternion: R = Rz(yaw)·Ry(pitch)·Rx(roll).
+pub fn rpy_to_quat(roll: f32, pitch: f32, yaw: f32) -> UnitQuaternion<f32> {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw)
+        * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), pitch)
+        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), roll)
+}
+
+impl TryFrom<&urdf_rs::Geometry> for Shape {
+    type Error = UrdfProblem;
+    fn try_from(g: &urdf_rs::Geometry) -> Result<Self, UrdfProblem> {
+        fn nf(what: &'static str) -> impl Fn() -> String {
+            move || format!("{what} geometry")
+        }
+        Ok(match g {
+            urdf_rs::Geometry::Box { size } => Shape::Box {
+                size: finite3(size, nf("box"))?,
+            },
+            urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
+                radius: finite(*radius, nf("cylinder"))?,
+                length: finite(*length, nf("cylinder"))?,
+            },
+            urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
+                radius: finite(*radius, nf("capsule"))?,
+                length: finite(*length, nf("capsule"))?,
+            },
+            urdf_rs::Geometry::Sphere { radius } => Shape::Sphere {
+                radius: finite(*radius, nf("sphere"))?,
+            },
+            urdf_rs::Geometry::Mesh { filename, scale } => Shape::Mesh {
+                filename: filename.clone(),
+                scale: match scale {
+                    Some(s) => finite3(s, || format!("the scale of mesh {filename}"))?,
+                    None => Vector3::repeat(1.0),
+                },
+                bounds: None,
+            },
+        })
+    }
+}
+
+fn geometry(origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, what: &str) -> Result<Geometry, UrdfProblem> {
+    let shape = Shape::try_from(g).map_err(|e| match e {
+        UrdfProblem::NonFinite(s) => UrdfProblem::NonFinite(format!("{s} of {what}")),
+        e => e,
+    })?;
+    Ok(Geometry {
+        origin: pose_to_isometry(origin, what)?,
+        shape,
+    })
+}
+
+impl TryFrom<&urdf_rs::Link> for Link {
+    type Error = UrdfProblem;
+    /// Converts geometry and mass; `parent` and `joint` are filled in by the tree builder.
+    fn try_from(l: &urdf_rs::Link) -> Result<Self, UrdfProblem> {
+        let what = |kind: &str| format!("a {kind} of link `{}`", l.name);
+        Ok(Link {
+            name: l.name.clone(),
+            parent: None,
+            joint: None,
+            visuals: l
+                .visual
+                .iter()
+                .map(|v| geometry(&v.origin, &v.geometry, &what("visual")))
+                .collect::<Result<_, _>>()?,
+            collisions: l
+                .collision
+                .iter()
+                .map(|c| geometry(&c.origin, &c.geometry, &what("collision")))
+                .collect::<Result<_, _>>()?,
+            mass: finite(l.inertial.mass.value, || format!("the mass of link `{}`", l.name))?,
+        })
+    }
+}
+
+/// Converts one joint. Returns the spec (DoF and mimic unresolved) and, for floating/planar joints,
+/// a warning. DoF indices and mimic targets are resolved by the tree builder.
+pub fn convert_joint(j: &urdf_rs::Joint) -> Result<(JointSpec, Option<String>), UrdfProblem> {
+    use urdf_rs::JointType as T;
+    let mut warning = None;
+    let kind = match j.joint_type {
+        T::Revolute => JointKind::Revolute,
+        T::Continuous => JointKind::Continuous,
+        T::Prismatic => JointKind::Prismatic,
+        T::Fixed => JointKind::Fixed,
+        T::Floating | T::Planar => {
+            warning = Some(format!(
+                "joint `{}` is {:?}; it is treated as fixed (the character root is free already)",
+                j.name, j.joint_type
+            ));
+            JointKind::Fixed
+        }
+        T::Spherical => {
+            return Err(UrdfProblem::UnsupportedJointType {
+                joint: j.name.clone(),
+                kind: "spherical".into(),
+            });
+        }
+    };
+    let origin = pose_to_isometry(&j.origin, &format!("joint `{}`", j.name))?;
+    let axis = if kind == JointKind::Fixed {
+        Vector3::x_axis()
+    } else {
+        let a = finite3(&j.axis.xyz, || format!("the axis of joint `{}`", j.name))?;
+        Unit::try_new(a, 1e-9).ok_or_else(|| UrdfProblem::ZeroAxis(j.name.clone()))?
+    };
+    let l = &j.limit;
+    for (v, n) in [
+        (l.lower, "lower"),
+        (l.upper, "upper"),
+        (l.velocity, "velocity"),
+        (l.effort, "effort"),
+    ] {
+        if v.is_nan() {
+            return Err(UrdfProblem::NonFinite(format!("the {n} limit of joint `{}`", j.name)));
+        }
+    }
+    let given = |v: f64| if v > 0.0 { v as f32 } else { f32::INFINITY };
+    let limits = match kind {
+        JointKind::Fixed => None,
+        JointKind::Continuous => Some(Limits {
+            lower: f32::NEG_INFINITY,
+            upper: f32::INFINITY,
+            velocity: given(l.velocity),
+            effort: given(l.effort),
+        }),
+        JointKind::Revolute | JointKind::Prismatic => {
+            if l.lower == 0.0 && l.upper == 0.0 {
+                warning = Some(format!(
+                    "joint `{}` has lower = upper = 0 (or no <limit>); it cannot move",
+                    j.name
+                ));
+            }
+            Some(Limits {
+                lower: l.lower as f32,
+                upper: l.upper as f32,
+                velocity: given(l.velocity),
+                effort: given(l.effort),
+            })
+        }
+    };
+    Ok((
+        JointSpec {
+            name: j.name.clone(),
+            kind,
+            origin,
+            axis,
+            limits,
+            dof: None,
+            mimic: None,
+        },
+        warning,
+    ))
+}
+
+/// Builds the tree: checks names and topology, orders links depth-first from the root, assigns DoFs
+/// and resolves mimic joints.
+pub fn robot_to_tree(robot: &urdf_rs::Robot) -> Result<KinematicTree, UrdfProblem> {
+    if robot.links.is_empty() {
+        return Err(UrdfProblem::NoLinks);
+    }
+    let mut link_ix: HashMap<&str, usize> = HashMap::new();
+    for (i, l) in robot.links.iter().enumerate() {
+        if link_ix.insert(&l.name, i).is_some() {
+            return Err(UrdfProblem::DuplicateLink(l.name.clone()));
+        }
+    }
+    let mut joint_names: HashMap<&str, usize> = HashMap::new();
+    // parent_joint[link] = index of the joint whose child it is.
+    let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
+    for (ji, j) in robot.joints.iter().enumerate() {
+        if joint_names.insert(&j.name, ji).is_some() {
+            return Err(UrdfProblem::DuplicateJoint(j.name.clone()));
+        }
+        let p = *link_ix
+            .get(j.parent.link.as_str())
+            .ok_or_else(|| UrdfProblem::MissingParent {
+                joint: j.name.clone(),
+                link: j.parent.link.clone(),
+            })?;
+        let c = *link_ix
+            .get(j.child.link.as_str())
+            .ok_or_else(|| UrdfProblem::MissingChild {
+                joint: j.name.clone(),
+                link: j.child.link.clone(),
+            })?;
+        if let Some(other) = parent_joint[c] {
+            return Err(UrdfProblem::SeveralParents {
+                link: j.child.link.clone(),
+                joints: vec![robot.joints[other].name.clone(), j.name.clone()],
+            });
+        }
+        parent_joint[c] = Some(ji);
+        children[p].push(c);
+    }
+    let roots: Vec<usize> = (0..robot.links.len()).filter(|&l| parent_joint[l].is_none()).collect();
+    if roots.len() > 1 {
+        return Err(UrdfProblem::MultipleRoots {
+            links: roots.iter().map(|&l| robot.links[l].name.clone()).collect(),
+        });
+    }
+    // Depth-first order from the root; anything unreached lies on (or hangs off) a cycle.
+    let mut order = Vec::with_capacity(robot.links.len());
+    let mut seen = vec![false; robot.links.len()];
+    if let Some(&root) = roots.first() {
+        let mut stack = vec![root];
+        while let Some(l) = stack.pop() {
+            order.push(l);
+            seen[l] = true;
+            stack.extend(children[l].iter().rev());
+        }
+    }
+    if let Some(start) = (0..robot.links.len()).find(|&l| !seen[l]) {
+        // Every unreached link has a parent; following parents must revisit a link: that loop is the cycle.
+        let mut path = vec![start];
+        let mut l = start;
+        while let Some(j) = parent_joint[l] {
+            l = link_ix[robot.joints[j].parent.link.as_str()];
+            if let Some(pos) = path.iter().position(|&x| x == l) {
+                // Parent → child order, starting at the link defined first in the file.
+                let mut cyc: Vec<usize> = path[pos..].iter().rev().copied().collect();
+                let first = (0..cyc.len()).min_by_key(|&i| cyc[i]).unwrap_or(0);
+                cyc.rotate_left(first);
+                cyc.push(cyc[0]);
+                let cyc = cyc.into_iter().map(|x| robot.links[x].name.clone()).collect();
+                return Err(UrdfProblem::Cycle { links: cyc });
+            }
+            path.push(l);
+        }
+        return Err(UrdfProblem::NoRoot);
+    }
+
+    let mut new_ix = vec![0usize; robot.links.len()];
+    for (n, &l) in order.iter().enumerate() {
+        new_ix[l] = n;
+    }
+    let mut links = Vec::with_capacity(order.len());
+    let mut warnings = Vec::new();
+    let mut dof_links = Vec::new();
+    let mut mimics: Vec<(usize, &urdf_rs::Mimic)> = Vec::new();
+    for &l in &order {
+        let mut link = Link::try_from(&robot.links[l])?;
+        if let Some(ji) = parent_joint[l] {
+            let j = &robot.joints[ji];
+            let (mut spec, warning) = convert_joint(j)?;
+            warnings.extend(warning);
+            link.parent = Some(new_ix[link_ix[j.parent.link.as_str()]]);
+            if let (Some(m), true) = (&j.mimic, spec.kind.is_movable()) {
+                mimics.push((links.len(), m));
+            } else if spec.kind.is_movable() {
+                spec.dof = Some(dof_links.len());
+                dof_links.push(links.len());
+            }
+            link.joint = Some(spec);
+        }
+        links.push(link);
+    }
+    for (li, m) in mimics {
+        let target = links
+            .iter()
+            .find(|t| t.joint.as_ref().is_some_and(|j| j.name == m.joint));
+        let dof = target.and_then(|t| t.joint.as_ref()).and_then(|j| j.dof);
+        let joint = links[li].joint.as_mut().expect("mimic joints are joints");
+        let Some(dof) = dof else {
+            return Err(UrdfProblem::BadMimic {
+                joint: joint.name.clone(),
+                target: m.joint.clone(),
+            });
+        };
+        let multiplier = finite(m.multiplier.unwrap_or(1.0), || {
+            format!("the mimic multiplier of `{}`", joint.name)
+        })?;
+        let offset = finite(m.offset.unwrap_or(0.0), || {
+            format!("the mimic offset of `{}`", joint.name)
+        })?;
+        joint.mimic = Some(Mimic {
+            dof,
+            multiplier,
+            offset,
+        });
+    }
+    Ok(KinematicTree::from_parts(robot.name.clone(), links, warnings))
+}
+
+/// Where a mesh `filename` from a URDF in `base_dir` lives on disk, if it can be found:
+/// `package://pkg/rest` is looked for as `A/rest` for an ancestor `A` of `base_dir` named `pkg`, or as
+/// `A/pkg/rest` for any ancestor `A`; `file://` paths are taken as they are; other paths are relative
+/// to `base_dir`.
+pub fn resolve_mesh_path(filename: &str, base_dir: &Path) -> Option<PathBuf> {
+    let found = |p: PathBuf| p.is_file().then_some(p);
+    if let Some(rest) = filename.strip_prefix("package://") {
+        let (pkg, rel) = rest.split_once('/')?;
+        for a in base_dir.ancestors() {
+            if a.file_name().is_some_and(|n| n == pkg)
+                && let Some(p) = found(a.join(rel))
+            {
+                return Some(p);
+            }
+            if let Some(p) = found(a.join(pkg).join(rel)) {
+                return Some(p);
+            }
+        }
+        None
+    } else if let Some(abs) = filename.strip_prefix("file://") {
+        found(PathBuf::from(abs))
+    } else {
+        found(base_dir.join(filename))
+    }
+}
+
+/// Fills in `bounds` of every mesh whose file can be found and read; warns about the others.
+fn load_mesh_bounds(tree: &mut KinematicTree, base_dir: &Path) {
+    let mut cache: HashMap<String, Option<crate::geometry::Aabb>> = HashMap::new();
+    let mut missing = Vec::new();
+    for link in &mut tree.links {
+        for g in link.visuals.iter_mut().chain(link.collisions.iter_mut()) {
+            if let Shape::Mesh { filename, bounds, .. } = &mut g.shape {
+                *bounds = *cache.entry(filename.clone()).or_insert_with(|| {
+                    let b = resolve_mesh_path(filename, base_dir).and_then(|p| read_mesh_bounds(&p));
+                    if b.is_none() {
+                        missing.push(filename.clone());
+                    }
+                    b
+                });
+            }
+        }
+    }
+    if !missing.is_empty() {
+        tree.warnings.push(format!(
+            "{} mesh file(s) not found or not readable as STL/OBJ (they have no extent): {}",
+            missing.len(),
+            missing.join(", ")
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rpy_is_fixed_axis_xyz() {
+        let (r, p, y) = (0.3f32, -0.7, 1.1);
+        let q = rpy_to_quat(r, p, y);
+        let rx = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), r);
+        let ry = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), p);
+        let rz = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), y);
+        let m = rz * ry * rx;
+        assert!((q.to_rotation_matrix().matrix() - m.matrix()).norm() < 1e-5);
+        let n = UnitQuaternion::from_euler_angles(r, p, y);
+        assert!(q.angle_to(&n) < 1e-5);
+    }
+
+    #[test]
+    fn joint_type_scan_skips_comments_and_transmissions() {
+        let xml = r#"<robot><!-- <joint name="x" type="bogus"/> -->
+            <joint name="a" type='revolute'><parent link="p"/></joint>
+            <transmission><joint name="a"><hardwareInterface/></joint></transmission>
+            <joint  type="ball"   name="b"/></robot>"#;
+        assert_eq!(
+            scan_joint_types(xml),
+            vec![
+                ("a".to_string(), "revolute".to_string()),
+                ("b".to_string(), "ball".to_string())
+            ]
+        );
+    }
+
+    #[test]
+    fn package_paths_resolve_against_ancestors() {
+        let dir = std::env::temp_dir().join(format!("ace_urdf_pkg_{}", std::process::id()));
+        let mesh = dir.join("my_pkg/meshes/a.stl");
+        std::fs::create_dir_all(mesh.parent().unwrap()).unwrap();
+        std::fs::write(&mesh, "solid a\nvertex 0 0 0\nvertex 1 2 3\nendsolid").unwrap();
+        let urdf_dir = dir.join("my_pkg/urdf");
+        std::fs::create_dir_all(&urdf_dir).unwrap();
+        assert_eq!(
+            resolve_mesh_path("package://my_pkg/meshes/a.stl", &urdf_dir),
+            Some(mesh.clone())
+        );
+        assert_eq!(
+            resolve_mesh_path("package://my_pkg/meshes/a.stl", &dir),
+            Some(mesh.clone())
+        );
+        assert_eq!(
+            resolve_mesh_path("../meshes/a.stl", &urdf_dir),
+            Some(urdf_dir.join("../meshes/a.stl"))
+        );
+        let b = read_mesh_bounds(&mesh).unwrap();
+        assert_eq!(b.max, nalgebra::Point3::new(1.0, 2.0, 3.0));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -11,8 +11,10 @@ use serde::{Deserialize, Serialize};
 
 /// A character loaded from a URDF file: its kinematic tree and morphology.
 ///
-/// When a profile file `<stem>.profile.toml` stands beside the URDF it overrides the automatic
-/// morphology analysis (feet, manipulators, wheels, head).
+/// When a profile file `<stem>.profile.toml` stands beside the URDF it sets the rest pose and
+/// overrides the automatic morphology analysis (feet, manipulators, wheels, head), as
+/// `ace_models::morphology::load_character` does for files. Mesh files are not read here, so
+/// mesh-only links have no extent in the analysis.
 #[derive(Asset, TypePath, Clone, Debug)]
 pub struct UrdfAsset {
     /// Links in topological order, joints, geometry.
@@ -67,14 +69,14 @@ impl AssetLoader for UrdfLoader {
         let xml = read_text(reader, ctx).await?;
         let path = ctx.path().to_string();
         let import = |message: String| AceAssetError::Import { path: path.clone(), message };
-        let tree = KinematicTree::from_urdf_str(&xml).map_err(|e| import(e.to_string()))?;
+        let mut tree = KinematicTree::from_urdf_str(&xml).map_err(|e| import(e.to_string()))?;
         let profile_path = ctx.path().path().with_extension("profile.toml");
         let morphology = match ctx.read_asset_bytes(profile_path.clone()).await {
             Ok(bytes) => {
                 let text = String::from_utf8(bytes)
                     .map_err(|_| import(format!("profile {} is not UTF-8 text", profile_path.display())))?;
-                let profile = Profile::from_toml_str(&text)
-                    .map_err(|e| import(format!("profile {}: {e}", profile_path.display())))?;
+                let profile = Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?;
+                profile.apply_rest_pose(&mut tree).map_err(|e| import(e.to_string()))?;
                 Morphology::with_profile(&tree, &profile).map_err(|e| import(e.to_string()))?
             }
             Err(_) => Morphology::analyze(&tree),

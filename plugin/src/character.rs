@@ -1,7 +1,7 @@
 //! Characters: a URDF asset spawned as one entity per link, posed by a [`Pose`] component.
 
 use ace_models::kinematics::CharacterPose;
-use ace_models::nalgebra::{Isometry3, Translation3};
+use ace_models::nalgebra::Isometry3;
 use bevy::prelude::*;
 
 use crate::assets::UrdfAsset;
@@ -46,14 +46,6 @@ pub struct CharacterLink {
     pub index: usize,
 }
 
-/// The neutral pose of a character: neutral joint positions, root at its standing height.
-pub fn neutral_pose(urdf: &UrdfAsset) -> CharacterPose {
-    CharacterPose {
-        root: Isometry3::from_parts(Translation3::new(0.0, 0.0, urdf.tree.standing_root_height()), Default::default()),
-        q: urdf.tree.neutral_q(),
-    }
-}
-
 /// Spawns link entities for characters whose URDF has finished loading.
 pub(crate) fn spawn_characters(
     mut commands: Commands,
@@ -76,7 +68,7 @@ pub(crate) fn spawn_characters(
         let mut e = commands.entity(entity);
         e.insert(CharacterLinks(links));
         if pose.is_none() {
-            e.insert(Pose(neutral_pose(urdf)));
+            e.insert(Pose(urdf.tree.standing_pose()));
         }
         #[cfg(feature = "render")]
         e.insert_if_new(Visibility::default());
