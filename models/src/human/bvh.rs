@@ -1,0 +1,553 @@
+//! A small, strict BVH reader: hierarchy (joints, offsets, channels, end sites) and motion values.
+//!
+//! Errors carry the line number and say what was expected; nothing here panics on bad input.
+
+use nalgebra::Vector3;
+
+use super::error::HumanImportError;
+
+/// A coordinate axis of the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    /// 0, 1 or 2.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// One animation channel of a joint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    Position(Axis),
+    Rotation(Axis),
+}
+
+/// A joint of the BVH hierarchy.
+#[derive(Clone, Debug)]
+pub struct BvhJoint {
+    pub name: String,
+    pub parent: Option<usize>,
+    pub offset: Vector3<f32>,
+    /// Channels in file order; rotations compose in this order (R = R_first · R_second · R_third).
+    pub channels: Vec<Channel>,
+    /// Index of this joint's first value within a frame line.
+    pub first_channel: usize,
+    /// Offsets of `End Site` children.
+    pub end_sites: Vec<Vector3<f32>>,
+    /// Line of the `ROOT`/`JOINT` keyword.
+    pub line: usize,
+}
+
+/// A parsed BVH file. Joints are in file order, so parents come before their children.
+#[derive(Clone, Debug)]
+pub struct Bvh {
+    pub joints: Vec<BvhJoint>,
+    /// Values per frame line.
+    pub channel_count: usize,
+    /// Seconds per frame.
+    pub frame_time: f32,
+    pub frame_count: usize,
+    /// `frame_count × channel_count` values, frame-major.
+    pub values: Vec<f32>,
+}
+
+impl Bvh {
+    /// The values of frame `i`.
+    pub fn frame(&self, i: usize) -> &[f32] {
+        &self.values[i * self.channel_count..(i + 1) * self.channel_count]
+    }
+
+    /// Children of joint `j`.
+    pub fn children(&self, j: usize) -> impl Iterator<Item = usize> + '_ {
+        self.joints
+            .iter()
+            .enumerate()
+            .filter(move |(_, b)| b.parent == Some(j))
+            .map(|(i, _)| i)
+    }
+
+    /// Parse BVH text; `file` names the source in error messages.
+    pub fn parse(text: &str, file: &str) -> Result<Bvh, HumanImportError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let err = |line: usize, message: String| HumanImportError::Parse {
+            file: file.to_string(),
+            line,
+            message,
+        };
+
+        // Split at the MOTION keyword (first token of its line).
+        let mut motion_line = None;
+        let mut lines = text.lines().enumerate();
+        let mut tokens: Vec<(&str, usize)> = Vec::new();
+        for (i, line) in lines.by_ref() {
+            let first = line.split_ascii_whitespace().next();
+            if first.is_some_and(|t| t.eq_ignore_ascii_case("MOTION")) {
+                motion_line = Some(i + 1);
+                break;
+            }
+            for word in line.split_ascii_whitespace() {
+                split_braces(word, i + 1, &mut tokens);
+            }
+        }
+        let last_line = text.lines().count().max(1);
+        let mut parser = HierarchyParser {
+            tokens: &tokens,
+            pos: 0,
+            joints: Vec::new(),
+            channels: 0,
+            file,
+        };
+        match tokens.first() {
+            Some((t, _)) if t.eq_ignore_ascii_case("HIERARCHY") => parser.pos = 1,
+            Some((t, l)) => return Err(err(*l, format!("expected `HIERARCHY`, found `{t}`"))),
+            None => {
+                let line = motion_line.unwrap_or(last_line);
+                return Err(err(line, "missing HIERARCHY section".into()));
+            }
+        }
+        let end_line = motion_line.unwrap_or(last_line);
+        parser.parse_roots(end_line)?;
+        let Some(motion_line) = motion_line else {
+            return Err(err(
+                last_line,
+                "missing MOTION section (file ends after the hierarchy)".into(),
+            ));
+        };
+        let HierarchyParser {
+            joints,
+            channels: channel_count,
+            ..
+        } = parser;
+
+        // Header: `Frames: N` and `Frame Time: t` (possibly with tabs, possibly blank lines between).
+        let mut header = lines.by_ref().filter(|(_, l)| !l.trim().is_empty());
+        let (frames_line, frame_count) = match header.next() {
+            Some((i, l)) => {
+                let rest = strip_keyword(l, &["Frames:"]).ok_or_else(|| {
+                    err(
+                        i + 1,
+                        format!(
+                            "expected `Frames: <count>` after MOTION, found `{}`",
+                            l.trim()
+                        ),
+                    )
+                })?;
+                let n = rest.trim().parse::<usize>().map_err(|_| {
+                    err(
+                        i + 1,
+                        format!(
+                            "`Frames:` count `{}` is not a non-negative integer",
+                            rest.trim()
+                        ),
+                    )
+                })?;
+                (i + 1, n)
+            }
+            None => {
+                return Err(err(
+                    motion_line,
+                    "MOTION section has no `Frames:` line".into(),
+                ));
+            }
+        };
+        let frame_time = match header.next() {
+            Some((i, l)) => {
+                let rest = strip_keyword(l, &["Frame Time:", "FrameTime:"]).ok_or_else(|| {
+                    err(
+                        i + 1,
+                        format!("expected `Frame Time: <seconds>`, found `{}`", l.trim()),
+                    )
+                })?;
+                let t = rest
+                    .trim()
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|t| t.is_finite() && *t > 0.0);
+                t.ok_or_else(|| {
+                    err(
+                        i + 1,
+                        format!("`Frame Time:` `{}` is not a positive number", rest.trim()),
+                    )
+                })?
+            }
+            None => {
+                return Err(err(
+                    frames_line,
+                    "MOTION section has no `Frame Time:` line".into(),
+                ));
+            }
+        };
+        if frame_count == 0 {
+            return Err(err(
+                frames_line,
+                "`Frames: 0`: the clip has no motion".into(),
+            ));
+        }
+
+        let mut values = Vec::with_capacity(frame_count * channel_count);
+        let mut found = 0;
+        let mut last = frames_line + 1;
+        for (i, line) in lines {
+            if found == frame_count {
+                break; // trailing lines beyond the declared count are ignored
+            }
+            last = i + 1;
+            let before = values.len();
+            for (k, tok) in line.split_ascii_whitespace().enumerate() {
+                if k >= channel_count {
+                    let n = line.split_ascii_whitespace().count();
+                    return Err(err(
+                        i + 1,
+                        format!("expected {channel_count} values, found {n}"),
+                    ));
+                }
+                match tok.parse::<f32>() {
+                    Ok(v) if v.is_finite() => values.push(v),
+                    Ok(_) => {
+                        return Err(err(i + 1, format!("value {} `{tok}` is not finite", k + 1)));
+                    }
+                    Err(_) => {
+                        return Err(err(
+                            i + 1,
+                            format!("value {} `{tok}` is not a number", k + 1),
+                        ));
+                    }
+                }
+            }
+            let n = values.len() - before;
+            if n == 0 {
+                continue; // blank line
+            }
+            if n != channel_count {
+                return Err(err(
+                    i + 1,
+                    format!("expected {channel_count} values, found {n}"),
+                ));
+            }
+            found += 1;
+        }
+        if found < frame_count {
+            return Err(HumanImportError::Truncated {
+                file: file.to_string(),
+                line: last,
+                declared: frame_count,
+                found,
+            });
+        }
+        Ok(Bvh {
+            joints,
+            channel_count,
+            frame_time,
+            frame_count,
+            values,
+        })
+    }
+}
+
+/// `rest` of `line` after one of `keywords` (case-insensitive; whitespace inside the keyword may vary).
+fn strip_keyword<'a>(line: &'a str, keywords: &[&str]) -> Option<&'a str> {
+    let line = line.trim_start();
+    for kw in keywords {
+        // Compare ignoring whitespace runs, e.g. "Frame  Time:" or "Frame\tTime:".
+        let mut rest = line;
+        let mut ok = true;
+        for (n, part) in kw.split(' ').enumerate() {
+            if n > 0 {
+                let trimmed = rest.trim_start();
+                if trimmed.len() == rest.len() {
+                    ok = false;
+                    break;
+                }
+                rest = trimmed;
+            }
+            if rest.len() >= part.len() && rest[..part.len()].eq_ignore_ascii_case(part) {
+                rest = &rest[part.len()..];
+            } else {
+                ok = false;
+                break;
+            }
+        }
+        if ok {
+            return Some(rest);
+        }
+    }
+    None
+}
+
+/// Push `word` as tokens, with `{` and `}` split off as tokens of their own.
+fn split_braces<'a>(word: &'a str, line: usize, out: &mut Vec<(&'a str, usize)>) {
+    let mut start = 0;
+    for (i, c) in word.char_indices() {
+        if c == '{' || c == '}' {
+            if i > start {
+                out.push((&word[start..i], line));
+            }
+            out.push((&word[i..i + 1], line));
+            start = i + 1;
+        }
+    }
+    if start < word.len() {
+        out.push((&word[start..], line));
+    }
+}
+
+struct HierarchyParser<'t, 'a> {
+    tokens: &'t [(&'a str, usize)],
+    pos: usize,
+    joints: Vec<BvhJoint>,
+    channels: usize,
+    file: &'t str,
+}
+
+impl<'a> HierarchyParser<'_, 'a> {
+    fn err(&self, line: usize, message: String) -> HumanImportError {
+        HumanImportError::Parse {
+            file: self.file.to_string(),
+            line,
+            message,
+        }
+    }
+
+    fn next(&mut self, end_line: usize, what: &str) -> Result<(&'a str, usize), HumanImportError> {
+        match self.tokens.get(self.pos) {
+            Some(&(t, l)) => {
+                self.pos += 1;
+                Ok((t, l))
+            }
+            None => Err(self.err(
+                end_line,
+                format!("unexpected end of hierarchy: expected {what}"),
+            )),
+        }
+    }
+
+    fn number(&mut self, end_line: usize, what: &str) -> Result<f32, HumanImportError> {
+        let (t, l) = self.next(end_line, what)?;
+        match t.parse::<f32>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(self.err(l, format!("expected {what}, found `{t}`"))),
+        }
+    }
+
+    fn parse_roots(&mut self, end_line: usize) -> Result<(), HumanImportError> {
+        while self.pos < self.tokens.len() {
+            let (t, l) = self.next(end_line, "ROOT")?;
+            if t.eq_ignore_ascii_case("ROOT") {
+                self.parse_joint(None, l, end_line)?;
+            } else if t == "}" {
+                return Err(self.err(l, "unbalanced braces: `}` without a matching `{`".into()));
+            } else {
+                return Err(self.err(l, format!("expected `ROOT` or `MOTION`, found `{t}`")));
+            }
+        }
+        if self.joints.is_empty() {
+            return Err(self.err(end_line, "the hierarchy has no ROOT joint".into()));
+        }
+        Ok(())
+    }
+
+    /// Parse a joint after its `ROOT`/`JOINT` keyword at `line`.
+    fn parse_joint(
+        &mut self,
+        parent: Option<usize>,
+        line: usize,
+        end_line: usize,
+    ) -> Result<(), HumanImportError> {
+        // The name is every token on the keyword's line up to `{` (names may contain spaces).
+        let mut name_parts = Vec::new();
+        while let Some(&(t, l)) = self.tokens.get(self.pos) {
+            if l != line || t == "{" || t == "}" {
+                break;
+            }
+            name_parts.push(t);
+            self.pos += 1;
+        }
+        if name_parts.is_empty() {
+            return Err(self.err(line, "joint without a name".into()));
+        }
+        let name = name_parts.join(" ");
+        let (t, l) = self.next(end_line, "`{`")?;
+        if t != "{" {
+            return Err(self.err(
+                l,
+                format!("expected `{{` after joint `{name}`, found `{t}`"),
+            ));
+        }
+        let index = self.joints.len();
+        self.joints.push(BvhJoint {
+            name: name.clone(),
+            parent,
+            offset: Vector3::zeros(),
+            channels: Vec::new(),
+            first_channel: self.channels,
+            end_sites: Vec::new(),
+            line,
+        });
+        let mut has_offset = false;
+        loop {
+            let Some(&(t, l)) = self.tokens.get(self.pos) else {
+                return Err(self.err(
+                    end_line,
+                    format!(
+                        "unbalanced braces: `{{` of joint `{name}` (line {line}) is never closed"
+                    ),
+                ));
+            };
+            self.pos += 1;
+            if t == "}" {
+                break;
+            } else if t.eq_ignore_ascii_case("OFFSET") {
+                let mut o = Vector3::zeros();
+                for k in 0..3 {
+                    o[k] = self.number(end_line, "an OFFSET coordinate")?;
+                }
+                self.joints[index].offset = o;
+                has_offset = true;
+            } else if t.eq_ignore_ascii_case("CHANNELS") {
+                let (n, nl) = self.next(end_line, "the channel count")?;
+                let n: usize = n
+                    .parse()
+                    .map_err(|_| self.err(nl, format!("channel count `{n}` is not an integer")))?;
+                if !self.joints[index].channels.is_empty() {
+                    return Err(self.err(nl, format!("joint `{name}` has two CHANNELS lines")));
+                }
+                for _ in 0..n {
+                    let (c, cl) = self.next(end_line, "a channel name")?;
+                    let ch = parse_channel(c).ok_or_else(|| {
+                        self.err(cl, format!("unknown channel `{c}` in joint `{name}`"))
+                    })?;
+                    self.joints[index].channels.push(ch);
+                }
+                self.joints[index].first_channel = self.channels;
+                self.channels += n;
+            } else if t.eq_ignore_ascii_case("JOINT") {
+                self.parse_joint(Some(index), l, end_line)?;
+            } else if t.eq_ignore_ascii_case("End") {
+                let (s, sl) = self.next(end_line, "`Site`")?;
+                if !s.eq_ignore_ascii_case("Site") {
+                    return Err(self.err(sl, format!("expected `End Site`, found `End {s}`")));
+                }
+                // Some exporters name end sites; skip anything up to the brace on that line.
+                while self
+                    .tokens
+                    .get(self.pos)
+                    .is_some_and(|&(t, tl)| tl == sl && t != "{")
+                {
+                    self.pos += 1;
+                }
+                let (b, bl) = self.next(end_line, "`{`")?;
+                if b != "{" {
+                    return Err(
+                        self.err(bl, format!("expected `{{` after `End Site`, found `{b}`"))
+                    );
+                }
+                let mut o = Vector3::zeros();
+                let (k, kl) = self.next(end_line, "OFFSET")?;
+                if !k.eq_ignore_ascii_case("OFFSET") {
+                    return Err(self.err(kl, format!("expected OFFSET in `End Site`, found `{k}`")));
+                }
+                for c in 0..3 {
+                    o[c] = self.number(end_line, "an OFFSET coordinate")?;
+                }
+                let (b, bl) = self.next(end_line, "`}`")?;
+                if b != "}" {
+                    return Err(
+                        self.err(bl, format!("expected `}}` closing `End Site`, found `{b}`"))
+                    );
+                }
+                self.joints[index].end_sites.push(o);
+            } else if t == "{" {
+                return Err(self.err(
+                    l,
+                    format!("unbalanced braces: unexpected `{{` in joint `{name}`"),
+                ));
+            } else {
+                return Err(self.err(l, format!("unexpected `{t}` in joint `{name}`")));
+            }
+        }
+        if !has_offset {
+            return Err(self.err(line, format!("joint `{name}` has no OFFSET")));
+        }
+        Ok(())
+    }
+}
+
+fn parse_channel(c: &str) -> Option<Channel> {
+    let lower = c.to_ascii_lowercase();
+    let axis = match lower.as_bytes().first()? {
+        b'x' => Axis::X,
+        b'y' => Axis::Y,
+        b'z' => Axis::Z,
+        _ => return None,
+    };
+    match &lower[1..] {
+        "position" => Some(Channel::Position(axis)),
+        "rotation" => Some(Channel::Rotation(axis)),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SMALL: &str = "HIERARCHY\nROOT Hips\n{\n OFFSET 0 1 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n JOINT Left Leg{\n  OFFSET 0.1 -0.5 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 -0.4 0\n  }\n }\n}\nMOTION\nFrames:\t2\nFrame Time: 0.5\n0 1 0 0 0 0 1 2 3\n\n0 1 0 0 0 0 1 2 3e-1\n";
+
+    #[test]
+    fn parses_a_small_file() {
+        let b = Bvh::parse(SMALL, "small.bvh").unwrap();
+        assert_eq!(b.joints.len(), 2);
+        assert_eq!(b.joints[1].name, "Left Leg");
+        assert_eq!(b.joints[1].parent, Some(0));
+        assert_eq!(b.joints[1].first_channel, 6);
+        assert_eq!(b.joints[1].end_sites.len(), 1);
+        assert_eq!(b.channel_count, 9);
+        assert_eq!(b.frame_count, 2);
+        assert!((b.frame(1)[8] - 0.3).abs() < 1e-6);
+        assert_eq!(b.frame_time, 0.5);
+    }
+
+    fn parse_err(text: &str) -> String {
+        Bvh::parse(text, "bad.bvh").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn reports_bad_input_with_line_numbers() {
+        let e = parse_err(&SMALL.replace("1 2 3e-1", "1 2"));
+        assert!(
+            e.contains("bad.bvh, line 20: expected 9 values, found 8"),
+            "{e}"
+        );
+        let e = parse_err(&SMALL.replace("1 2 3e-1", "1 2 abc"));
+        assert!(
+            e.contains("line 20") && e.contains("`abc` is not a number"),
+            "{e}"
+        );
+        let e = parse_err(&SMALL.replace("Frames:\t2", "Frames: 3"));
+        assert!(
+            e.contains("truncated") && e.contains("Frames: 3") && e.contains("only 2"),
+            "{e}"
+        );
+        let e = parse_err(&SMALL.replace("MOTION", "MOTIONS"));
+        assert!(e.contains("bad.bvh") && e.contains("MOTIONS"), "{e}");
+        let e = parse_err(SMALL.split("MOTION").next().unwrap());
+        assert!(e.contains("missing MOTION"), "{e}");
+        let e = parse_err(&SMALL.replacen(" }\n}\n", " }\n", 1));
+        assert!(e.contains("unbalanced braces") && e.contains("Hips"), "{e}");
+        let e = parse_err(&SMALL.replace("HIERARCHY", ""));
+        assert!(e.contains("expected `HIERARCHY`"), "{e}");
+        let e = parse_err(&SMALL.replace(
+            "Zrotation Xrotation Yrotation\n  End",
+            "Zrotation Xrotation Wrotation\n  End",
+        ));
+        assert!(e.contains("line 8") && e.contains("Wrotation"), "{e}");
+        let e = parse_err("");
+        assert!(e.contains("missing HIERARCHY"), "{e}");
+    }
+}

@@ -1,0 +1,154 @@
+//! Imported human clips on the canonical skeleton: frames, timing, resampling and interpolation.
+
+use std::path::Path;
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::error::HumanImportError;
+use super::mapping::JointMapping;
+use super::skeleton::{JOINT_COUNT, Joint};
+
+/// One frame: world positions of the 17 canonical joints (metres, z up) and the pelvis' world
+/// orientation (its local x = facing direction, z = up when standing upright).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HumanFrame {
+    pub positions: [Vector3<f32>; JOINT_COUNT],
+    pub root_rotation: UnitQuaternion<f32>,
+}
+
+impl HumanFrame {
+    /// Position of canonical joint `j`.
+    pub fn position(&self, j: Joint) -> Vector3<f32> {
+        self.positions[j.index()]
+    }
+
+    /// The facing direction: the pelvis' local x projected on the ground (not normalised; may be ~0
+    /// when the pelvis faces straight up or down).
+    pub fn forward(&self) -> Vector3<f32> {
+        let x = self.root_rotation * Vector3::x();
+        Vector3::new(x.x, x.y, 0.0)
+    }
+
+    /// Linear interpolation of positions and slerp of the root rotation, `s` in [0, 1].
+    pub fn lerp(&self, other: &HumanFrame, s: f32) -> HumanFrame {
+        HumanFrame {
+            positions: std::array::from_fn(|k| self.positions[k].lerp(&other.positions[k], s)),
+            root_rotation: self
+                .root_rotation
+                .try_slerp(&other.root_rotation, s, 1e-6)
+                .unwrap_or(if s < 0.5 {
+                    self.root_rotation
+                } else {
+                    other.root_rotation
+                }),
+        }
+    }
+}
+
+/// Options of [`HumanClip::from_bvh_file`] and [`HumanClip::from_bvh_str`].
+#[derive(Clone, Debug, Default)]
+pub struct ImportOptions {
+    /// Resample to this frame rate (frames per second); `None` keeps the file's rate.
+    pub fps: Option<f32>,
+    /// Joint names (and unit/up overrides) for skeletons the automatic matching cannot handle.
+    pub mapping: Option<JointMapping>,
+}
+
+/// A human motion clip on the canonical 17-joint skeleton, in metres, z up.
+#[derive(Clone, Debug)]
+pub struct HumanClip {
+    /// File stem (or the name given to [`HumanClip::from_bvh_str`]).
+    pub name: String,
+    /// Recognised skeleton convention (see [`crate::human::conventions`]), e.g. `cmu-cgspeed-mb`,
+    /// `daz`, `iclone`, `humanik`, `bandai`, `mixamo`, `lafan1`, or `user-mapping` / `generic`.
+    pub convention: String,
+    /// Detected (or overridden) unit, e.g. `cmu`, `cm`, `m`, `inch`, or
+    /// `unknown (normalised to 1.70 m)`.
+    pub unit: String,
+    /// Frame rate of the file.
+    pub source_fps: f32,
+    /// Frame rate of `frames`.
+    pub fps: f32,
+    pub frames: Vec<HumanFrame>,
+    /// Standing height (feet to top of head), metres.
+    pub height_m: f32,
+    /// Number of canonical joints mapped (17 when import succeeded).
+    pub mapped_joints: usize,
+    /// The BVH joint each canonical joint came from, in [`Joint::ALL`] order
+    /// (`midpoint(A, B)` where a joint was placed between two).
+    pub source_joints: [String; JOINT_COUNT],
+}
+
+impl HumanClip {
+    /// Import a BVH file. The clip is named after the file stem.
+    pub fn from_bvh_file(path: &Path, opts: &ImportOptions) -> Result<HumanClip, HumanImportError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|source| HumanImportError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        let text = String::from_utf8_lossy(&bytes);
+        let mut clip = super::import::import(&text, &file, opts)?;
+        clip.name = path
+            .file_stem()
+            .map_or(file, |s| s.to_string_lossy().into_owned());
+        Ok(clip)
+    }
+
+    /// Import BVH text; `name` names the clip and appears in error messages.
+    pub fn from_bvh_str(
+        text: &str,
+        name: &str,
+        opts: &ImportOptions,
+    ) -> Result<HumanClip, HumanImportError> {
+        super::import::import(text, name, opts)
+    }
+
+    /// Seconds from the first to the last frame.
+    pub fn duration(&self) -> f32 {
+        self.frames.len().saturating_sub(1) as f32 / self.fps
+    }
+
+    /// The pose at time `t` seconds, interpolated between frames and clamped to the clip.
+    ///
+    /// # Panics
+    /// If the clip has no frames (imported clips always have at least one).
+    pub fn frame_at(&self, t: f32) -> HumanFrame {
+        let last = self.frames.len() - 1;
+        let mut x = (t * self.fps).clamp(0.0, last as f32);
+        // Snap times that fall on a frame (up to rounding) onto it, so resampling reproduces frames exactly.
+        if (x - x.round()).abs() < 1e-3 {
+            x = x.round();
+        }
+        let i = (x.floor() as usize).min(last);
+        let s = x - i as f32;
+        if i == last || s <= 0.0 {
+            self.frames[i].clone()
+        } else {
+            self.frames[i].lerp(&self.frames[i + 1], s)
+        }
+    }
+
+    /// The clip resampled to `fps` frames per second (linear positions, slerp rotations). The first
+    /// frame is kept; frames follow every 1/fps seconds up to the clip's duration.
+    pub fn resampled(&self, fps: f32) -> HumanClip {
+        assert!(
+            fps.is_finite() && fps > 0.0,
+            "resampled: fps must be positive, got {fps}"
+        );
+        // Tolerate rounding so that e.g. 120 → 30 fps keeps a last frame that falls exactly on the end.
+        let count = (self.duration() * fps + 1e-3).floor() as usize + 1;
+        let frames = (0..count).map(|k| self.frame_at(k as f32 / fps)).collect();
+        HumanClip {
+            name: self.name.clone(),
+            convention: self.convention.clone(),
+            unit: self.unit.clone(),
+            source_fps: self.source_fps,
+            fps,
+            frames,
+            height_m: self.height_m,
+            mapped_joints: self.mapped_joints,
+            source_joints: self.source_joints.clone(),
+        }
+    }
+}

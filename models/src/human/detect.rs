@@ -1,0 +1,122 @@
+//! What the importer infers from the posed skeleton: how position channels combine with OFFSETs,
+//! the up axis, leading rest-pose frames, and the true frame rate.
+
+use nalgebra::Vector3;
+
+use super::bvh::{Bvh, Channel};
+use super::fk::Translation;
+use super::matching::SkeletonMap;
+use super::skeleton::{JOINT_COUNT, Joint};
+use super::tracks::{Tracks, leg_length, lowest_foot, median, track};
+use super::units::UpAxis;
+
+/// Up direction from the posture: feet-to-head, averaged over frames.
+pub(super) fn detect_up(tracks: &Tracks) -> UpAxis {
+    let mut sum = Vector3::zeros();
+    for p in &tracks.joints {
+        let feet = (p[Joint::LeftFoot.index()] + p[Joint::RightFoot.index()]) * 0.5;
+        let v = p[Joint::Head.index()] - feet;
+        if let Some(n) = v.try_normalize(1e-12) {
+            sum += n;
+        }
+    }
+    UpAxis::nearest(&sum)
+}
+
+/// Choose per joint how position channels combine with the OFFSET. Constant channels (Bandai writes
+/// every bone's OFFSET again as channels) are full translations when they equal the OFFSET and
+/// displacements when they are near zero. For channels that move (the root's), the reading that puts the
+/// feet on the floor (file height 0) wins: iClone adds to an OFFSET of (0, 105, 0), while MotionBuilder,
+/// Bandai and LAFAN1 write absolute positions next to an OFFSET equal to the first frame's.
+pub(super) fn detect_translation(bvh: &Bvh, map: &SkeletonMap) -> Vec<Translation> {
+    let n = bvh.frame_count;
+    let mut modes = vec![Translation::Replace; bvh.joints.len()];
+    let mut moving = Vec::new();
+    for (j, joint) in bvh.joints.iter().enumerate() {
+        let (mut to_offset, mut to_zero, mut range, mut any) = (0.0f32, 0.0f32, 0.0f32, false);
+        for (k, c) in joint.channels.iter().enumerate() {
+            let Channel::Position(axis) = c else { continue };
+            any = true;
+            let col = (0..n).map(|f| bvh.values[f * bvh.channel_count + joint.first_channel + k]);
+            let (lo, hi, sum) = col
+                .fold((f32::INFINITY, f32::NEG_INFINITY, 0.0), |(lo, hi, s), v| {
+                    (lo.min(v), hi.max(v), s + v)
+                });
+            let mean = sum / n as f32;
+            range = range.max(hi - lo);
+            to_offset += (mean - joint.offset[axis.index()]).abs();
+            to_zero += mean.abs();
+        }
+        let size = joint.offset.norm();
+        if !any || size < 1e-6 {
+            continue;
+        }
+        if range > 1e-3 * size {
+            moving.push(j);
+        } else if to_zero < to_offset {
+            modes[j] = Translation::AddToOffset;
+        }
+    }
+    if !moving.is_empty() {
+        let samples: Vec<usize> = (0..n.min(24)).map(|k| k * n / n.min(24)).collect();
+        let score = |modes: &[Translation]| {
+            let t = track(bvh, map, &samples, modes);
+            let up = detect_up(&t).to_z_up().transpose() * Vector3::z();
+            median(lowest_foot(&t, &up)).abs() / leg_length(&t).max(1e-9)
+        };
+        let mut added = modes.clone();
+        for &r in &moving {
+            added[r] = Translation::AddToOffset;
+        }
+        if score(&added) < score(&modes) {
+            modes = added;
+        }
+    }
+    modes
+}
+
+/// Mean displacement of the joints relative to the pelvis from frame `t` to `t + 1`.
+fn pose_step(tracks: &Tracks, t: usize) -> f32 {
+    let (a, b) = (&tracks.joints[t], &tracks.joints[t + 1]);
+    let (pa, pb) = (a[0], b[0]);
+    (0..JOINT_COUNT)
+        .map(|k| ((a[k] - pa) - (b[k] - pb)).norm())
+        .sum::<f32>()
+        / JOINT_COUNT as f32
+}
+
+/// Number of leading frames that are a rest pose and the blend out of it, not motion. cgspeed's CMU
+/// conversions (some MotionBuilder ones, all Daz ones) start with a T-pose frame, the Daz ones then blend
+/// into the motion over a few frames; iClone exports are documented to do the same. Frame 0 counts as a
+/// rest pose when the pose (relative to the pelvis) jumps from it far more than the clip's typical
+/// frame-to-frame motion (or when `forced`); the following frames are dropped while they keep jumping.
+pub(super) fn leading_rest_frames(tracks: &Tracks, leg: f32, forced: Option<bool>) -> usize {
+    let n = tracks.frame_count();
+    if n < 3 || forced == Some(false) {
+        return 0;
+    }
+    let steps: Vec<f32> = (0..n - 1).map(|t| pose_step(tracks, t)).collect();
+    let typical = median(steps.clone());
+    let jump = (5.0 * typical).max(0.02 * leg);
+    let rest = forced == Some(true) || (steps[0] > 0.05 * leg && steps[0] > 8.0 * typical);
+    if !rest {
+        return 0;
+    }
+    // The blend: at most a quarter of the clip, while steps stay above the jump threshold.
+    1 + steps[1..]
+        .iter()
+        .take(n / 4)
+        .take_while(|&&s| s > jump)
+        .count()
+}
+
+/// Frame rates are written as rounded frame times (0.008333 s); snap to the whole rate they round
+/// (120 fps) when within 0.01 %, so that timestamps of resampled clips line up.
+pub(super) fn snap_fps(fps: f32) -> f32 {
+    let r = fps.round();
+    if r > 0.0 && (fps - r).abs() < 1e-4 * fps {
+        r
+    } else {
+        fps
+    }
+}

@@ -1,0 +1,48 @@
+//! Errors of the human motion importer. Every message names the file (or clip name) and the problem.
+
+/// Why a BVH clip (or a joint-mapping file) could not be imported.
+#[derive(Debug, thiserror::Error)]
+pub enum HumanImportError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Malformed BVH text: bad keyword, unbalanced braces, non-numeric value, wrong value count, …
+    #[error("{file}, line {line}: {message}")]
+    Parse {
+        file: String,
+        line: usize,
+        message: String,
+    },
+    /// Fewer motion lines than the `Frames:` header declares.
+    #[error(
+        "{file}, line {line}: truncated: `Frames: {declared}` declared but only {found} motion lines present"
+    )]
+    Truncated {
+        file: String,
+        line: usize,
+        declared: usize,
+        found: usize,
+    },
+    /// Some canonical joints could not be matched to BVH joints.
+    #[error(
+        "{file}: unknown skeleton: could not map canonical joint(s) {}; BVH joints available: {}. \
+         Name them in a joint-mapping file (e.g. `left_hand = \"MyLeftWrist\"`).",
+        missing.join(", "),
+        available.join(", ")
+    )]
+    Unmapped {
+        file: String,
+        missing: Vec<String>,
+        available: Vec<String>,
+    },
+    /// A joint-mapping file (or its use on a clip) is invalid.
+    #[error("{file}: invalid joint mapping: {message}")]
+    Mapping { file: String, message: String },
+    /// The skeleton or motion is unusable (degenerate bones, no frames, implausible geometry).
+    #[error("{file}: {message}")]
+    Skeleton { file: String, message: String },
+}
