@@ -10,11 +10,15 @@
 pub use nalgebra;
 
 pub mod character_state;
+pub mod controller;
+pub mod dataset;
+pub mod features;
 pub mod frame;
 pub mod geometry;
 pub mod human;
 pub mod kinematics;
 #[cfg(feature = "learn")]
 pub mod learn;
+pub mod metrics;
 pub mod morphology;
 pub mod urdf;

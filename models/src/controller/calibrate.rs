@@ -1,0 +1,509 @@
+//! Leg calibration for [`super::Rig`]: what each leg can do, found by IK and collision tests rather
+//! than assumed.
+//!
+//! - **Reach**: the maximal hip–foot distance, by sampling the leg's joint space.
+//! - **Nominal height**: the standing root height, lowered until no leg is stretched beyond
+//!   [`super::LegConfig::max_extension`] of its reach, so that legs are bent and can step. The nominal
+//!   joint vector is the IK solution with every foot under its standing position.
+//! - **Step radius** `r_max` per leg: the largest horizontal distance from the nominal foothold at which
+//!   IK still reaches the ground point within 0.3 mm, with joints in limits, the leg clear of the body
+//!   and the other legs, and nothing of the leg below the ground, for the lowest and highest body height
+//!   and the extreme pitch and roll (bisection over 8 directions); times 0.9, and at most 0.35 × the
+//!   distance to the nearest foot on the same side (neighbours swinging past each other at full stride
+//!   keep apart) and 0.45 × the distance to the nearest foot across the body.
+//! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
+//!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
+//! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
+//!   below the ground at some posture with its foot point on the ground keeps the foot point that much
+//!   above the ground in stance (e.g. a sphere foot whose point was found at a straight-legged neutral
+//!   pose).
+//! - **Swing height**: [`super::LegConfig::swing_height`] × the leg length, lowered until the lifted foot
+//!   is reachable with the body at its lowest.
+
+use nalgebra::{Isometry3, Point3, Vector2};
+use rand::SeedableRng;
+
+use super::chain::{Chain, ChainScratch};
+use super::collide::{Obb, Proxies};
+use super::rig::{Leg, Obstacle, finite_limits, subtree, tilted_root};
+use super::{ControllerError, uniform};
+use crate::geometry::Shape;
+use crate::kinematics::{CharacterPose, KinematicTree};
+use crate::morphology::Morphology;
+
+/// IK tolerance in calibration (m).
+const IK_TOL: f32 = 1e-5;
+/// Largest IK error at which a calibration pose counts as reached (m).
+const REACHED: f32 = 3e-4;
+/// Joint-space samples for a leg's reach.
+const REACH_SAMPLES: usize = 512;
+
+/// Body heights and tilts a leg must cope with: `(root height, pitch, roll)`.
+pub type Posture = (f32, f32, f32);
+
+/// The extremes of a height range and tilt.
+pub fn postures(height: [f32; 2], tilt: [f32; 2]) -> [Posture; 6] {
+    [
+        (height[0], 0.0, 0.0),
+        (height[1], 0.0, 0.0),
+        (height[0], tilt[0], tilt[1]),
+        (height[0], -tilt[0], -tilt[1]),
+        (height[1], tilt[0], -tilt[1]),
+        (height[1], -tilt[0], tilt[1]),
+    ]
+}
+
+/// How far a foot's own geometry may dip below the ground while its foot point stays on it (a sphere
+/// rolling about its sole point): 0.5 % of the standing height, at least 1 mm.
+pub fn dip_tolerance(tree: &KinematicTree, standing: &CharacterPose) -> f32 {
+    let b = tree.aabb(&tree.forward_kinematics(standing));
+    (0.005 * (b.max.z - b.min.z)).max(1e-3)
+}
+
+/// The legs of a character with their chains, hips, standing footholds and reach (`length` holds the
+/// reach until [`nominal_stance`] sets the nominal length).
+pub fn legs(tree: &KinematicTree, morph: &Morphology, standing: &CharacterPose) -> Result<Vec<Leg>, ControllerError> {
+    let links = tree.forward_kinematics(&CharacterPose {
+        root: Isometry3::identity(),
+        q: standing.q.clone(),
+    });
+    let mut scratch = ChainScratch::default();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(0x1e65);
+    let mut legs = Vec::new();
+    for &foot in &morph.feet {
+        let chain = Chain::new(tree, morph, foot);
+        let Some(first) = chain.first_moving() else {
+            return Err(leg_error(
+                tree,
+                foot,
+                "no movable joint between the root and the foot".into(),
+            ));
+        };
+        let hip = links[chain.links[first]].translation.vector;
+        let sole = morph.ee_point(foot, &links).coords;
+        let mut q = standing.q.clone();
+        let mut reach = (chain.tip_point(tree, &q, &mut scratch).coords - hip).norm();
+        for _ in 0..REACH_SAMPLES {
+            for d in chain.active_dofs() {
+                let (lo, hi) = finite_limits(tree, d, standing.q[d]);
+                q[d] = uniform(&mut rng, lo, hi);
+            }
+            reach = reach.max((chain.tip_point(tree, &q, &mut scratch).coords - hip).norm());
+        }
+        legs.push(Leg {
+            links: subtree(tree, chain.links[first]),
+            chain,
+            foot,
+            hip,
+            nominal: Vector2::new(sole.x, sole.y),
+            length: reach,
+            r_max: 0.0,
+            swing_height: 0.0,
+            sole: 0.0,
+        });
+    }
+    Ok(legs)
+}
+
+fn leg_error(tree: &KinematicTree, foot: usize, problem: String) -> ControllerError {
+    ControllerError::Leg {
+        foot: tree.links[foot].name.clone(),
+        problem,
+    }
+}
+
+/// The nominal root height (see the module docs) and the joint vector with every foot under its
+/// standing position; sets each leg's nominal `length`.
+pub fn nominal_stance(
+    tree: &KinematicTree,
+    legs: &mut [Leg],
+    standing: &CharacterPose,
+    max_extension: f32,
+) -> Result<(f32, Vec<f32>), ControllerError> {
+    let mut h0 = standing.root.translation.vector.z;
+    for leg in legs.iter() {
+        let dxy = (leg.hip.xy() - leg.nominal).norm();
+        let dmax = max_extension * leg.length;
+        if dmax > dxy {
+            // |hip − foot| at root height h is √(dxy² + (h + hip.z)²).
+            h0 = h0.min((dmax * dmax - dxy * dxy).sqrt() - leg.hip.z);
+        }
+    }
+    let mut q = standing.q.clone();
+    let root = tilted_root(h0, 0.0, 0.0);
+    let mut scratch = ChainScratch::default();
+    for leg in legs.iter_mut() {
+        let target = root.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, 0.0));
+        let r = leg.chain.solve(tree, &mut q, &target, IK_TOL, 300, &mut scratch);
+        if r.error > 1e-3 {
+            return Err(leg_error(
+                tree,
+                leg.foot,
+                format!(
+                    "cannot place the foot under its standing position at body height {h0:.3} m (IK error {:.1} mm)",
+                    r.error * 1e3
+                ),
+            ));
+        }
+        leg.length = (target.coords - leg.hip).norm();
+    }
+    Ok((h0, q))
+}
+
+/// The outcome of [`step_radii`].
+pub struct StepRadii {
+    /// Height range kept (m).
+    pub height: [f32; 2],
+    /// Tilt kept (pitch, roll; rad).
+    pub tilt: [f32; 2],
+}
+
+/// Finds each leg's sole and step radius, shrinking the posture range if needed (module docs); updates
+/// `nominal_q` for the soles. `h0` is the nominal height, `height` and `tilt` the configured range.
+#[allow(clippy::too_many_arguments)]
+pub fn step_radii(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    legs: &mut [Leg],
+    nominal_q: &mut [f32],
+    h0: f32,
+    height: [f32; 2],
+    tilt: [f32; 2],
+    dip_tol: f32,
+) -> Result<StepRadii, ControllerError> {
+    struct Best {
+        worst: f32,
+        radii: Vec<f32>,
+        soles: Vec<f32>,
+        height: [f32; 2],
+        tilt: [f32; 2],
+    }
+    let mut scratch = ChainScratch::default();
+    let root0 = tilted_root(h0, 0.0, 0.0);
+    let mut best: Option<Best> = None;
+    for shrink in [1.0f32, 0.5, 0.25, 0.0] {
+        let hr = [h0 + (height[0] - h0) * shrink, h0 + (height[1] - h0) * shrink];
+        let tl = [tilt[0] * shrink, tilt[1] * shrink];
+        let poses = postures(hr, tl);
+        for leg in legs.iter_mut() {
+            leg.sole = sole(tree, proxies, leg, nominal_q, &poses, dip_tol, &mut scratch);
+            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
+            leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
+        }
+        let scene = Scene::new(proxies, fk_root(tree, nominal_q));
+        let radii: Vec<f32> = (0..legs.len())
+            .map(|i| 0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, &mut scratch))
+            .collect();
+        // The worst leg's radius relative to its length decides.
+        let worst = legs
+            .iter()
+            .zip(&radii)
+            .map(|(l, r)| r / l.length)
+            .fold(f32::INFINITY, f32::min);
+        if best.as_ref().is_none_or(|b| worst > b.worst) {
+            best = Some(Best {
+                worst,
+                radii,
+                soles: legs.iter().map(|l| l.sole).collect(),
+                height: hr,
+                tilt: tl,
+            });
+        }
+        if worst >= 0.12 {
+            break;
+        }
+    }
+    let best = best.expect("at least one posture range is tried");
+    for ((leg, &r), &s) in legs.iter_mut().zip(&best.radii).zip(&best.soles) {
+        leg.r_max = r;
+        if leg.sole != s {
+            leg.sole = s;
+            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
+            leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
+        }
+    }
+    if best.worst < 0.03 {
+        let leg = legs
+            .iter()
+            .min_by(|a, b| (a.r_max / a.length).total_cmp(&(b.r_max / b.length)))
+            .expect("legs");
+        return Err(leg_error(
+            tree,
+            leg.foot,
+            format!(
+                "the foot can hardly move from its nominal foothold (step radius {:.1} mm) without leaving its \
+                 joint limits, colliding with the body or another leg, or sinking into the ground",
+                leg.r_max * 1e3
+            ),
+        ));
+    }
+    Ok(StepRadii {
+        height: best.height,
+        tilt: best.tilt,
+    })
+}
+
+/// The sole height of a leg over `poses` (module docs).
+fn sole(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    leg: &Leg,
+    nominal_q: &[f32],
+    poses: &[Posture],
+    dip_tol: f32,
+    scratch: &mut ChainScratch,
+) -> f32 {
+    let mut dip = 0.0f32;
+    for &(h, pitch, roll) in poses {
+        let root = tilted_root(h, pitch, roll);
+        let mut q = nominal_q.to_vec();
+        let target = root.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, 0.0));
+        leg.chain.solve(tree, &mut q, &target, IK_TOL, 100, scratch);
+        dip = dip.max(-foot_lowest(tree, proxies, leg, &root, &q));
+    }
+    (dip - 0.5 * dip_tol).max(0.0)
+}
+
+/// The step radius of leg `i` (before the 0.9 margin), by bisection.
+#[allow(clippy::too_many_arguments)]
+fn radius(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    scene: &Scene,
+    legs: &[Leg],
+    i: usize,
+    nominal_q: &[f32],
+    poses: &[Posture],
+    dip_tol: f32,
+    scratch: &mut ChainScratch,
+) -> f32 {
+    let leg = &legs[i];
+    let cap = legs
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != i)
+        .map(|(_, o)| {
+            let d = (o.nominal - leg.nominal).norm();
+            let same_side = (o.nominal.y > 0.0) == (leg.nominal.y > 0.0);
+            if same_side { 0.35 * d } else { 0.45 * d }
+        })
+        .fold(0.6 * leg.length, f32::min);
+    let ok = |r: f32, scratch: &mut ChainScratch| {
+        (0..8).all(|k| {
+            let a = k as f32 * std::f32::consts::FRAC_PI_4;
+            let p = leg.nominal + Vector2::new(a.cos(), a.sin()) * r;
+            let foot = Point3::new(p.x, p.y, leg.sole);
+            poses.iter().all(|&(h, pitch, roll)| {
+                let root = tilted_root(h, pitch, roll);
+                leg_pose_ok(tree, proxies, scene, nominal_q, leg, &root, &foot, dip_tol, scratch)
+            })
+        })
+    };
+    if !ok(0.0, scratch) {
+        return 0.0;
+    }
+    if ok(cap, scratch) {
+        return cap;
+    }
+    let (mut lo, mut hi) = (0.0f32, cap);
+    for _ in 0..10 {
+        let mid = 0.5 * (lo + hi);
+        if ok(mid, scratch) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Sets each leg's swing height (module docs).
+pub fn swing_heights(tree: &KinematicTree, legs: &mut [Leg], nominal_q: &[f32], lowest: f32, fraction: f32) {
+    let mut scratch = ChainScratch::default();
+    let root = tilted_root(lowest, 0.0, 0.0);
+    for leg in legs {
+        let mut h = fraction * leg.length;
+        for _ in 0..8 {
+            let target = root.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole + h));
+            let mut q = nominal_q.to_vec();
+            if leg.chain.solve(tree, &mut q, &target, IK_TOL, 100, &mut scratch).error < 1e-3 {
+                break;
+            }
+            h *= 0.7;
+        }
+        leg.swing_height = h;
+    }
+}
+
+/// Boxes of every leg over its workspace — standing at the nominal foothold and at the step radius in
+/// 8 directions, lifted at mid-swing — at both ends of the height range, in the frame of the root at
+/// the nominal height.
+pub fn swept_legs(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    legs: &[Leg],
+    nominal_q: &[f32],
+    h0: f32,
+    height: [f32; 2],
+) -> Vec<Obstacle> {
+    let mut scratch = ChainScratch::default();
+    let root0 = tilted_root(h0, 0.0, 0.0);
+    let mut out = Vec::new();
+    for leg in legs {
+        let mut targets = vec![
+            Point3::new(leg.nominal.x, leg.nominal.y, leg.sole),
+            Point3::new(leg.nominal.x, leg.nominal.y, leg.sole + leg.swing_height),
+        ];
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::FRAC_PI_4;
+            let dir = Vector2::new(a.cos(), a.sin());
+            let p = leg.nominal + dir * leg.r_max;
+            targets.push(Point3::new(p.x, p.y, leg.sole));
+            let p = leg.nominal + dir * (0.6 * leg.r_max);
+            targets.push(Point3::new(p.x, p.y, leg.sole + 0.8 * leg.swing_height));
+        }
+        for &h in &height {
+            let root = tilted_root(h, 0.0, 0.0);
+            for t in &targets {
+                let mut q = nominal_q.to_vec();
+                leg.chain.solve(
+                    tree,
+                    &mut q,
+                    &root.inverse_transform_point(t),
+                    IK_TOL,
+                    100,
+                    &mut scratch,
+                );
+                let links = tree.forward_kinematics(&CharacterPose {
+                    root: root0.inverse() * root,
+                    q,
+                });
+                for &l in &leg.links {
+                    out.extend(proxies.world(l, &links[l]).map(|obb| Obstacle { link: l, obb }));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Lowest z (relative to the root) of the boxes of `links` at root-frame poses `poses` when the body
+/// is tilted by up to `tilt` (pitch, roll) either way.
+pub fn lowest_tilted(proxies: &Proxies, poses: &[Isometry3<f32>], links: &[usize], tilt: [f32; 2]) -> f32 {
+    let mut low = f32::INFINITY;
+    for &(p, r) in &[(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        let rot = tilted_root(0.0, p * tilt[0], r * tilt[1]);
+        for &l in links {
+            for b in proxies.world(l, &(rot * poses[l])) {
+                low = low.min(b.min_z());
+            }
+        }
+    }
+    low
+}
+
+/// Link poses in the root frame for joint vector `q`.
+pub fn fk_root(tree: &KinematicTree, q: &[f32]) -> Vec<Isometry3<f32>> {
+    tree.forward_kinematics(&CharacterPose {
+        root: Isometry3::identity(),
+        q: q.to_vec(),
+    })
+}
+
+/// The nominal pose in the root frame with every link's collision boxes, for leg checks.
+struct Scene {
+    links: Vec<Isometry3<f32>>,
+    boxes: Vec<Vec<Obb>>,
+}
+
+impl Scene {
+    fn new(proxies: &Proxies, links: Vec<Isometry3<f32>>) -> Scene {
+        let boxes = links
+            .iter()
+            .enumerate()
+            .map(|(l, p)| proxies.world(l, p).collect())
+            .collect();
+        Scene { links, boxes }
+    }
+}
+
+/// Poses (root frame) of the links of `leg` for joint vector `q`, the rest from `scene`, into `out`.
+fn leg_poses(tree: &KinematicTree, scene: &Scene, leg: &Leg, q: &[f32], out: &mut Vec<Isometry3<f32>>) {
+    out.clear();
+    out.extend_from_slice(&scene.links);
+    for &l in &leg.links {
+        let link = &tree.links[l];
+        if let (Some(p), Some(j)) = (link.parent, &link.joint) {
+            out[l] = out[p] * j.transform(j.position(q));
+        }
+    }
+}
+
+/// Whether the leg reaches the world point `foot` with the root at `root`, within joint limits, clear
+/// of the rest of the body at the nominal pose and above the ground.
+#[allow(clippy::too_many_arguments)]
+fn leg_pose_ok(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    scene: &Scene,
+    nominal_q: &[f32],
+    leg: &Leg,
+    root: &Isometry3<f32>,
+    foot: &Point3<f32>,
+    dip_tol: f32,
+    scratch: &mut ChainScratch,
+) -> bool {
+    let mut q = nominal_q.to_vec();
+    if leg
+        .chain
+        .solve(tree, &mut q, &root.inverse_transform_point(foot), IK_TOL, 60, scratch)
+        .error
+        > REACHED
+    {
+        return false;
+    }
+    let mut links = Vec::new();
+    leg_poses(tree, scene, leg, &q, &mut links);
+    let on_leg = |b: usize| leg.links.binary_search(&b).is_ok();
+    for &a in &leg.links {
+        let boxes: Vec<Obb> = proxies.world(a, &links[a]).collect();
+        for b in 0..tree.links.len() {
+            if on_leg(b) || !proxies.is_checked(a, b) {
+                continue;
+            }
+            if boxes.iter().any(|x| scene.boxes[b].iter().any(|y| x.overlaps(y, 0.0))) {
+                return false;
+            }
+        }
+    }
+    // Nothing below the ground: `dip_tol` of slack for the foot's own geometry, none for the rest of the
+    // leg. Boxes of meshes on the foot's body are left out (their corners dip although the mesh does
+    // not); the foot point stands for them.
+    leg.links.iter().all(|&l| {
+        let foot_body = proxies.body[l] == proxies.body[leg.foot];
+        let pose = root * links[l];
+        tree.links[l].extent_geometry().iter().all(|g| {
+            if foot_body && matches!(g.shape, Shape::Mesh { .. }) {
+                return true;
+            }
+            g.aabb(&pose)
+                .is_none_or(|b| b.min.z > if foot_body { -dip_tol } else { 0.0 })
+        })
+    })
+}
+
+/// Lowest z of the geometry on the foot's rigid body (boxes of meshes left out) with the root at `root`.
+fn foot_lowest(tree: &KinematicTree, proxies: &Proxies, leg: &Leg, root: &Isometry3<f32>, q: &[f32]) -> f32 {
+    let links = tree.forward_kinematics(&CharacterPose {
+        root: *root,
+        q: q.to_vec(),
+    });
+    leg.links
+        .iter()
+        .filter(|&&l| proxies.body[l] == proxies.body[leg.foot])
+        .flat_map(|&l| tree.links[l].extent_geometry().iter().map(move |g| (l, g)))
+        .filter(|(_, g)| !matches!(g.shape, Shape::Mesh { .. }))
+        .filter_map(|(l, g)| g.aabb(&links[l]))
+        .map(|b| b.min.z)
+        .fold(f32::INFINITY, f32::min)
+}

@@ -1,0 +1,282 @@
+//! Gait patterns built from the leg layout (any number of legs) and chosen by speed.
+//!
+//! A gait is a duty factor (fraction of the cycle a foot is on the ground) and, per leg, the phase of
+//! the cycle at which it lifts off. Patterns come from where the feet are, not from names:
+//! legs are split into left (y > 0) and right, each side ordered front to back.
+//! - **wave**: one leg at a time, back to front on the left, then on the right (for four legs this is the
+//!   lateral-sequence walk); duty `1 − 1/n`.
+//! - **ripple** (three or more legs a side): each side a back-to-front wave, the sides half a cycle apart;
+//!   duty 2/3.
+//! - **alternating**: neighbours in antiphase — the trot for four legs, the tripod for six, alternating
+//!   tetrapods for eight, walking and running for two.
+//! - **bound** and **gallop** (two legs a side): front pair and hind pair half a cycle apart, in phase
+//!   (bound) or split by a tenth of a cycle (transverse gallop).
+//!
+//! Speeds are human-equivalent (m/s divided by the speed scale) and include turning: `|v| + |ω|·R` with
+//! `R` the mean foot distance from the root, so that turning on the spot also steps.
+
+use serde::{Deserialize, Serialize};
+
+/// The gait families (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GaitKind {
+    /// One leg at a time (the quadruped walk).
+    Wave,
+    /// Waves on each side, half a cycle apart.
+    Ripple,
+    /// Neighbours in antiphase (trot, tripod, biped walk/run).
+    Alternating,
+    /// Front and hind pairs in antiphase.
+    Bound,
+    /// Bound with the pairs split (transverse gallop).
+    Gallop,
+}
+
+/// One gait of a character.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gait {
+    /// Family.
+    pub kind: GaitKind,
+    /// Name for reports ("walk", "trot", "tripod", …).
+    pub name: &'static str,
+    /// Lift-off phase of each leg in `[0, 1)`, in leg order.
+    pub offsets: Vec<f32>,
+    /// Duty factor at the gait's lowest and highest speed (interpolated in between).
+    pub duty: [f32; 2],
+    /// Lowest stepping frequency in units of `√(g/L)/2π` (L = leg length), so that small characters
+    /// step faster.
+    pub frequency: f32,
+    /// Human-equivalent speed from which this gait is used.
+    pub from_speed: f32,
+}
+
+/// Foot positions (root frame, x forward, y left) from which patterns are built.
+pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
+    let n = feet_xy.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    if n == 1 {
+        return vec![gait(GaitKind::Alternating, "hop", vec![0.0], [0.5, 0.4], 2.0, 0.0)];
+    }
+    let cx = feet_xy.iter().map(|p| p[0]).sum::<f32>() / n as f32;
+    let mut left: Vec<usize> = (0..n).filter(|&i| feet_xy[i][1] > 0.0).collect();
+    let mut right: Vec<usize> = (0..n).filter(|&i| feet_xy[i][1] <= 0.0).collect();
+    // Front to back.
+    let front_first = |v: &mut Vec<usize>| v.sort_by(|&a, &b| feet_xy[b][0].total_cmp(&feet_xy[a][0]).then(a.cmp(&b)));
+    front_first(&mut left);
+    front_first(&mut right);
+    let mut out = Vec::new();
+    if left.len() == right.len() {
+        let k = left.len();
+        // Wave: back to front on the left, then on the right.
+        let mut wave = vec![0.0; n];
+        for (rank, &leg) in left.iter().rev().chain(right.iter().rev()).enumerate() {
+            wave[leg] = rank as f32 / n as f32;
+        }
+        let alternating: Vec<f32> = (0..n)
+            .map(|leg| {
+                let (side, idx) = match left.iter().position(|&l| l == leg) {
+                    Some(i) => (0, i),
+                    None => (1, right.iter().position(|&l| l == leg).unwrap_or(0)),
+                };
+                if (side + idx) % 2 == 0 { 0.0 } else { 0.5 }
+            })
+            .collect();
+        match k {
+            1 => {
+                out.push(gait(
+                    GaitKind::Alternating,
+                    "walk",
+                    alternating.clone(),
+                    [0.65, 0.55],
+                    1.4,
+                    0.0,
+                ));
+                out.push(gait(GaitKind::Alternating, "run", alternating, [0.42, 0.32], 2.2, 2.0));
+            }
+            2 => {
+                let front = |leg: usize| feet_xy[leg][0] > cx;
+                let bound: Vec<f32> = (0..n).map(|l| if front(l) { 0.5 } else { 0.0 }).collect();
+                let gallop: Vec<f32> = (0..n)
+                    .map(|l| {
+                        let split = if feet_xy[l][1] > 0.0 { 0.0 } else { 0.1 };
+                        if front(l) { 0.45 + split } else { split }
+                    })
+                    .collect();
+                out.push(gait(GaitKind::Wave, "walk", wave, [0.75, 0.7], 1.4, 0.0));
+                out.push(gait(GaitKind::Alternating, "trot", alternating, [0.6, 0.45], 2.2, 1.0));
+                out.push(gait(GaitKind::Gallop, "gallop", gallop, [0.35, 0.25], 2.6, 3.4));
+                out.push(gait(GaitKind::Bound, "bound", bound, [0.4, 0.3], 2.6, 3.4));
+            }
+            _ => {
+                let mut ripple = vec![0.0; n];
+                for (rank, &leg) in left.iter().rev().enumerate() {
+                    ripple[leg] = rank as f32 / k as f32;
+                }
+                for (rank, &leg) in right.iter().rev().enumerate() {
+                    ripple[leg] = (rank as f32 / k as f32 + 0.5).fract();
+                }
+                let wave_duty = 1.0 - 1.0 / n as f32;
+                out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], 1.4, 0.0));
+                out.push(gait(GaitKind::Ripple, "ripple", ripple, [0.67, 0.6], 1.8, 0.7));
+                out.push(gait(
+                    GaitKind::Alternating,
+                    if k == 3 { "tripod" } else { "alternating" },
+                    alternating,
+                    [0.55, 0.42],
+                    2.2,
+                    1.8,
+                ));
+            }
+        }
+    } else {
+        // Irregular layouts: order the feet by angle around their centroid.
+        let cy = feet_xy.iter().map(|p| p[1]).sum::<f32>() / n as f32;
+        let mut order: Vec<usize> = (0..n).collect();
+        let angle = |i: usize| (feet_xy[i][1] - cy).atan2(feet_xy[i][0] - cx);
+        order.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)).then(a.cmp(&b)));
+        let mut wave = vec![0.0; n];
+        let mut alternating = vec![0.0; n];
+        for (rank, &leg) in order.iter().enumerate() {
+            wave[leg] = rank as f32 / n as f32;
+            alternating[leg] = if rank % 2 == 0 { 0.0 } else { 0.5 };
+        }
+        let wave_duty = (1.0 - 1.0 / n as f32).max(0.6);
+        out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], 1.4, 0.0));
+        out.push(gait(
+            GaitKind::Alternating,
+            "alternating",
+            alternating,
+            [0.55, 0.45],
+            2.0,
+            1.0,
+        ));
+    }
+    out
+}
+
+fn gait(
+    kind: GaitKind,
+    name: &'static str,
+    offsets: Vec<f32>,
+    duty: [f32; 2],
+    frequency: f32,
+    from_speed: f32,
+) -> Gait {
+    Gait {
+        kind,
+        name,
+        offsets,
+        duty,
+        frequency,
+        from_speed,
+    }
+}
+
+/// Picks the gait for a speed, with hysteresis, among gaits sorted by `from_speed`. When several gaits
+/// share a threshold (bound and gallop), `variant` picks among them (it is drawn per episode).
+#[derive(Clone, Debug)]
+pub struct GaitSelector {
+    /// Index of the current gait.
+    pub current: usize,
+}
+
+impl GaitSelector {
+    /// Relative hysteresis band around each threshold.
+    pub const BAND: f32 = 0.1;
+
+    /// Updates the current gait for human-equivalent speed `speed`; returns true when it changed.
+    pub fn update(&mut self, gaits: &[Gait], speed: f32, variant: usize) -> bool {
+        let tiers = tiers(gaits);
+        let tier_of = |g: usize| tiers.iter().position(|t| t.contains(&g)).unwrap_or(0);
+        let mut tier = tier_of(self.current);
+        while tier + 1 < tiers.len() && speed > gaits[tiers[tier + 1][0]].from_speed * (1.0 + Self::BAND) {
+            tier += 1;
+        }
+        while tier > 0 && speed < gaits[tiers[tier][0]].from_speed * (1.0 - Self::BAND) {
+            tier -= 1;
+        }
+        let choice = if tiers.is_empty() {
+            0
+        } else {
+            tiers[tier][variant % tiers[tier].len()]
+        };
+        let changed = choice != self.current;
+        self.current = choice;
+        changed
+    }
+}
+
+/// Gaits grouped by equal `from_speed`, in order.
+fn tiers(gaits: &[Gait]) -> Vec<Vec<usize>> {
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for (i, g) in gaits.iter().enumerate() {
+        match out.last_mut() {
+            Some(t) if gaits[t[0]].from_speed == g.from_speed => t.push(i),
+            _ => out.push(vec![i]),
+        }
+    }
+    out
+}
+
+impl Gait {
+    /// Duty factor at human-equivalent speed `speed`: interpolated from this gait's lowest speed to
+    /// twice that (or +2 m/s for the first gait).
+    pub fn duty_at(&self, speed: f32) -> f32 {
+        let span = if self.from_speed > 0.0 { self.from_speed } else { 2.0 };
+        let t = ((speed - self.from_speed) / span).clamp(0.0, 1.0);
+        self.duty[0] + (self.duty[1] - self.duty[0]) * t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quadruped_and_hexapod_patterns() {
+        // fl, fr, rl, rr
+        let quad = [[0.3, 0.2], [0.3, -0.2], [-0.3, 0.2], [-0.3, -0.2]];
+        let g = build_gaits(&quad);
+        let names: Vec<_> = g.iter().map(|g| g.name).collect();
+        assert_eq!(names, ["walk", "trot", "gallop", "bound"]);
+        // Walk: rl, fl, rr, fr.
+        assert_eq!(g[0].offsets, [0.25, 0.75, 0.0, 0.5]);
+        // Trot: diagonals together.
+        assert_eq!(g[1].offsets[0], g[1].offsets[3]);
+        assert_eq!(g[1].offsets[1], g[1].offsets[2]);
+        assert_ne!(g[1].offsets[0], g[1].offsets[1]);
+        // Bound: front pair together.
+        assert_eq!(g[3].offsets, [0.5, 0.5, 0.0, 0.0]);
+        let mut sel = GaitSelector { current: 0 };
+        assert!(!sel.update(&g, 0.5, 0));
+        assert!(sel.update(&g, 2.0, 0));
+        assert_eq!(g[sel.current].name, "trot");
+        sel.update(&g, 4.5, 1);
+        assert_eq!(g[sel.current].name, "bound");
+        // Hysteresis: just under the threshold keeps the faster gait.
+        sel.update(&g, 3.3, 1);
+        assert_eq!(g[sel.current].name, "bound");
+        sel.update(&g, 0.2, 0);
+        assert_eq!(g[sel.current].name, "walk");
+
+        let hex = [
+            [0.2, 0.2],
+            [0.0, 0.25],
+            [-0.2, 0.2],
+            [0.2, -0.2],
+            [0.0, -0.25],
+            [-0.2, -0.2],
+        ];
+        let g = build_gaits(&hex);
+        let tripod = g.iter().find(|g| g.name == "tripod").unwrap();
+        assert_eq!(tripod.offsets, [0.0, 0.5, 0.0, 0.5, 0.0, 0.5]);
+        let wave = &g[0];
+        let mut sorted = wave.offsets.clone();
+        sorted.sort_by(f32::total_cmp);
+        assert_eq!(sorted.len(), 6);
+        assert!(sorted.windows(2).all(|w| w[1] > w[0]));
+    }
+}

@@ -1,0 +1,258 @@
+//! Stepping: a gait clock, one stance/swing state machine per leg, Raibert-style footholds and smooth
+//! swing trajectories.
+//!
+//! - The clock's phase Φ advances at the stepping frequency `f`. Leg `i` is *due* to lift off when
+//!   `(Φ − offset_i) mod 1` enters the first half of its swing window `[0, 1 − duty)`; it then swings for
+//!   the rest of the window, rounded to whole frames. Because each leg keeps its own state, a gait change
+//!   (new offsets and duty) only shifts when legs next lift off: no foot ever jumps. A leg that has
+//!   stood its full stance time also lifts anywhere in its window (the window moved), or out of turn
+//!   when it is far out (a gait starting or speeding up).
+//! - `f = max(natural frequency of the gait, the frequency at which a stance half-length stays within
+//!   STANCE_USE · r_max)`, capped so that swings last at least a few frames, and low-pass filtered. The
+//!   speed looked at is the larger of the current one and the one the command filter reaches shortly.
+//! - Stance feet are fixed in the world. A stance foot that drifts beyond its step radius `r_max`, or
+//!   that IK cannot hold, lifts off at once (counted in [`super::ControllerStats::early_liftoffs`]).
+//! - Footholds (Raibert): the nominal foothold, rotated by `ω·T_st/2` and shifted by `v·T_st/2`
+//!   (`T_st` = stance time, `v` and `ω` the mean predicted over that stance), in the heading frame
+//!   predicted at touchdown, so that the foot passes under its nominal position mid-stance.
+//! - Swing: the foot first rises with no horizontal motion (the first `EDGE` of the swing), moves
+//!   horizontally along a minimum-jerk profile, and comes straight down onto a landing point frozen for
+//!   the last `EDGE` (so a late command change cannot drag a low foot). Its height is `H·16 s²(1−s)²`:
+//!   zero vertical speed at lift-off and touchdown, 41 % of `H` when horizontal motion starts.
+
+use nalgebra::{Point3, Vector2};
+
+use super::rig::Leg;
+
+/// Fraction of the step radius a stance half-length uses at the chosen frequency.
+pub const STANCE_USE: f32 = 0.7;
+/// Fraction of the swing at each end without horizontal motion.
+const EDGE: f32 = 0.2;
+/// Fraction of the step radius within which a foothold is placed.
+const FOOTHOLD_USE: f32 = 0.85;
+
+/// Where a leg is in its cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LegPhase {
+    /// On the ground, fixed in the world.
+    Stance {
+        /// Time since touchdown (s).
+        time: f32,
+    },
+    /// In the air for a whole number of frames (so that touchdown falls on a frame and the foothold
+    /// predicted for it is where the foot lands).
+    Swing {
+        /// Frames done.
+        frame: u32,
+        /// Frames in the swing.
+        frames: u32,
+        /// World position at lift-off.
+        from: Point3<f32>,
+        /// Where the foot comes down, fixed once the descent starts (so that a late change of
+        /// command cannot drag a low foot sideways).
+        landing: Option<Vector2<f32>>,
+    },
+}
+
+/// A leg's state.
+#[derive(Clone, Debug)]
+pub struct LegState {
+    /// Stance or swing.
+    pub phase: LegPhase,
+    /// The foot's target world position this frame.
+    pub foot: Point3<f32>,
+}
+
+impl LegState {
+    /// Standing at `foot`.
+    pub fn standing(foot: Point3<f32>) -> Self {
+        LegState {
+            phase: LegPhase::Stance { time: 1.0 },
+            foot,
+        }
+    }
+
+    /// True in stance.
+    pub fn in_stance(&self) -> bool {
+        matches!(self.phase, LegPhase::Stance { .. })
+    }
+}
+
+/// The planar base motion the legs see: heading frame now, the command followed and where the
+/// command filter is taking it (a first-order lag toward the target with time constant `tau`).
+#[derive(Clone, Copy, Debug)]
+pub struct BaseMotion {
+    /// Heading-frame origin (world x, y).
+    pub position: Vector2<f32>,
+    /// Heading yaw (rad).
+    pub yaw: f32,
+    /// Linear velocity in the heading frame (m/s).
+    pub v: Vector2<f32>,
+    /// Yaw rate (rad/s).
+    pub wz: f32,
+    /// Target linear velocity (m/s).
+    pub v_target: Vector2<f32>,
+    /// Target yaw rate (rad/s).
+    pub wz_target: f32,
+    /// Filter time constant (s).
+    pub tau: f32,
+}
+
+impl BaseMotion {
+    /// Fraction of the way from the current to the target command after `t` seconds.
+    fn approach(&self, t: f32) -> f32 {
+        1.0 - (-t / self.tau.max(1e-3)).exp()
+    }
+
+    /// Mean fraction of the way over `[0, t]` (so that the displacement is `mean velocity · t`).
+    fn mean_approach(&self, t: f32) -> f32 {
+        if t <= 1e-6 {
+            return 0.0;
+        }
+        let tau = self.tau.max(1e-3);
+        1.0 - tau / t * (1.0 - (-t / tau).exp())
+    }
+
+    /// Predicted linear velocity and yaw rate `t` seconds ahead.
+    pub fn velocity_at(&self, t: f32) -> (Vector2<f32>, f32) {
+        let a = self.approach(t);
+        (
+            self.v + (self.v_target - self.v) * a,
+            self.wz + (self.wz_target - self.wz) * a,
+        )
+    }
+
+    /// Mean linear velocity and yaw rate over `[t0, t0 + t]`.
+    pub fn mean_velocity(&self, t0: f32, t: f32) -> (Vector2<f32>, f32) {
+        let (v0, w0) = self.velocity_at(t0);
+        let ahead = BaseMotion { v: v0, wz: w0, ..*self };
+        let a = ahead.mean_approach(t);
+        (v0 + (self.v_target - v0) * a, w0 + (self.wz_target - w0) * a)
+    }
+
+    /// World (x, y) of heading-frame point `p` after the base moves on for `t` seconds.
+    pub fn predict(&self, p: Vector2<f32>, t: f32) -> Vector2<f32> {
+        let (v, wz) = self.mean_velocity(0.0, t);
+        let origin = self.position + rot(self.yaw + 0.5 * wz * t) * v * t;
+        origin + rot(self.yaw + wz * t) * p
+    }
+
+    /// Heading-frame (x, y) of world point `p`.
+    pub fn to_local(&self, p: &Point3<f32>) -> Vector2<f32> {
+        rot(-self.yaw) * (Vector2::new(p.x, p.y) - self.position)
+    }
+}
+
+/// 2-D rotation.
+pub fn rot(a: f32) -> nalgebra::Matrix2<f32> {
+    let (s, c) = a.sin_cos();
+    nalgebra::Matrix2::new(c, -s, s, c)
+}
+
+/// Stepping parameters of this frame.
+#[derive(Clone, Copy, Debug)]
+pub struct StepParams {
+    /// Whether legs may start new swings.
+    pub stepping: bool,
+    /// Gait clock phase in `[0, 1)`.
+    pub clock: f32,
+    /// Stepping frequency (Hz).
+    pub frequency: f32,
+    /// Duty factor.
+    pub duty: f32,
+    /// Swing height scale (× the leg's swing height).
+    pub lift: f32,
+    /// Shortest swing (s).
+    pub min_swing: f32,
+}
+
+/// Minimum-jerk profile 10s³ − 15s⁴ + 6s⁵.
+pub fn min_jerk(s: f32) -> f32 {
+    let s = s.clamp(0.0, 1.0);
+    s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+}
+
+impl LegState {
+    /// Advances one frame of `dt`: decides lift-off and touchdown and sets `self.foot`. `offset` is
+    /// the leg's lift-off phase in the current gait; `force` lifts a stance foot now (IK could not hold
+    /// it). Returns true when the leg lifted off early: forced, or drifted beyond its step radius.
+    pub fn step(&mut self, leg: &Leg, offset: f32, base: &BaseMotion, p: &StepParams, dt: f32, force: bool) -> bool {
+        let stance_time = p.duty / p.frequency;
+        let window = 1.0 - p.duty;
+        let phase = (p.clock - offset).rem_euclid(1.0);
+        let mut emergency = false;
+        if let LegPhase::Stance { time } = &mut self.phase {
+            *time += dt;
+            let drift = (base.to_local(&self.foot) - leg.nominal).norm();
+            // Due: early in the leg's swing window, or anywhere in it once the stance has lasted its
+            // full time (after a gait change moved the window), or out of turn when a foot that has
+            // stood its time is far out (the gait is just starting or speeding up).
+            let due = p.stepping
+                && *time >= 0.4 * stance_time
+                && (phase < 0.5 * window
+                    || (phase < window && *time >= stance_time)
+                    || (*time >= stance_time && drift > 0.8 * leg.r_max));
+            emergency = !due && ((drift > leg.r_max && *time > dt) || force);
+            if due || emergency {
+                let nominal = window / p.frequency;
+                let duration = if due && phase < window {
+                    (window - phase) / p.frequency
+                } else {
+                    nominal
+                };
+                let duration = duration.clamp(p.min_swing.max(0.5 * nominal).min(nominal), nominal);
+                self.phase = LegPhase::Swing {
+                    frame: 0,
+                    frames: ((duration / dt).round() as u32)
+                        .max((p.min_swing / dt).round() as u32)
+                        .max(1),
+                    from: self.foot,
+                    landing: None,
+                };
+            }
+        }
+        if let LegPhase::Swing {
+            frame,
+            frames,
+            from,
+            landing,
+        } = &mut self.phase
+        {
+            *frame += 1;
+            let s = (*frame as f32 / *frames as f32).min(1.0);
+            let remaining = (*frames - (*frame).min(*frames)) as f32 * dt;
+            let target = match landing {
+                Some(l) => *l,
+                None => foothold(leg, base, remaining, stance_time),
+            };
+            if s >= 1.0 - EDGE {
+                *landing = Some(target);
+            }
+            if *frame >= *frames {
+                self.foot = Point3::new(target.x, target.y, leg.sole);
+                self.phase = LegPhase::Stance { time: 0.0 };
+            } else {
+                let u = min_jerk((s - EDGE) / (1.0 - 2.0 * EDGE));
+                let xy = Vector2::new(from.x, from.y) + (target - Vector2::new(from.x, from.y)) * u;
+                let s2 = s * (1.0 - s);
+                let z = leg.swing_height * p.lift * 16.0 * s2 * s2;
+                self.foot = Point3::new(xy.x, xy.y, leg.sole + z.max(0.0));
+            }
+        }
+        emergency
+    }
+}
+
+/// World (x, y) where the leg should touch down, `remaining` seconds from now, for stance time
+/// `stance_time`: centred on the motion predicted over that stance.
+pub fn foothold(leg: &Leg, base: &BaseMotion, remaining: f32, stance_time: f32) -> Vector2<f32> {
+    let half = 0.5 * stance_time;
+    let (v, wz) = base.mean_velocity(remaining, stance_time);
+    let mut local = rot(wz * half) * leg.nominal + v * half;
+    let d = local - leg.nominal;
+    let r = FOOTHOLD_USE * leg.r_max;
+    if d.norm() > r {
+        local = leg.nominal + d * (r / d.norm());
+    }
+    base.predict(local, remaining)
+}

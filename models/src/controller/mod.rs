@@ -1,0 +1,525 @@
+//! Kinematic controllers that generate a character's motion dataset (paper §4, §7.1): random base
+//! commands, stepping gaits for any number of legs, reaching for manipulators and other free DoFs, and
+//! rolling wheels — all derived from the morphology analysis, with no per-robot code.
+//!
+//! - [`Rig`] analyses the character once (leg chains, nominal stance, step radius, wheels, reach groups,
+//!   speed scale, gaits).
+//! - [`Controller`] runs an episode frame by frame: [`Controller::reset`] puts the character in its
+//!   standing pose, [`Controller::step`] advances one frame, [`Controller::root`] and
+//!   [`Controller::q`] give the pose.
+//!
+//! # Speed scaling
+//! Commands are drawn in human-equivalent m/s (the paper's −1.5…5 m/s forward, ±1 m/s sideways) and
+//! multiplied by the speed scale: `leg length / 0.9 m` for legged characters (leg length = mean hip–foot
+//! distance at the nominal stance; 0.9 m is a human's), `standing height / 1.7 m` otherwise. The yaw
+//! rate (−1…1 rad/s) is not scaled. Linear speed is further limited to what the legs can follow cleanly:
+//! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root).
+//! [`ScalingConfig::speed_scale`] overrides the scale.
+//!
+//! Gaits are chosen by human-equivalent speed (`(|v| + |ω|·R) / scale`). The bundled Spot-like
+//! character (0.53 m legs) gets a scale of 0.585: 5 m/s becomes 2.9 m/s; it walks below 0.56 m/s, trots
+//! from 0.56 to 1.48 m/s — covering the real Spot's 0.5–1.6 m/s — and gallops or bounds above. The crab
+//! (0.23 m legs, scale 0.25) tops out at 0.96 m/s (wave, ripple from 0.12 m/s, tripod from 0.4 m/s);
+//! Stretch-like (1.3 m tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
+//!
+//! # Clean motion
+//! Stance feet are fixed in the world (IK to 0.01 mm), feet never go below the ground, every joint value
+//! is clamped into its limits, legs stay within a calibrated step radius clear of the body and each
+//! other ([`calibrate`]), swing feet rise before they move and come straight down, and reach paths are
+//! checked against the body, the legs and each other ([`reach`]).
+
+pub mod calibrate;
+pub mod chain;
+pub mod collide;
+pub mod commands;
+pub mod gait;
+pub mod legs;
+pub mod reach;
+pub mod rig;
+pub mod wheels;
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2};
+use rand::RngExt;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+pub use chain::{Chain, ChainScratch, IkResult};
+pub use commands::{Command, CommandConfig, CommandGenerator};
+pub use gait::{Gait, GaitKind, GaitSelector};
+pub use legs::{BaseMotion, LegPhase, LegState, StepParams};
+pub use reach::{ReachConfig, ReachEvents, ReachState};
+pub use rig::{BaseMode, Leg, ReachGroup, ReachKind, Rig, Wheel};
+
+use crate::kinematics::{CharacterPose, KinematicTree};
+
+/// Uniform draw in `[lo, hi)` (`lo` when the range is empty).
+pub(crate) fn uniform<R: rand::Rng + ?Sized>(rng: &mut R, lo: f32, hi: f32) -> f32 {
+    if hi > lo {
+        lo + (hi - lo) * rng.random::<f32>()
+    } else {
+        lo
+    }
+}
+
+/// Everything the controllers can be tuned with. Every field has a default; TOML/JSON may give any
+/// subset.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ControllerConfig {
+    /// Random base commands.
+    pub commands: CommandConfig,
+    /// Human-to-character speed scaling.
+    pub scaling: ScalingConfig,
+    /// Body height, pitch and roll variation.
+    pub posture: PostureConfig,
+    /// Legs and gaits.
+    pub legs: LegConfig,
+    /// Reaching.
+    pub reach: ReachConfig,
+}
+
+/// How human-equivalent speeds become character speeds (see the module docs).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ScalingConfig {
+    /// A human's leg length (m).
+    pub human_leg_length: f32,
+    /// A human's height (m), for characters without legs.
+    pub human_height: f32,
+    /// Fixed scale instead of the automatic one.
+    pub speed_scale: Option<f32>,
+}
+
+impl Default for ScalingConfig {
+    fn default() -> Self {
+        ScalingConfig {
+            human_leg_length: 0.9,
+            human_height: 1.7,
+            speed_scale: None,
+        }
+    }
+}
+
+/// Body posture variation of legged characters: random targets held for random times, filtered.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PostureConfig {
+    /// Body height range as fractions of the nominal height (e.g. −0.12 = 12 % lower).
+    pub height: [f32; 2],
+    /// Largest pitch (rad).
+    pub pitch: f32,
+    /// Largest roll (rad).
+    pub roll: f32,
+    /// How long a posture target is held (s).
+    pub hold_seconds: [f32; 2],
+    /// Filter time constant (s).
+    pub time_constant: f32,
+}
+
+impl Default for PostureConfig {
+    fn default() -> Self {
+        PostureConfig {
+            height: [-0.08, 0.03],
+            pitch: 0.08,
+            roll: 0.06,
+            hold_seconds: [1.0, 4.0],
+            time_constant: 0.5,
+        }
+    }
+}
+
+/// Legs and gaits.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LegConfig {
+    /// Largest hip–foot distance at the nominal stance, as a fraction of the leg's maximal reach.
+    pub max_extension: f32,
+    /// Peak swing height as a fraction of the leg length.
+    pub swing_height: f32,
+    /// Shortest swing in frames, from the lift-off frame to the touchdown frame (so `n − 1` frames with
+    /// the foot in the air). Together with the frame rate it caps the cadence and thus the top speed.
+    pub min_swing_frames: u32,
+    /// Probability per episode that the fast quadruped gait is the bound rather than the gallop.
+    pub bound_probability: f32,
+    /// Time constant of the stepping frequency filter (s).
+    pub frequency_time_constant: f32,
+}
+
+impl Default for LegConfig {
+    fn default() -> Self {
+        LegConfig {
+            max_extension: 0.85,
+            swing_height: 0.12,
+            min_swing_frames: 3,
+            bound_probability: 0.3,
+            frequency_time_constant: 0.15,
+        }
+    }
+}
+
+/// A character the controllers cannot drive.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum ControllerError {
+    /// A leg that cannot step.
+    #[error("leg ending in `{foot}`: {problem}")]
+    Leg {
+        /// Foot link name.
+        foot: String,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+/// Counters that tell how clean an episode was.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ControllerStats {
+    /// Frames stepped.
+    pub frames: usize,
+    /// Stance feet that had to lift off early because they drifted beyond their step radius or IK
+    /// could not hold them.
+    pub early_liftoffs: usize,
+    /// Largest IK error of a stance foot (m).
+    pub max_stance_error: f32,
+    /// Gait changes.
+    pub gait_changes: usize,
+    /// Reach targets drawn with a clear path.
+    pub reach_targets: usize,
+    /// Reaches sent back to the stowed configuration because no draw had a clear path.
+    pub reach_fallbacks: usize,
+}
+
+/// Runs a character's kinematic controllers, one frame at a time (see the module docs).
+#[derive(Clone, Debug)]
+pub struct Controller<'a> {
+    tree: &'a KinematicTree,
+    rig: &'a Rig,
+    cfg: ControllerConfig,
+    dt: f32,
+    commands: CommandGenerator,
+    position: Vector2<f32>,
+    yaw: f32,
+    posture: [f32; 3],
+    posture_target: [f32; 3],
+    /// Gait bob amplitudes: vertical in two-beat gaits, vertical and pitch in bound/gallop (filtered).
+    bob: [f32; 3],
+    posture_hold: f32,
+    q: Vec<f32>,
+    legs: Vec<LegState>,
+    force_lift: Vec<bool>,
+    selector: GaitSelector,
+    variant: usize,
+    clock: f32,
+    frequency: f32,
+    stepping: bool,
+    reach: Vec<ReachState>,
+    scratch: ChainScratch,
+    stats: ControllerStats,
+}
+
+/// Gait bob amplitude as a fraction of the leg length.
+const BOB: f32 = 0.012;
+/// How far ahead the gait looks at the command (s).
+const LOOKAHEAD: f32 = 0.25;
+/// IK tolerance for feet (m).
+const FOOT_TOL: f32 = 1e-5;
+/// Stance IK error above which a foot lifts off at the next frame (m).
+const STANCE_SLIP: f32 = 2e-4;
+
+impl<'a> Controller<'a> {
+    /// A controller for `rig` (built from `tree`) stepping at `fps`; call [`Controller::reset`] first.
+    pub fn new(tree: &'a KinematicTree, rig: &'a Rig, cfg: &ControllerConfig, fps: f32) -> Self {
+        let commands = CommandGenerator::new(cfg.commands.clone(), rig.speed_scale, rig.max_speed, rig.foot_radius);
+        Controller {
+            tree,
+            rig,
+            cfg: cfg.clone(),
+            dt: 1.0 / fps,
+            commands,
+            position: Vector2::zeros(),
+            yaw: 0.0,
+            posture: [rig.standing.root.translation.vector.z, 0.0, 0.0],
+            posture_target: [rig.nominal_height, 0.0, 0.0],
+            bob: [0.0; 3],
+            posture_hold: 0.0,
+            q: rig.standing.q.clone(),
+            legs: Vec::new(),
+            force_lift: vec![false; rig.legs.len()],
+            selector: GaitSelector { current: 0 },
+            variant: 0,
+            clock: 0.0,
+            frequency: 1.0,
+            stepping: false,
+            reach: Vec::new(),
+            scratch: ChainScratch::default(),
+            stats: ControllerStats::default(),
+        }
+    }
+
+    /// Starts an episode: the standing pose at the origin facing +x, standing still for a moment.
+    pub fn reset<R: rand::Rng + ?Sized>(&mut self, rng: &mut R) {
+        let rig = self.rig;
+        self.position = Vector2::zeros();
+        self.yaw = 0.0;
+        self.q = rig.standing.q.clone();
+        self.posture = [rig.standing.root.translation.vector.z, 0.0, 0.0];
+        self.bob = [0.0; 3];
+        self.posture_hold = 0.0;
+        self.commands.reset(uniform(rng, 0.3, 1.0));
+        self.legs = rig
+            .legs
+            .iter()
+            .map(|l| LegState::standing(Point3::new(l.nominal.x, l.nominal.y, l.sole)))
+            .collect();
+        self.force_lift = vec![false; rig.legs.len()];
+        self.selector = GaitSelector { current: 0 };
+        self.variant = usize::from(rng.random::<f32>() < self.cfg.legs.bound_probability);
+        self.clock = 0.0;
+        self.frequency = rig.gaits.first().map_or(1.0, |g| g.frequency * rig.frequency_unit());
+        self.stepping = false;
+        self.reach = rig
+            .reach
+            .iter()
+            .map(|g| {
+                let q = g.dofs.iter().map(|&d| self.q[d]).collect();
+                ReachState::at(q, uniform(rng, 0.0, 1.0))
+            })
+            .collect();
+        self.next_posture(rng);
+        self.solve_legs();
+    }
+
+    /// The rig this controller drives.
+    pub fn rig(&self) -> &Rig {
+        self.rig
+    }
+
+    /// Root pose this frame.
+    pub fn root(&self) -> Isometry3<f32> {
+        let [h, pitch, roll] = self.posture;
+        let (dh, dp) = self.bob_offsets();
+        let r = &self.rig;
+        // The bob stays within the calibrated posture range (the legs are checked over it).
+        let lo = r.height_range[0].min(h);
+        let hi = r.height_range[1].max(h);
+        let h = (h + dh).clamp(lo, hi);
+        let pitch = (pitch + dp).clamp(-r.max_tilt[0].max(pitch.abs()), r.max_tilt[0].max(pitch.abs()));
+        Isometry3::from_parts(
+            Translation3::new(self.position.x, self.position.y, h),
+            UnitQuaternion::from_euler_angles(roll, pitch, self.yaw),
+        )
+    }
+
+    /// Joint vector this frame.
+    pub fn q(&self) -> &[f32] {
+        &self.q
+    }
+
+    /// Pose this frame.
+    pub fn pose(&self) -> CharacterPose {
+        CharacterPose {
+            root: self.root(),
+            q: self.q.clone(),
+        }
+    }
+
+    /// The command target this frame (heading frame; zero for a fixed base).
+    pub fn command(&self) -> Command {
+        if self.rig.mode == BaseMode::Fixed {
+            Command::default()
+        } else {
+            self.commands.target()
+        }
+    }
+
+    /// The filtered command the base follows this frame.
+    pub fn followed(&self) -> Command {
+        if self.rig.mode == BaseMode::Fixed {
+            Command::default()
+        } else {
+            self.commands.current()
+        }
+    }
+
+    /// Whether each foot is in stance, in [`crate::morphology::Morphology::feet`] order.
+    pub fn contacts(&self) -> impl Iterator<Item = bool> + '_ {
+        self.legs.iter().map(LegState::in_stance)
+    }
+
+    /// The legs' states.
+    pub fn legs(&self) -> &[LegState] {
+        &self.legs
+    }
+
+    /// The current gait, if the character has legs.
+    pub fn gait(&self) -> Option<&Gait> {
+        self.rig.gaits.get(self.selector.current)
+    }
+
+    /// Counters since construction.
+    pub fn stats(&self) -> &ControllerStats {
+        &self.stats
+    }
+
+    /// Replaces the random command by `target` (character m/s, rad/s) for `hold` seconds.
+    pub fn set_command(&mut self, target: Command, hold: f32) {
+        self.commands.set_target(target, hold);
+    }
+
+    /// Advances one frame.
+    pub fn step<R: rand::Rng + ?Sized>(&mut self, rng: &mut R) {
+        let dt = self.dt;
+        self.stats.frames += 1;
+        let c = if self.rig.mode == BaseMode::Fixed {
+            Command::default()
+        } else {
+            self.commands.step(dt, rng)
+        };
+        // Base: integrate the followed twist (midpoint heading).
+        let v = Vector2::new(c.vx, c.vy);
+        self.position += legs::rot(self.yaw + 0.5 * c.wz * dt) * v * dt;
+        self.yaw += c.wz * dt;
+        if self.rig.mode == BaseMode::Legged {
+            self.step_posture(rng);
+            let t = self.commands.target();
+            self.step_legs(v, c.wz, Vector2::new(t.vx, t.vy), t.wz);
+        }
+        if self.rig.mode == BaseMode::Wheeled {
+            wheels::roll(&self.rig.wheels, &mut self.q, v, c.wz, dt);
+        }
+        let ev = reach::step_reach(
+            self.tree,
+            self.rig,
+            &self.cfg.reach,
+            &mut self.reach,
+            &mut self.q,
+            dt,
+            rng,
+        );
+        self.stats.reach_targets += ev.targets;
+        self.stats.reach_fallbacks += ev.fallbacks;
+    }
+
+    fn next_posture<R: rand::Rng + ?Sized>(&mut self, rng: &mut R) {
+        let rig = self.rig;
+        let p = &self.cfg.posture;
+        self.posture_target = [
+            uniform(rng, rig.height_range[0], rig.height_range[1]),
+            uniform(rng, -rig.max_tilt[0], rig.max_tilt[0]),
+            uniform(rng, -rig.max_tilt[1], rig.max_tilt[1]),
+        ];
+        self.posture_hold = uniform(rng, p.hold_seconds[0], p.hold_seconds[1]);
+    }
+
+    fn step_posture<R: rand::Rng + ?Sized>(&mut self, rng: &mut R) {
+        self.posture_hold -= self.dt;
+        if self.posture_hold <= 0.0 {
+            self.next_posture(rng);
+        }
+        let a = 1.0 - (-self.dt / self.cfg.posture.time_constant.max(1e-3)).exp();
+        for (x, t) in self.posture.iter_mut().zip(self.posture_target) {
+            *x += (t - *x) * a;
+        }
+    }
+
+    /// Height and pitch offsets of the gait bob at the current clock phase: two dips per cycle in
+    /// two-beat gaits (each stance of a diagonal pair), one rise-and-fall with a nod in bound/gallop.
+    fn bob_offsets(&self) -> (f32, f32) {
+        let tau = std::f32::consts::TAU;
+        let [two_beat, leap, nod] = self.bob;
+        let phi = self.clock;
+        (
+            -two_beat * (2.0 * tau * phi).cos() + leap * (tau * phi).cos(),
+            nod * (tau * phi).sin(),
+        )
+    }
+
+    fn step_legs(&mut self, v: Vector2<f32>, wz: f32, v_target: Vector2<f32>, wz_target: f32) {
+        let rig = self.rig;
+        if rig.legs.is_empty() {
+            return;
+        }
+        let base = BaseMotion {
+            position: self.position,
+            yaw: self.yaw,
+            v,
+            wz,
+            v_target,
+            wz_target,
+            tau: self.cfg.commands.time_constant,
+        };
+        // Step for where the command is going a little ahead, so that accelerating legs keep up.
+        let (v_ahead, wz_ahead) = base.velocity_at(LOOKAHEAD);
+        let foot_speed = (v.norm() + wz.abs() * rig.foot_radius).max(v_ahead.norm() + wz_ahead.abs() * rig.foot_radius);
+        let speed = foot_speed / rig.speed_scale.max(1e-6);
+        let drift = self
+            .legs
+            .iter()
+            .zip(&rig.legs)
+            .map(|(s, l)| (base.to_local(&s.foot) - l.nominal).norm() / l.r_max)
+            .fold(0.0, f32::max);
+        let swinging = self.legs.iter().any(|l| !l.in_stance());
+        self.stepping = if self.stepping {
+            speed > 0.05 || drift > 0.15 || swinging
+        } else {
+            speed > 0.08 || drift > 0.3
+        };
+        if self.selector.update(&rig.gaits, speed, self.variant) {
+            self.stats.gait_changes += 1;
+        }
+        let gait = &rig.gaits[self.selector.current];
+        let duty = gait.duty_at(speed);
+        let r_min = rig.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
+        let needed = foot_speed * duty / (2.0 * legs::STANCE_USE * r_min);
+        let cap = rig::frequency_cap(&self.cfg, gait, duty, rig.leg_length, 1.0 / self.dt);
+        let target = needed.max(gait.frequency * rig.frequency_unit()).min(cap);
+        let a = 1.0 - (-self.dt / self.cfg.legs.frequency_time_constant.max(1e-3)).exp();
+        self.frequency += (target - self.frequency) * a;
+        if self.stepping {
+            self.clock = (self.clock + self.frequency * self.dt).rem_euclid(1.0);
+        }
+        // Bob amplitudes grow with speed while stepping and fade otherwise.
+        let k = if self.stepping { (speed / 2.0).min(1.0) } else { 0.0 };
+        let l = rig.leg_length;
+        let target = match gait.kind {
+            GaitKind::Alternating => [BOB * l * k, 0.0, 0.0],
+            GaitKind::Bound | GaitKind::Gallop => [0.0, BOB * l * k, 0.5 * rig.max_tilt[0] * k],
+            _ => [0.0; 3],
+        };
+        let b = 1.0 - (-self.dt / 0.3f32).exp();
+        for (x, t) in self.bob.iter_mut().zip(target) {
+            *x += (t - *x) * b;
+        }
+        let params = StepParams {
+            stepping: self.stepping,
+            clock: self.clock,
+            frequency: self.frequency,
+            duty,
+            lift: 0.7 + 0.3 * (speed / 3.0).min(1.0),
+            min_swing: self.cfg.legs.min_swing_frames as f32 * self.dt,
+        };
+        for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
+            let force = std::mem::take(&mut self.force_lift[i]);
+            if state.step(leg, gait.offsets[i], &base, &params, self.dt, force) {
+                self.stats.early_liftoffs += 1;
+            }
+        }
+        self.solve_legs();
+    }
+
+    /// IK for every leg to its foot target; stance feet IK cannot hold lift off next frame.
+    fn solve_legs(&mut self) {
+        let root = self.root();
+        for (i, (state, leg)) in self.legs.iter().zip(&self.rig.legs).enumerate() {
+            let target = root.inverse_transform_point(&state.foot);
+            let r = leg
+                .chain
+                .solve(self.tree, &mut self.q, &target, FOOT_TOL, 40, &mut self.scratch);
+            if state.in_stance() {
+                self.stats.max_stance_error = self.stats.max_stance_error.max(r.error);
+                if r.error > STANCE_SLIP {
+                    self.force_lift[i] = true;
+                }
+            }
+        }
+    }
+}

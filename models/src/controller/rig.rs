@@ -1,0 +1,354 @@
+//! [`Rig`]: everything the controllers need to know about a character, derived once from its kinematic
+//! tree and morphology — leg chains with their nominal stance and reachable step radius, wheels, the DoF
+//! groups that reach, the nominal body height and its safe range, the speed scale and the gaits.
+//!
+//! Nothing here depends on link names: legs are the chains to [`Morphology::feet`], arms the chains to
+//! [`Morphology::manipulators`], wheels [`Morphology::wheels`]; every other DoF (a head, gripper
+//! fingers) is moved by a "misc" reach group.
+//!
+//! How each leg's stance, step radius, sole and swing height and the body's height and tilt range
+//! are found is described in [`super::calibrate`]. The **speed scale** is the mean hip–foot distance at
+//! the nominal stance / [`super::ScalingConfig::human_leg_length`] for legged characters, the standing
+//! height / [`super::ScalingConfig::human_height`] otherwise. The **top speed** is what the fastest gait
+//! can follow at its highest cadence with stances within the step radii, and each faster gait takes
+//! over no later than where the slower one runs out of stride.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
+
+use super::chain::Chain;
+use super::collide::{Obb, Proxies};
+use super::gait::{Gait, build_gaits};
+use super::{ControllerConfig, ControllerError, calibrate, reach, wheels};
+use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
+use crate::morphology::Morphology;
+
+/// Gravity (m/s²), for the stepping frequency scale √(g/L).
+pub const GRAVITY: f32 = 9.81;
+
+/// How the base moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BaseMode {
+    /// On legs: stepping gaits.
+    Legged,
+    /// On wheels: planar holonomic motion, wheels roll.
+    Wheeled,
+    /// Neither legs nor wheels: the base stays put, only reaching moves.
+    Fixed,
+}
+
+/// One leg.
+#[derive(Clone, Debug)]
+pub struct Leg {
+    /// Chain from the root to the foot link.
+    pub chain: Chain,
+    /// The foot link ([`Morphology::feet`]).
+    pub foot: usize,
+    /// Links that move with the leg (the subtree of its first moving joint).
+    pub links: Vec<usize>,
+    /// First moving joint's position in the root frame at the nominal pose.
+    pub hip: Vector3<f32>,
+    /// Nominal foothold in the heading frame (x, y; the ground is z = 0).
+    pub nominal: Vector2<f32>,
+    /// Hip–foot distance at the nominal stance (m).
+    pub length: f32,
+    /// Largest safe horizontal distance of a stance foot from its nominal foothold (m).
+    pub r_max: f32,
+    /// Peak swing height (m).
+    pub swing_height: f32,
+    /// Height of the foot point above the ground in stance (m): 0 unless the foot's geometry would
+    /// dip below the ground at the nominal stance with the foot point on it (a foot point found at a
+    /// straight-legged neutral pose, say), then just enough to keep the geometry on the ground.
+    pub sole: f32,
+}
+
+/// One wheel.
+#[derive(Clone, Debug)]
+pub struct Wheel {
+    /// Its DoF.
+    pub dof: usize,
+    /// Spin axis in the root frame.
+    pub axis: Vector3<f32>,
+    /// Centre in the root frame.
+    pub center: Vector3<f32>,
+    /// Radius (height of the axle above the ground when standing, m).
+    pub radius: f32,
+}
+
+/// What a reach group moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReachKind {
+    /// A manipulator chain (its end-effector link).
+    Arm(usize),
+    /// DoFs no leg, arm or wheel owns (heads, fingers).
+    Misc,
+}
+
+/// A set of DoFs that moves to random targets together.
+#[derive(Clone, Debug)]
+pub struct ReachGroup {
+    /// What it is.
+    pub kind: ReachKind,
+    /// The DoFs it moves.
+    pub dofs: Vec<usize>,
+    /// Links that move when these DoFs move.
+    pub links: Vec<usize>,
+    /// Lowest z its links may reach with the body at the bottom of its range (m).
+    pub floor: f32,
+    /// For each of [`Rig::swept`]: whether the group already touches that obstacle in its stowed
+    /// (nominal) configuration — coarse boxes of neighbouring parts often do — so that paths are not
+    /// refused for it.
+    pub tolerated: Vec<bool>,
+}
+
+/// A collision box of a link that does not belong to some group, in the root frame.
+#[derive(Clone, Debug)]
+pub struct Obstacle {
+    /// The link.
+    pub link: usize,
+    /// Its box.
+    pub obb: Obb,
+}
+
+/// The controllers' model of a character (see the module docs).
+#[derive(Clone, Debug)]
+pub struct Rig {
+    /// How the base moves.
+    pub mode: BaseMode,
+    /// The pose episodes start from ([`KinematicTree::standing_pose`]).
+    pub standing: CharacterPose,
+    /// Joint vector at the nominal stance.
+    pub nominal_q: Vec<f32>,
+    /// Root height at the nominal stance (m).
+    pub nominal_height: f32,
+    /// Root height range used for body height variation (m).
+    pub height_range: [f32; 2],
+    /// Largest body pitch and roll (rad).
+    pub max_tilt: [f32; 2],
+    /// Legs, in [`Morphology::feet`] order.
+    pub legs: Vec<Leg>,
+    /// Wheels.
+    pub wheels: Vec<Wheel>,
+    /// Reach groups: one per manipulator, then the misc group if any DoF is left.
+    pub reach: Vec<ReachGroup>,
+    /// Gaits, sorted by the speed from which they are used.
+    pub gaits: Vec<Gait>,
+    /// Mean leg length (m; 0 without legs).
+    pub leg_length: f32,
+    /// Multiplies human-equivalent speeds (m/s) into character speeds.
+    pub speed_scale: f32,
+    /// Largest foot speed `|v| + |ω|·foot_radius` the legs follow cleanly (m/s): the top linear speed
+    /// when not turning. Infinite without legs.
+    pub max_speed: f32,
+    /// Mean distance of the feet from the root axis (m), for turning.
+    pub foot_radius: f32,
+    /// Collision proxies.
+    pub proxies: Proxies,
+    /// Boxes of every link at the nominal pose with legs moved over their workspace (root frame at the
+    /// nominal height); reach groups check their paths against these.
+    pub swept: Vec<Obstacle>,
+    /// Link poses at the nominal pose in the root frame.
+    pub nominal_links: Vec<Isometry3<f32>>,
+}
+
+/// Root pose with the base at height `h` tilted by `pitch` and `roll` (no yaw, at the origin).
+pub fn tilted_root(h: f32, pitch: f32, roll: f32) -> Isometry3<f32> {
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, h),
+        UnitQuaternion::from_euler_angles(roll, pitch, 0.0),
+    )
+}
+
+/// The subtree of link `l` (itself included), in link order.
+pub fn subtree(tree: &KinematicTree, l: usize) -> Vec<usize> {
+    (0..tree.links.len()).filter(|&x| tree.is_descendant(x, l)).collect()
+}
+
+impl Rig {
+    /// Analyses a character for `cfg` at `fps` frames per second.
+    pub fn new(
+        tree: &KinematicTree,
+        morph: &Morphology,
+        cfg: &ControllerConfig,
+        fps: f32,
+    ) -> Result<Rig, ControllerError> {
+        let standing = tree.standing_pose();
+        let h_stand = standing.root.translation.vector.z;
+        let mut proxies = Proxies::new(tree, &standing);
+
+        let mut legs = calibrate::legs(tree, morph, &standing)?;
+        let mode = if !legs.is_empty() {
+            BaseMode::Legged
+        } else if !morph.wheels.is_empty() {
+            BaseMode::Wheeled
+        } else {
+            BaseMode::Fixed
+        };
+        let (h0, mut nominal_q) = calibrate::nominal_stance(tree, &mut legs, &standing, cfg.legs.max_extension)?;
+        proxies.ignore_touching(&calibrate::fk_root(tree, &nominal_q));
+
+        let (mut height_range, mut max_tilt) = ([h_stand, h_stand], [0.0, 0.0]);
+        let on_leg: Vec<bool> = (0..tree.links.len())
+            .map(|l| legs.iter().any(|g| g.links.contains(&l)))
+            .collect();
+        if mode == BaseMode::Legged {
+            let p = &cfg.posture;
+            height_range = [h0 * (1.0 + p.height[0]), h0 * (1.0 + p.height[1])];
+            max_tilt = [p.pitch.abs(), p.roll.abs()];
+            // Keep the body (everything not on a leg) 2 % of its height off the ground when lowest and
+            // most tilted.
+            let body: Vec<usize> = (0..tree.links.len()).filter(|&l| !on_leg[l]).collect();
+            let low = calibrate::lowest_tilted(&proxies, &calibrate::fk_root(tree, &nominal_q), &body, max_tilt);
+            height_range[0] = height_range[0].max(0.02 * h0.max(0.1) - low).min(h0);
+            let dip_tol = calibrate::dip_tolerance(tree, &standing);
+            let kept = calibrate::step_radii(
+                tree,
+                &proxies,
+                &mut legs,
+                &mut nominal_q,
+                h0,
+                height_range,
+                max_tilt,
+                dip_tol,
+            )?;
+            (height_range, max_tilt) = (kept.height, kept.tilt);
+            calibrate::swing_heights(tree, &mut legs, &nominal_q, height_range[0], cfg.legs.swing_height);
+        }
+        let nominal_links = calibrate::fk_root(tree, &nominal_q);
+
+        let mut claimed = vec![false; tree.dof()];
+        for d in legs.iter().flat_map(|l| l.chain.active_dofs()) {
+            claimed[d] = true;
+        }
+        let wheels = wheels::find(tree, morph, &standing);
+        for w in &wheels {
+            claimed[w.dof] = true;
+        }
+        let mut reach = reach::groups(tree, morph, &proxies, &standing, &claimed);
+
+        // Obstacles for reaching: legs over their workspace, the rest of the body at the nominal pose
+        // (reach groups check each other's actual paths instead).
+        let in_reach: Vec<bool> = (0..tree.links.len())
+            .map(|l| reach.iter().any(|g| g.links.contains(&l)))
+            .collect();
+        let mut swept: Vec<Obstacle> = nominal_links
+            .iter()
+            .enumerate()
+            .filter(|&(l, _)| !on_leg[l] && !in_reach[l])
+            .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
+            .collect();
+        swept.extend(calibrate::swept_legs(
+            tree,
+            &proxies,
+            &legs,
+            &nominal_q,
+            h0,
+            height_range,
+        ));
+        for g in &mut reach {
+            g.tolerate(&proxies, &nominal_links, &swept, cfg.reach.margin);
+        }
+
+        let mut rig = Rig {
+            mode,
+            standing,
+            nominal_q,
+            nominal_height: h0,
+            height_range,
+            max_tilt,
+            legs,
+            wheels,
+            reach,
+            gaits: Vec::new(),
+            leg_length: 0.0,
+            speed_scale: 1.0,
+            max_speed: f32::INFINITY,
+            foot_radius: 0.0,
+            proxies,
+            swept,
+            nominal_links,
+        };
+        rig.set_speeds(tree, cfg, fps);
+        Ok(rig)
+    }
+
+    /// Gaits, speed scale and top speed (module docs).
+    fn set_speeds(&mut self, tree: &KinematicTree, cfg: &ControllerConfig, fps: f32) {
+        let feet_xy: Vec<[f32; 2]> = self.legs.iter().map(|l| [l.nominal.x, l.nominal.y]).collect();
+        self.gaits = build_gaits(&feet_xy);
+        let n = self.legs.len().max(1) as f32;
+        self.leg_length = self.legs.iter().map(|l| l.length).sum::<f32>() / n;
+        self.foot_radius = self.legs.iter().map(|l| l.nominal.norm()).sum::<f32>() / n;
+        let height = {
+            let b = tree.aabb(&tree.forward_kinematics(&self.standing));
+            (b.max.z - b.min.z).max(1e-3)
+        };
+        self.speed_scale = cfg.scaling.speed_scale.unwrap_or(if self.mode == BaseMode::Legged {
+            self.leg_length / cfg.scaling.human_leg_length
+        } else {
+            height / cfg.scaling.human_height
+        });
+        if self.mode != BaseMode::Legged {
+            return;
+        }
+        // The highest foot speed gait `g` follows at speed `at`: its stance fits in the step radius at
+        // its highest cadence.
+        let r_min = self.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
+        let capacity = |g: &Gait, duty: f32| {
+            frequency_cap(cfg, g, duty, self.leg_length, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty
+        };
+        for k in 1..self.gaits.len() {
+            let (from, prev_from) = (self.gaits[k].from_speed, self.gaits[k - 1].from_speed);
+            if from <= prev_from {
+                continue;
+            }
+            let limit = self.gaits[..k]
+                .iter()
+                .filter(|g| g.from_speed == prev_from)
+                .map(|g| capacity(g, g.duty_at(from)))
+                .fold(f32::INFINITY, f32::min)
+                / self.speed_scale
+                / (1.0 + super::gait::GaitSelector::BAND)
+                * 0.95;
+            if limit < from {
+                for g in self.gaits.iter_mut().skip(k).filter(|g| g.from_speed == from) {
+                    g.from_speed = limit.max(0.05);
+                }
+            }
+        }
+        let top = self.gaits.iter().map(|g| g.from_speed).fold(0.0, f32::max);
+        self.max_speed = self
+            .gaits
+            .iter()
+            .filter(|g| g.from_speed == top)
+            .map(|g| capacity(g, g.duty[1]))
+            .fold(f32::INFINITY, f32::min);
+    }
+
+    /// Natural stepping frequency unit √(g/L)/2π (Hz).
+    pub fn frequency_unit(&self) -> f32 {
+        (GRAVITY / self.leg_length.max(1e-3)).sqrt() / std::f32::consts::TAU
+    }
+}
+
+/// Highest stepping frequency of a gait: swings last at least `min_swing_frames`, and the cadence
+/// stays within 3× the gait's natural frequency.
+pub fn frequency_cap(cfg: &ControllerConfig, g: &Gait, duty: f32, leg_length: f32, fps: f32) -> f32 {
+    let unit = (GRAVITY / leg_length.max(1e-3)).sqrt() / std::f32::consts::TAU;
+    let by_frames = (1.0 - duty) * fps / cfg.legs.min_swing_frames.max(1) as f32;
+    by_frames.min(3.0 * g.frequency * unit)
+}
+
+/// Position limits of DoF `d`, with continuous joints limited to ±π around `centre`.
+pub fn finite_limits(tree: &KinematicTree, d: usize, centre: f32) -> (f32, f32) {
+    match tree.limits(d) {
+        Some(l) if l.lower.is_finite() && l.upper.is_finite() => (l.lower, l.upper),
+        _ => {
+            let pi = if tree.dof_joint(d).kind == JointKind::Prismatic {
+                0.1
+            } else {
+                std::f32::consts::PI
+            };
+            (centre - pi, centre + pi)
+        }
+    }
+}

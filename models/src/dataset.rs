@@ -1,0 +1,615 @@
+//! Character motion datasets (paper §4, §7.1): the kinematic controllers of [`crate::controller`]
+//! rolled out under random commands, stored with the x^r layout, normalisation statistics, the seed and
+//! the generator's configuration.
+//!
+//! [`generate`] runs episodes of random length, each restarting from the standing pose
+//! ([`crate::kinematics::KinematicTree::standing_pose`]) at the origin, until `frames` frames exist. Frame
+//! `t` of an episode has x^r from [`write_state`] with frame `t − 1` as the previous frame (the first
+//! frame uses itself, so its velocities are zero). Everything is drawn from one PCG-64 generator seeded
+//! with `seed`, and the file has no timestamps and a fixed key order, so the same configuration gives
+//! the same file, byte for byte (with the same build on the same platform: `sin`, `exp` and friends
+//! may round differently elsewhere).
+//!
+//! # File format (version 1)
+//! A [safetensors](https://huggingface.co/docs/safetensors) file: an 8-byte little-endian header
+//! length, a JSON header, then the tensor bytes (little-endian, row-major). `N` frames, `K` episodes,
+//! `D = layout.dim`, `F` feet.
+//!
+//! | tensor     | dtype | shape    | content                                                         |
+//! |------------|-------|----------|-----------------------------------------------------------------|
+//! | `episodes` | I64   | `[K, 2]` | frame ranges `[start, end)`, in order, covering `0..N`          |
+//! | `commands` | F32   | `[N, 3]` | commanded `(vx, vy, wz)` (m/s, rad/s, heading frame): the random target the base is driven toward (the base follows it through a first-order filter) |
+//! | `mean`     | F32   | `[D]`    | mean of each x^r entry over all frames                          |
+//! | `q`        | F32   | `[N, dof]` | joint positions (rad or m) in DoF order                       |
+//! | `roots`    | F32   | `[N, 7]` | root link world pose `x y z qw qx qy qz`                        |
+//! | `states`   | F32   | `[N, D]` | x^r ([`CharacterLayout`])                                       |
+//! | `std`      | F32   | `[D]`    | standard deviation of each entry, floored at [`STD_FLOOR`]      |
+//! | `contacts` | U8    | `[N, F]` | 1 when the foot is in stance, in [`Morphology::feet`] order     |
+//!
+//! `__metadata__` (all values strings): `format` = `ace_motion_set`, `format_version` = `1`,
+//! `character` (robot name), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
+//! (`{"dof", "end_effectors", "dim"}` as JSON), `dof_names` and `end_effector_links` (JSON arrays; the
+//! first `n_feet` end effectors are the feet), `n_feet`.
+//!
+//! Files are written to a temporary file in the same directory and renamed into place, so a crash
+//! never leaves a half-written dataset. [`MotionSet::load`] checks the format, version, every tensor's
+//! dtype and shape and the episode ranges, and names the file and the problem when something is off.
+
+use std::fs;
+use std::io::Write;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use rand::SeedableRng;
+use safetensors::{Dtype, SafeTensorError, SafeTensors};
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+use thiserror::Error;
+
+use crate::character_state::{CharacterLayout, write_state};
+use crate::controller::{Controller, ControllerConfig, ControllerError, Rig, uniform};
+use crate::kinematics::{CharacterPose, KinematicTree};
+use crate::morphology::Morphology;
+
+/// The `format` metadata value.
+pub const FORMAT: &str = "ace_motion_set";
+/// The format version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Smallest standard deviation stored (a constant entry normalises to 0, not to ±∞).
+pub const STD_FLOOR: f32 = 1e-3;
+
+/// How a dataset is generated. Every field has a default; TOML/JSON may give any subset.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DatasetConfig {
+    /// Frames in total (paper: 200k).
+    pub frames: usize,
+    /// Frame rate (frames per second).
+    pub fps: f32,
+    /// Seed of the random generator.
+    pub seed: u64,
+    /// Episode length range (s); the last episode may be shorter.
+    pub episode_seconds: [f32; 2],
+    /// The controllers.
+    pub controller: ControllerConfig,
+}
+
+impl Default for DatasetConfig {
+    fn default() -> Self {
+        DatasetConfig {
+            frames: 200_000,
+            fps: 30.0,
+            seed: 0,
+            episode_seconds: [8.0, 24.0],
+            controller: ControllerConfig::default(),
+        }
+    }
+}
+
+/// Why a dataset could not be generated, saved or loaded.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum DatasetError {
+    /// The controllers cannot drive the character.
+    #[error("character `{character}`: {problem}")]
+    Controller {
+        /// Robot name.
+        character: String,
+        /// What the controllers report.
+        problem: ControllerError,
+    },
+    /// A configuration value out of range.
+    #[error("invalid dataset configuration: {0}")]
+    Config(String),
+    /// A file that cannot be written or read, or is not a valid dataset.
+    #[error("{}: {problem}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+fn file_error(path: &Path, problem: impl Into<String>) -> DatasetError {
+    DatasetError::File {
+        path: path.to_path_buf(),
+        problem: problem.into(),
+    }
+}
+
+/// A character motion dataset (see the module docs for the meaning of each field and the file format).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionSet {
+    /// Robot name.
+    pub character: String,
+    /// Frame rate.
+    pub fps: f32,
+    /// Seed it was generated with.
+    pub seed: u64,
+    /// Configuration it was generated with.
+    pub config: DatasetConfig,
+    /// Layout of `states`.
+    pub layout: CharacterLayout,
+    /// Joint name of each DoF.
+    pub dof_names: Vec<String>,
+    /// End-effector link names (feet, manipulators, head).
+    pub end_effector_links: Vec<String>,
+    /// How many of `end_effector_links` (the first ones) are feet; columns of `contacts`.
+    pub n_feet: usize,
+    /// Frame ranges of the episodes.
+    pub episodes: Vec<Range<usize>>,
+    /// Root world pose per frame.
+    pub roots: Vec<Isometry3<f32>>,
+    /// Joint positions, `N × dof` row-major.
+    pub q: Vec<f32>,
+    /// x^r, `N × layout.dim()` row-major.
+    pub states: Vec<f32>,
+    /// Mean of each x^r entry.
+    pub mean: Vec<f32>,
+    /// Standard deviation of each x^r entry (at least [`STD_FLOOR`]).
+    pub std: Vec<f32>,
+    /// Commanded `(vx, vy, wz)` per frame (heading frame).
+    pub commands: Vec<[f32; 3]>,
+    /// `N × n_feet`, 1 = stance.
+    pub contacts: Vec<u8>,
+}
+
+/// Rolls out the controllers of a character (see the module docs). `progress` is called with the
+/// number of frames done every 1024 frames and at the end.
+pub fn generate(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    cfg: &DatasetConfig,
+    progress: &mut dyn FnMut(usize),
+) -> Result<MotionSet, DatasetError> {
+    check_config(cfg)?;
+    let rig = Rig::new(tree, morph, &cfg.controller, cfg.fps).map_err(|problem| DatasetError::Controller {
+        character: tree.name.clone(),
+        problem,
+    })?;
+    let layout = CharacterLayout::new(tree, morph);
+    let (n, dof, dim, n_feet) = (cfg.frames, tree.dof(), layout.dim(), morph.feet.len());
+    let dt = 1.0 / cfg.fps;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(cfg.seed);
+    let mut ctl = Controller::new(tree, &rig, &cfg.controller, cfg.fps);
+
+    let mut set = MotionSet {
+        character: tree.name.clone(),
+        fps: cfg.fps,
+        seed: cfg.seed,
+        config: cfg.clone(),
+        layout,
+        dof_names: tree.dof_names().into_iter().map(String::from).collect(),
+        end_effector_links: morph
+            .end_effectors()
+            .iter()
+            .map(|&l| tree.links[l].name.clone())
+            .collect(),
+        n_feet,
+        episodes: Vec::new(),
+        roots: Vec::with_capacity(n),
+        q: Vec::with_capacity(n * dof),
+        states: vec![0.0; n * dim],
+        mean: Vec::new(),
+        std: Vec::new(),
+        commands: Vec::with_capacity(n),
+        contacts: Vec::with_capacity(n * n_feet),
+    };
+    let mut prev = CharacterPose {
+        root: Isometry3::identity(),
+        q: vec![0.0; dof],
+    };
+    let mut cur = prev.clone();
+    let (mut prev_links, mut cur_links) = (Vec::new(), Vec::new());
+    let mut done = 0;
+    while done < n {
+        let seconds = uniform(&mut rng, cfg.episode_seconds[0], cfg.episode_seconds[1]);
+        let len = ((seconds * cfg.fps).round() as usize).max(2).min(n - done);
+        ctl.reset(&mut rng);
+        for k in 0..len {
+            if k > 0 {
+                ctl.step(&mut rng);
+            }
+            cur.root = ctl.root();
+            cur.q.copy_from_slice(ctl.q());
+            tree.forward_kinematics_into(&cur, &mut cur_links);
+            let row = &mut set.states[done * dim..(done + 1) * dim];
+            if k == 0 {
+                write_state(&layout, morph, &cur, &cur, &cur_links, &cur_links, dt, row);
+            } else {
+                write_state(&layout, morph, &prev, &cur, &prev_links, &cur_links, dt, row);
+            }
+            set.roots.push(cur.root);
+            set.q.extend_from_slice(&cur.q);
+            set.commands.push(ctl.command().to_array());
+            set.contacts.extend(ctl.contacts().map(u8::from));
+            std::mem::swap(&mut prev, &mut cur);
+            std::mem::swap(&mut prev_links, &mut cur_links);
+            done += 1;
+            if done % 1024 == 0 {
+                progress(done);
+            }
+        }
+        set.episodes.push(done - len..done);
+    }
+    progress(done);
+    (set.mean, set.std) = statistics(&set.states, dim);
+    Ok(set)
+}
+
+fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
+    let bad = |m: String| Err(DatasetError::Config(m));
+    if cfg.frames == 0 {
+        return bad("frames must be at least 1".into());
+    }
+    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
+        return bad(format!("fps must be positive, not {}", cfg.fps));
+    }
+    let [a, b] = cfg.episode_seconds;
+    if !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b) {
+        return bad(format!(
+            "episode_seconds must be an increasing pair of positive numbers, not [{a}, {b}]"
+        ));
+    }
+    Ok(())
+}
+
+/// Mean and standard deviation (floored at [`STD_FLOOR`]) of each column of a `rows × dim` matrix,
+/// accumulated in `f64`.
+pub fn statistics(data: &[f32], dim: usize) -> (Vec<f32>, Vec<f32>) {
+    let rows = data.len().checked_div(dim).unwrap_or(0);
+    let mut sum = vec![0.0f64; dim];
+    for r in data.chunks_exact(dim.max(1)) {
+        for (s, &x) in sum.iter_mut().zip(r) {
+            *s += f64::from(x);
+        }
+    }
+    let mean: Vec<f64> = sum.iter().map(|s| s / rows.max(1) as f64).collect();
+    let mut var = vec![0.0f64; dim];
+    for r in data.chunks_exact(dim.max(1)) {
+        for ((v, &x), m) in var.iter_mut().zip(r).zip(&mean) {
+            let d = f64::from(x) - m;
+            *v += d * d;
+        }
+    }
+    let std = var
+        .iter()
+        .map(|v| ((v / rows.max(1) as f64).sqrt() as f32).max(STD_FLOOR))
+        .collect();
+    (mean.iter().map(|&m| m as f32).collect(), std)
+}
+
+impl MotionSet {
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.roots.len()
+    }
+
+    /// True when there are no frames.
+    pub fn is_empty(&self) -> bool {
+        self.roots.is_empty()
+    }
+
+    /// Number of DoFs.
+    pub fn dof(&self) -> usize {
+        self.layout.dof
+    }
+
+    /// x^r of frame `i`.
+    pub fn state(&self, i: usize) -> &[f32] {
+        let d = self.layout.dim();
+        &self.states[i * d..(i + 1) * d]
+    }
+
+    /// Stance flags of frame `i`, one per foot.
+    pub fn contact(&self, i: usize) -> &[u8] {
+        &self.contacts[i * self.n_feet..(i + 1) * self.n_feet]
+    }
+
+    /// The pose of frame `i`.
+    pub fn pose(&self, i: usize) -> CharacterPose {
+        let d = self.dof();
+        CharacterPose {
+            root: self.roots[i],
+            q: self.q[i * d..(i + 1) * d].to_vec(),
+        }
+    }
+
+    /// The poses of episode `episode`.
+    pub fn poses(&self, episode: usize) -> Vec<CharacterPose> {
+        self.episodes[episode].clone().map(|i| self.pose(i)).collect()
+    }
+
+    /// Writes the dataset (see the module docs), atomically: a temporary file in the same directory is
+    /// renamed into place.
+    pub fn save(&self, path: &Path) -> Result<(), DatasetError> {
+        let bytes = self.to_bytes()?;
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .ok_or_else(|| file_error(path, "not a file path"))?
+            .to_string_lossy()
+            .into_owned();
+        let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        let write = || -> std::io::Result<()> {
+            let mut f = fs::File::create(&tmp)?;
+            f.write_all(&bytes)?;
+            f.sync_all()?;
+            fs::rename(&tmp, path)
+        };
+        write().map_err(|e| {
+            let _ = fs::remove_file(&tmp);
+            file_error(path, format!("cannot write the dataset: {e}"))
+        })
+    }
+
+    /// The file's bytes (see the module docs).
+    pub fn to_bytes(&self) -> Result<Vec<u8>, DatasetError> {
+        let (n, dim, dof, f) = (self.len(), self.layout.dim(), self.dof(), self.n_feet);
+        let mut episodes = Vec::with_capacity(self.episodes.len() * 16);
+        for e in &self.episodes {
+            episodes.extend((e.start as i64).to_le_bytes());
+            episodes.extend((e.end as i64).to_le_bytes());
+        }
+        let roots: Vec<f32> = self
+            .roots
+            .iter()
+            .flat_map(|r| {
+                let (t, q) = (r.translation.vector, r.rotation.quaternion());
+                [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
+            })
+            .collect();
+        let commands: Vec<f32> = self.commands.iter().flatten().copied().collect();
+        // Data order: the 8-byte dtype first so that every tensor stays aligned.
+        let tensors: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
+            ("episodes", Dtype::I64, vec![self.episodes.len(), 2], episodes),
+            ("commands", Dtype::F32, vec![n, 3], f32_bytes(&commands)),
+            ("mean", Dtype::F32, vec![dim], f32_bytes(&self.mean)),
+            ("q", Dtype::F32, vec![n, dof], f32_bytes(&self.q)),
+            ("roots", Dtype::F32, vec![n, 7], f32_bytes(&roots)),
+            ("states", Dtype::F32, vec![n, dim], f32_bytes(&self.states)),
+            ("std", Dtype::F32, vec![dim], f32_bytes(&self.std)),
+            ("contacts", Dtype::U8, vec![n, f], self.contacts.clone()),
+        ];
+        let config = serde_json::to_string(&self.config).map_err(|e| DatasetError::Config(e.to_string()))?;
+        let mut meta = serde_json::Map::new();
+        let mut put = |k: &str, v: String| {
+            meta.insert(k.into(), Value::String(v));
+        };
+        put("format", FORMAT.into());
+        put("format_version", FORMAT_VERSION.to_string());
+        put("character", self.character.clone());
+        put("fps", self.fps.to_string());
+        put("seed", self.seed.to_string());
+        put("config", config);
+        put(
+            "layout",
+            json!({"dof": self.layout.dof, "end_effectors": self.layout.end_effectors, "dim": dim}).to_string(),
+        );
+        put("dof_names", json!(self.dof_names).to_string());
+        put("end_effector_links", json!(self.end_effector_links).to_string());
+        put("n_feet", self.n_feet.to_string());
+        let mut header = serde_json::Map::new();
+        header.insert("__metadata__".into(), Value::Object(meta));
+        let mut offset = 0;
+        for (name, dtype, shape, data) in &tensors {
+            header.insert(
+                (*name).into(),
+                json!({"dtype": dtype_name(*dtype), "shape": shape, "data_offsets": [offset, offset + data.len()]}),
+            );
+            offset += data.len();
+        }
+        let mut head = Value::Object(header).to_string().into_bytes();
+        head.resize(head.len().next_multiple_of(8), b' ');
+        let mut out = Vec::with_capacity(8 + head.len() + offset);
+        out.extend((head.len() as u64).to_le_bytes());
+        out.extend(head);
+        for (_, _, _, data) in &tensors {
+            out.extend(data);
+        }
+        Ok(out)
+    }
+
+    /// Reads a dataset written by [`MotionSet::save`], checking it (see the module docs).
+    pub fn load(path: &Path) -> Result<MotionSet, DatasetError> {
+        let bytes = fs::read(path).map_err(|e| file_error(path, format!("cannot read the file: {e}")))?;
+        MotionSet::from_bytes(&bytes).map_err(|p| file_error(path, p))
+    }
+
+    /// Parses a dataset file's bytes; the error is the problem (without the file name).
+    pub fn from_bytes(bytes: &[u8]) -> Result<MotionSet, String> {
+        let st = SafeTensors::deserialize(bytes).map_err(|e| describe(e, bytes.len()))?;
+        let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| describe(e, bytes.len()))?;
+        let meta = header.metadata().clone().unwrap_or_default();
+        let get = |k: &str| meta.get(k).ok_or_else(|| format!("the metadata has no `{k}` entry"));
+        let format = get("format")?;
+        if format != FORMAT {
+            return Err(format!(
+                "not an ACE motion set (format `{format}`, expected `{FORMAT}`)"
+            ));
+        }
+        let version = get("format_version")?;
+        if version.parse::<u32>().ok() != Some(FORMAT_VERSION) {
+            return Err(format!(
+                "format version {version} is not supported (this build reads version {FORMAT_VERSION})"
+            ));
+        }
+        let parse = |k: &str| -> Result<Value, String> {
+            serde_json::from_str(get(k)?).map_err(|e| format!("metadata `{k}` is not valid JSON: {e}"))
+        };
+        let number = |k: &str| -> Result<f64, String> {
+            get(k)?
+                .parse::<f64>()
+                .map_err(|_| format!("metadata `{k}` is not a number"))
+        };
+        let config: DatasetConfig = serde_json::from_str(get("config")?)
+            .map_err(|e| format!("metadata `config` is not a dataset configuration: {e}"))?;
+        let layout_v = parse("layout")?;
+        let field = |k: &str| {
+            layout_v[k]
+                .as_u64()
+                .map(|x| x as usize)
+                .ok_or_else(|| format!("metadata `layout` has no `{k}`"))
+        };
+        let layout = CharacterLayout {
+            dof: field("dof")?,
+            end_effectors: field("end_effectors")?,
+        };
+        if field("dim")? != layout.dim() {
+            return Err(format!(
+                "metadata `layout`: dim {} does not match dof {} and {} end effectors",
+                field("dim")?,
+                layout.dof,
+                layout.end_effectors
+            ));
+        }
+        let strings = |k: &str| -> Result<Vec<String>, String> {
+            serde_json::from_str(get(k)?).map_err(|e| format!("metadata `{k}` is not a JSON array of strings: {e}"))
+        };
+        let dof_names = strings("dof_names")?;
+        let end_effector_links = strings("end_effector_links")?;
+        let n_feet = number("n_feet")? as usize;
+        if dof_names.len() != layout.dof
+            || end_effector_links.len() != layout.end_effectors
+            || n_feet > layout.end_effectors
+        {
+            return Err("metadata: the DoF names, end-effector links or foot count disagree with the layout".into());
+        }
+
+        let tensor = |name: &str, dtype: Dtype, cols: Option<usize>| -> Result<(Vec<usize>, &[u8]), String> {
+            let t = st.tensor(name).map_err(|_| format!("missing tensor `{name}`"))?;
+            if t.dtype() != dtype {
+                return Err(format!(
+                    "tensor `{name}` has dtype {:?}, expected {:?}",
+                    t.dtype(),
+                    dtype
+                ));
+            }
+            let shape = t.shape().to_vec();
+            let ok = match cols {
+                Some(c) => shape.len() == 2 && shape[1] == c,
+                None => shape.len() == 1,
+            };
+            if !ok {
+                let want = cols.map_or("[D]".to_string(), |c| format!("[N, {c}]"));
+                return Err(format!("tensor `{name}` has shape {shape:?}, expected {want}"));
+            }
+            Ok((shape, t.data()))
+        };
+        let dim = layout.dim();
+        let (s_states, states) = tensor("states", Dtype::F32, Some(dim))?;
+        let n = s_states[0];
+        let rows = |name: &str, shape: &[usize]| {
+            if shape[0] == n {
+                Ok(())
+            } else {
+                Err(format!("tensor `{name}` has {} rows, `states` has {n}", shape[0]))
+            }
+        };
+        let (s, roots) = tensor("roots", Dtype::F32, Some(7))?;
+        rows("roots", &s)?;
+        let (s, q) = tensor("q", Dtype::F32, Some(layout.dof))?;
+        rows("q", &s)?;
+        let (s, commands) = tensor("commands", Dtype::F32, Some(3))?;
+        rows("commands", &s)?;
+        let (s, contacts) = tensor("contacts", Dtype::U8, Some(n_feet))?;
+        rows("contacts", &s)?;
+        let (s, mean) = tensor("mean", Dtype::F32, None)?;
+        let (s2, std) = tensor("std", Dtype::F32, None)?;
+        if s[0] != dim || s2[0] != dim {
+            return Err(format!(
+                "tensors `mean` and `std` must have {dim} entries, they have {} and {}",
+                s[0], s2[0]
+            ));
+        }
+        let (_, episodes) = tensor("episodes", Dtype::I64, Some(2))?;
+        let bounds: Vec<i64> = episodes
+            .chunks_exact(8)
+            .map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
+        let mut ranges = Vec::with_capacity(bounds.len() / 2);
+        let mut expect = 0i64;
+        for (k, e) in bounds.chunks_exact(2).enumerate() {
+            if e[0] != expect || e[1] <= e[0] || e[1] > n as i64 {
+                return Err(format!(
+                    "episode {k} is [{}, {}): episodes must be non-empty, in order and cover the {n} frames",
+                    e[0], e[1]
+                ));
+            }
+            expect = e[1];
+            ranges.push(e[0] as usize..e[1] as usize);
+        }
+        if expect != n as i64 {
+            return Err(format!("the episodes cover {expect} of the {n} frames"));
+        }
+        let roots = floats(roots)
+            .chunks_exact(7)
+            .map(|r| {
+                Isometry3::from_parts(
+                    Translation3::new(r[0], r[1], r[2]),
+                    UnitQuaternion::new_unchecked(Quaternion::new(r[3], r[4], r[5], r[6])),
+                )
+            })
+            .collect();
+        Ok(MotionSet {
+            character: get("character")?.clone(),
+            fps: number("fps")? as f32,
+            seed: get("seed")?
+                .parse()
+                .map_err(|_| "metadata `seed` is not an integer".to_string())?,
+            config,
+            layout,
+            dof_names,
+            end_effector_links,
+            n_feet,
+            episodes: ranges,
+            roots,
+            q: floats(q),
+            states: floats(states),
+            mean: floats(mean),
+            std: floats(std),
+            commands: floats(commands).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            contacts: contacts.to_vec(),
+        })
+    }
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn floats(b: &[u8]) -> Vec<f32> {
+    b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+        .collect()
+}
+
+fn dtype_name(d: Dtype) -> &'static str {
+    match d {
+        Dtype::I64 => "I64",
+        Dtype::F32 => "F32",
+        Dtype::U8 => "U8",
+        _ => unreachable!("only I64, F32 and U8 are written"),
+    }
+}
+
+/// A readable sentence for a safetensors error on a file of `len` bytes.
+fn describe(e: SafeTensorError, len: usize) -> String {
+    match e {
+        SafeTensorError::HeaderTooSmall | SafeTensorError::InvalidHeaderLength => {
+            format!("not a safetensors file, or truncated: the header does not fit in the file's {len} bytes")
+        }
+        SafeTensorError::MetadataIncompleteBuffer => {
+            format!("truncated or corrupted: the tensors the header lists do not match the file's {len} bytes")
+        }
+        SafeTensorError::InvalidHeader(_) | SafeTensorError::InvalidHeaderDeserialization(_) => {
+            "not a safetensors file: the header is not valid JSON".into()
+        }
+        SafeTensorError::HeaderTooLarge => "not a safetensors file: the header length is implausible".into(),
+        other => format!("corrupted safetensors file: {other}"),
+    }
+}

@@ -1,0 +1,381 @@
+//! Character motion datasets: generation, the safetensors file (determinism, round trip, clear
+//! errors on damaged files) and the dataset's UFR on the bundled characters.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use ace_models::character_state::character_state;
+use ace_models::dataset::{DatasetConfig, DatasetError, FORMAT_VERSION, MotionSet, STD_FLOOR, generate, statistics};
+use ace_models::kinematics::{CharacterPose, KinematicTree};
+use ace_models::metrics::{UfrConfig, ufr_episodes};
+use ace_models::morphology::{Morphology, load_character};
+use safetensors::tensor::TensorView;
+use safetensors::{Dtype, SafeTensors};
+
+fn character(name: &str) -> (KinematicTree, Morphology) {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
+    load_character(&p).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn small(frames: usize, seed: u64) -> DatasetConfig {
+    DatasetConfig {
+        frames,
+        seed,
+        episode_seconds: [4.0, 8.0],
+        ..DatasetConfig::default()
+    }
+}
+
+/// A fresh directory for one test's files.
+fn temp_dir(test: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("dataset-{test}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn file_problem(e: DatasetError, path: &Path) -> String {
+    let msg = e.to_string();
+    assert!(
+        msg.contains(&path.display().to_string()),
+        "error does not name the file: {msg}"
+    );
+    match e {
+        DatasetError::File { problem, .. } => problem,
+        other => panic!("expected a file error, got {other}"),
+    }
+}
+
+#[test]
+fn same_seed_same_bytes_different_seed_different_bytes() {
+    let (tree, morph) = character("spot");
+    let dir = temp_dir("determinism");
+    let a = generate(&tree, &morph, &small(400, 5), &mut |_| {}).unwrap();
+    let b = generate(&tree, &morph, &small(400, 5), &mut |_| {}).unwrap();
+    let c = generate(&tree, &morph, &small(400, 6), &mut |_| {}).unwrap();
+    let (pa, pb, pc) = (
+        dir.join("a.safetensors"),
+        dir.join("b.safetensors"),
+        dir.join("c.safetensors"),
+    );
+    a.save(&pa).unwrap();
+    b.save(&pb).unwrap();
+    c.save(&pc).unwrap();
+    let (ba, bb, bc) = (
+        std::fs::read(&pa).unwrap(),
+        std::fs::read(&pb).unwrap(),
+        std::fs::read(&pc).unwrap(),
+    );
+    assert_eq!(ba, bb, "the same seed must give the same bytes");
+    assert_ne!(ba, bc, "another seed must give another dataset");
+    // No temporary files are left behind.
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 3, "{names:?}");
+}
+
+#[test]
+fn save_then_load_round_trips() {
+    let dir = temp_dir("round-trip");
+    for name in ["spot", "stretch"] {
+        let (tree, morph) = character(name);
+        let mut cfg = small(300, 1);
+        cfg.controller.scaling.speed_scale = Some(0.5);
+        let set = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+        let path = dir.join(format!("{name}.safetensors"));
+        set.save(&path).unwrap();
+        let back = MotionSet::load(&path).unwrap();
+        assert_eq!(back, set, "{name}");
+        assert_eq!(back.config.controller.scaling.speed_scale, Some(0.5));
+        // Saving what was loaded gives the same file.
+        let again = dir.join(format!("{name}-again.safetensors"));
+        back.save(&again).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), std::fs::read(&again).unwrap());
+        // Overwriting an existing file works.
+        set.save(&path).unwrap();
+    }
+}
+
+#[test]
+fn the_file_is_plain_safetensors_with_documented_metadata() {
+    let (tree, morph) = character("crab");
+    let set = generate(&tree, &morph, &small(200, 2), &mut |_| {}).unwrap();
+    let bytes = set.to_bytes().unwrap();
+    let st = SafeTensors::deserialize(&bytes).unwrap();
+    let (_, header) = SafeTensors::read_metadata(&bytes).unwrap();
+    let meta = header.metadata().clone().unwrap();
+    assert_eq!(meta["format"], "ace_motion_set");
+    assert_eq!(meta["format_version"], FORMAT_VERSION.to_string());
+    assert_eq!(meta["character"], "crab");
+    assert_eq!(meta["n_feet"], "6");
+    assert_eq!(meta["fps"], "30");
+    assert_eq!(meta["seed"], "2");
+    let cfg: DatasetConfig = serde_json::from_str(&meta["config"]).unwrap();
+    assert_eq!(cfg, set.config);
+    let names: Vec<String> = serde_json::from_str(&meta["dof_names"]).unwrap();
+    assert_eq!(names.len(), 24);
+    let n = set.len();
+    let dim = set.layout.dim();
+    let expect = [
+        ("states", Dtype::F32, vec![n, dim]),
+        ("roots", Dtype::F32, vec![n, 7]),
+        ("q", Dtype::F32, vec![n, 24]),
+        ("mean", Dtype::F32, vec![dim]),
+        ("std", Dtype::F32, vec![dim]),
+        ("commands", Dtype::F32, vec![n, 3]),
+        ("contacts", Dtype::U8, vec![n, 6]),
+        ("episodes", Dtype::I64, vec![set.episodes.len(), 2]),
+    ];
+    for (name, dtype, shape) in expect {
+        let t = st.tensor(name).unwrap();
+        assert_eq!((t.dtype(), t.shape().to_vec()), (dtype, shape), "{name}");
+    }
+    // Roots are x y z qw qx qy qz.
+    let roots = st.tensor("roots").unwrap();
+    let f: Vec<f32> = roots.data()[..28]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let r = set.roots[0];
+    assert_eq!(f[2], r.translation.vector.z);
+    assert_eq!(f[3], r.rotation.quaternion().w);
+}
+
+#[test]
+fn states_are_the_character_state_of_consecutive_frames() {
+    let (tree, morph) = character("spot");
+    let set = generate(&tree, &morph, &small(400, 3), &mut |_| {}).unwrap();
+    assert!(set.episodes.len() >= 2);
+    for e in &set.episodes {
+        // The first frame of an episode is its own previous frame.
+        let first = set.pose(e.start);
+        assert_eq!(first.root.translation.vector.x, 0.0);
+        let x = character_state(&tree, &morph, &first, &first, 1.0 / set.fps);
+        assert_eq!(set.state(e.start), &x[..]);
+        for t in [e.start + 1, e.start + 37, e.end - 1] {
+            let x = character_state(&tree, &morph, &set.pose(t - 1), &set.pose(t), 1.0 / set.fps);
+            for (a, b) in set.state(t).iter().zip(&x) {
+                assert!((a - b).abs() < 1e-5, "frame {t}: {a} vs {b}");
+            }
+        }
+        // Episodes restart from the standing pose.
+        let stand: CharacterPose = tree.standing_pose();
+        assert!((first.root.translation.vector - stand.root.translation.vector).norm() < 1e-6);
+        let max_dq = first
+            .q
+            .iter()
+            .zip(&stand.q)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(max_dq < 1e-3, "first frame is {max_dq} rad from the standing pose");
+    }
+    assert_eq!(set.poses(1).len(), set.episodes[1].len());
+    assert_eq!(set.poses(1)[0], set.pose(set.episodes[1].start));
+}
+
+#[test]
+fn normalisation_statistics() {
+    let (tree, morph) = character("stretch");
+    let set = generate(&tree, &morph, &small(300, 4), &mut |_| {}).unwrap();
+    let dim = set.layout.dim();
+    for d in [0, 11, dim - 1] {
+        let col: Vec<f64> = (0..set.len()).map(|i| f64::from(set.state(i)[d])).collect();
+        let mean = col.iter().sum::<f64>() / col.len() as f64;
+        let std = (col.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / col.len() as f64).sqrt();
+        assert!((f64::from(set.mean[d]) - mean).abs() < 1e-5);
+        assert!((f64::from(set.std[d]) - std.max(f64::from(STD_FLOOR))).abs() < 1e-5);
+    }
+    assert!(set.std.iter().all(|&s| s >= STD_FLOOR));
+    let (m, s) = statistics(&[1.0, 5.0, 3.0, 5.0], 2);
+    assert_eq!(m, [2.0, 5.0]);
+    assert_eq!(s, [1.0, STD_FLOOR]);
+}
+
+#[test]
+fn generation_reports_progress_and_fills_every_frame() {
+    let (tree, morph) = character("crab");
+    let mut seen = Vec::new();
+    let set = generate(&tree, &morph, &small(2100, 8), &mut |n| seen.push(n)).unwrap();
+    assert_eq!(seen, [1024, 2048, 2100]);
+    assert_eq!(set.len(), 2100);
+    assert_eq!(set.episodes.first().unwrap().start, 0);
+    assert_eq!(set.episodes.last().unwrap().end, 2100);
+    assert!(set.episodes.windows(2).all(|w| w[0].end == w[1].start));
+    assert!(
+        set.episodes[..set.episodes.len() - 1]
+            .iter()
+            .all(|e| (120..=240).contains(&e.len()))
+    );
+    assert_eq!(set.commands.len(), 2100);
+    assert_eq!(set.q.len(), 2100 * 24);
+    assert!(set.contacts.iter().all(|&c| c <= 1));
+}
+
+#[test]
+fn bad_configurations_are_refused() {
+    let (tree, morph) = character("spot");
+    for cfg in [
+        DatasetConfig {
+            frames: 0,
+            ..small(10, 0)
+        },
+        DatasetConfig {
+            fps: 0.0,
+            ..small(10, 0)
+        },
+        DatasetConfig {
+            episode_seconds: [5.0, 1.0],
+            ..small(10, 0)
+        },
+    ] {
+        let e = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap_err();
+        assert!(matches!(e, DatasetError::Config(_)), "{e}");
+    }
+    // Partial configurations fill in the defaults; unknown keys are refused.
+    let cfg: DatasetConfig = toml::from_str("frames = 1000\n[controller.commands]\nforward = [-1.0, 3.0]\n").unwrap();
+    assert_eq!(cfg.frames, 1000);
+    assert_eq!(cfg.fps, 30.0);
+    assert_eq!(cfg.controller.commands.forward, [-1.0, 3.0]);
+    assert!(toml::from_str::<DatasetConfig>("frame = 3").is_err());
+    let json = serde_json::to_string(&DatasetConfig::default()).unwrap();
+    assert_eq!(
+        serde_json::from_str::<DatasetConfig>(&json).unwrap(),
+        DatasetConfig::default()
+    );
+}
+
+/// A tensor as (name, dtype, shape, bytes).
+type Tensor = (String, Dtype, Vec<usize>, Vec<u8>);
+
+/// The tensors of a saved set, for building damaged files.
+fn tensors_and_metadata(bytes: &[u8]) -> (Vec<Tensor>, HashMap<String, String>) {
+    let st = SafeTensors::deserialize(bytes).unwrap();
+    let (_, header) = SafeTensors::read_metadata(bytes).unwrap();
+    let mut t: Vec<_> = st
+        .tensors()
+        .into_iter()
+        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
+        .collect();
+    t.sort_by(|a, b| a.0.cmp(&b.0));
+    (t, header.metadata().clone().unwrap())
+}
+
+fn write_tensors(path: &Path, tensors: &[Tensor], meta: HashMap<String, String>) {
+    let views: Vec<(String, TensorView<'_>)> = tensors
+        .iter()
+        .map(|(n, d, s, b)| (n.clone(), TensorView::new(*d, s.clone(), b).unwrap()))
+        .collect();
+    std::fs::write(path, safetensors::serialize(views, Some(meta)).unwrap()).unwrap();
+}
+
+#[test]
+fn damaged_files_give_clear_errors() {
+    let (tree, morph) = character("spot");
+    let set = generate(&tree, &morph, &small(120, 9), &mut |_| {}).unwrap();
+    let dir = temp_dir("damaged");
+    let good = set.to_bytes().unwrap();
+
+    // Missing file.
+    let p = dir.join("absent.safetensors");
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("cannot read"), "{msg}");
+
+    // Truncated.
+    let p = dir.join("truncated.safetensors");
+    std::fs::write(&p, &good[..good.len() - 100]).unwrap();
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("truncated"), "{msg}");
+    std::fs::write(&p, &good[..5]).unwrap();
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("truncated") || msg.contains("not a safetensors"), "{msg}");
+
+    // Not a dataset at all.
+    let p = dir.join("garbage.safetensors");
+    std::fs::write(&p, b"\x10\x00\x00\x00\x00\x00\x00\x00{not json}      ").unwrap();
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("not a safetensors file"), "{msg}");
+
+    // A missing tensor is named.
+    let (tensors, meta) = tensors_and_metadata(&good);
+    let p = dir.join("missing.safetensors");
+    let without: Vec<_> = tensors.iter().filter(|t| t.0 != "contacts").cloned().collect();
+    write_tensors(&p, &without, meta.clone());
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("missing tensor `contacts`"), "{msg}");
+
+    // A tensor of the wrong shape is named with both shapes.
+    let p = dir.join("shape.safetensors");
+    let mut bad = tensors.clone();
+    let q = bad.iter_mut().find(|t| t.0 == "q").unwrap();
+    q.2 = vec![q.2[0] * 2, q.2[1] / 2];
+    write_tensors(&p, &bad, meta.clone());
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("tensor `q`") && msg.contains("expected [N, 18]"), "{msg}");
+
+    // Another format version.
+    let p = dir.join("version.safetensors");
+    let mut m = meta.clone();
+    m.insert("format_version".into(), "99".into());
+    write_tensors(&p, &tensors, m);
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("version 99") && msg.contains("not supported"), "{msg}");
+
+    // Not a motion set (another safetensors file).
+    let p = dir.join("weights.safetensors");
+    write_tensors(&p, &tensors[..1], HashMap::new());
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("no `format`"), "{msg}");
+
+    // Episodes that do not cover the frames.
+    let p = dir.join("episodes.safetensors");
+    let mut bad = tensors.clone();
+    let e = bad.iter_mut().find(|t| t.0 == "episodes").unwrap();
+    let last = e.3.len() - 8;
+    e.3[last..].copy_from_slice(&5i64.to_le_bytes());
+    write_tensors(&p, &bad, meta);
+    let msg = file_problem(MotionSet::load(&p).unwrap_err(), &p);
+    assert!(msg.contains("episode"), "{msg}");
+}
+
+#[test]
+fn saving_into_a_missing_directory_fails_cleanly() {
+    let (tree, morph) = character("stretch");
+    let set = generate(&tree, &morph, &small(30, 1), &mut |_| {}).unwrap();
+    let dir = temp_dir("missing-dir");
+    let p = dir.join("no/such/dir/set.safetensors");
+    let msg = file_problem(set.save(&p).unwrap_err(), &p);
+    assert!(msg.contains("cannot write"), "{msg}");
+    assert!(!p.exists());
+}
+
+#[test]
+fn bundled_datasets_are_clean_by_the_ufr_detectors() {
+    // Paper's dataset: 0.258 %; the target is at most 0.5 % for each bundled character.
+    for name in ["spot", "crab", "stretch"] {
+        let (tree, morph) = character(name);
+        let set = generate(
+            &tree,
+            &morph,
+            &DatasetConfig {
+                frames: 2000,
+                seed: 21,
+                ..DatasetConfig::default()
+            },
+            &mut |_| {},
+        )
+        .unwrap();
+        let poses: Vec<CharacterPose> = (0..set.len()).map(|i| set.pose(i)).collect();
+        let ufr = ufr_episodes(
+            &tree,
+            &morph,
+            &poses,
+            &set.episodes,
+            set.fps,
+            &UfrConfig::for_character(&tree, &morph),
+        );
+        println!("{name}: {:?} {:?}", ufr.rates, ufr.collision_pairs);
+        assert!(ufr.rates.ufr <= 0.005, "{name}: UFR {:.3} %", 100.0 * ufr.rates.ufr);
+    }
+}
