@@ -41,7 +41,7 @@ fn circle(frame: &Isometry3<f32>, center: Vector3<f32>, u: Vector3<f32>, v: Vect
 }
 
 fn shape_segments(frame: &Isometry3<f32>, shape: &Shape, color: [u8; 3], out: &mut Vec<Segment>) {
-    let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+    let (x, y, z): (Vector3<f32>, Vector3<f32>, Vector3<f32>) = (Vector3::x(), Vector3::y(), Vector3::z());
     match shape {
         Shape::Box { size } => {
             let h = size / 2.0;
@@ -54,18 +54,18 @@ fn shape_segments(frame: &Isometry3<f32>, shape: &Shape, color: [u8; 3], out: &m
                 }
             }
         }
-        Shape::Cylinder { radius, length } | Shape::Capsule { radius, length } => {
+        &Shape::Cylinder { radius, length } | &Shape::Capsule { radius, length } => {
             for s in [-0.5, 0.5] {
-                circle(frame, z * length * s, x, y, *radius, color, out);
+                circle(frame, z * length * s, x, y, radius, color, out);
             }
             for (a, b) in [(x, 1.0), (x, -1.0), (y, 1.0), (y, -1.0)] {
                 let p = a * radius * b;
                 out.push(((frame * Point3::from(p - z * length / 2.0)).coords, (frame * Point3::from(p + z * length / 2.0)).coords, color));
             }
         }
-        Shape::Sphere { radius } => {
+        &Shape::Sphere { radius } => {
             for (u, v) in [(x, y), (y, z), (z, x)] {
-                circle(frame, Vector3::zeros(), u, v, *radius, color, out);
+                circle(frame, Vector3::zeros(), u, v, radius, color, out);
             }
         }
         // Mesh files are drawn as their bounding box when it could be read.

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use ace::models::human::Joint;
 use ace::models::kinematics::CharacterPose;
-use ace::models::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use ace::models::nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use ace::plugin::convert;
 use ace::plugin::prelude::*;
 use bevy::asset::LoadState;
@@ -14,11 +14,16 @@ use bevy::time::TimeUpdateStrategy;
 
 const DT: f32 = 1.0 / 30.0;
 
+/// A headless app loading assets from the bundled `assets/` folder.
 fn app() -> App {
+    app_with_assets(concat!(env!("CARGO_MANIFEST_DIR"), "/assets"))
+}
+
+fn app_with_assets(asset_root: &str) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
-        AssetPlugin { file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(), ..default() },
+        AssetPlugin { file_path: asset_root.into(), ..default() },
         TransformPlugin,
         AcePlugin,
     ))
@@ -145,8 +150,8 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
 </robot>"#,
     )
     .unwrap();
-    let mut app = app();
-    let handle: Handle<UrdfAsset> = app.world().resource::<AssetServer>().load(path.clone());
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let handle: Handle<UrdfAsset> = app.world().resource::<AssetServer>().load("loop.urdf");
     let character = app.world_mut().spawn(Character::new(handle.clone())).id();
     let mut state = LoadState::Loading;
     update_until(&mut app, |w| {

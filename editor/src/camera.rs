@@ -35,7 +35,7 @@ pub fn orbit(
     mut egui: bevy_egui::EguiContexts,
     mut cameras: Query<&mut Transform, With<Camera3d>>,
 ) {
-    let pointer_on_ui = egui.ctx_mut().map(|c| c.wants_pointer_input()).unwrap_or(false);
+    let pointer_on_ui = egui.ctx_mut().map(|c| c.egui_wants_pointer_input()).unwrap_or(false);
     if !pointer_on_ui {
         let d = motion.delta;
         if buttons.pressed(MouseButton::Left) {

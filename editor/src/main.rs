@@ -40,6 +40,8 @@ fn main() -> AppExit {
         }).set(AssetPlugin {
             // Paths given on the command line are resolved against the working directory.
             file_path: std::env::current_dir().map(|d| d.display().to_string()).unwrap_or_else(|_| ".".into()),
+            // The user opens files anywhere on disk, not only below the working directory.
+            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
             ..default()
         }))
         .add_plugins((EguiPlugin::default(), AcePlugin))

@@ -6,7 +6,7 @@ use bevy_egui::{EguiContexts, egui};
 
 use crate::Scene;
 
-/// Side panel: what is loaded, and playback controls for the clip.
+/// The scene panel: what is loaded, and playback controls for the clip.
 pub fn panels(
     mut contexts: EguiContexts,
     scene: Option<Res<Scene>>,
@@ -17,7 +17,7 @@ pub fn panels(
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let Some(scene) = scene else { return Ok(()) };
-    egui::SidePanel::left("scene").default_width(260.0).show(ctx, |ui| {
+    egui::Window::new("Scene").anchor(egui::Align2::LEFT_TOP, [8.0, 8.0]).default_width(280.0).resizable(false).show(ctx, |ui| {
         ui.heading("Character");
         match characters.get(scene.character).ok().and_then(|c| urdfs.get(&c.urdf)) {
             Some(urdf) => {
