@@ -22,8 +22,7 @@ pub fn run(character: &Path, clip_path: &Path, out: &Path) -> Result<()> {
     std::fs::write(&summary_path, serde_json::to_string_pretty(&summary)?).with_context(|| format!("writing {}", summary_path.display()))?;
 
     let pose = tree.standing_pose();
-    let mut segments = picture::ground_segments(2.5);
-    segments.extend(picture::character_segments(&tree, &pose, [214, 140, 30]));
+    let mut segments = picture::character_segments(&tree, &pose, [214, 140, 30]);
     // The human stands 1.5 m to the character's left; its path is shifted so that it starts there.
     let start = clip.frames.first().context("the clip has no frames")?.positions[0];
     let offset = Vector3::new(-start.x, 1.5 - start.y, 0.0);
@@ -33,8 +32,11 @@ pub fn run(character: &Path, clip_path: &Path, out: &Path) -> Result<()> {
         let shade = (170.0 * (1.0 - k as f32 / (SAMPLES - 1) as f32)) as u8;
         segments.extend(picture::human_segments(&clip.frame_at(t), offset, [shade, shade.saturating_add(60), 235]));
     }
+    // The grid goes underneath: drawn first, everything else over it.
+    let mut scene = picture::ground_segments(&segments);
+    scene.extend(segments);
     let picture_path = out.join("scene.png");
-    picture::render(&segments, 1280, 720, 0.9, 0.35, &picture_path)?;
+    picture::render(&scene, 1280, 720, 0.9, 0.35, &picture_path)?;
     println!("wrote {} and {}", summary_path.display(), picture_path.display());
     Ok(())
 }

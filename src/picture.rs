@@ -86,17 +86,26 @@ pub fn human_segments(frame: &HumanFrame, offset: Vector3<f32>, color: [u8; 3]) 
         .collect()
 }
 
-/// A ground grid of 0.5 m cells around the origin.
-pub fn ground_segments(half_extent: f32) -> Vec<Segment> {
-    let n = (half_extent / 0.5).ceil() as i32;
-    let e = n as f32 * 0.5;
+/// A ground grid of 0.5 m cells under everything in `segments`, with a cell of margin.
+pub fn ground_segments(segments: &[Segment]) -> Vec<Segment> {
+    const CELL: f32 = 0.5;
+    let (mut lo, mut hi) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
+    for p in segments.iter().flat_map(|(a, b, _)| [a, b]) {
+        lo = (lo.0.min(p.x), lo.1.min(p.y));
+        hi = (hi.0.max(p.x), hi.1.max(p.y));
+    }
+    let cell = |v: f32, up: bool| if up { (v / CELL).ceil() as i32 + 1 } else { (v / CELL).floor() as i32 - 1 };
+    let (x0, x1, y0, y1) = (cell(lo.0, false), cell(hi.0, true), cell(lo.1, false), cell(hi.1, true));
     let color = [205, 205, 205];
-    (-n..=n)
-        .flat_map(|i| {
-            let c = i as f32 * 0.5;
-            [(Vector3::new(c, -e, 0.0), Vector3::new(c, e, 0.0), color), (Vector3::new(-e, c, 0.0), Vector3::new(e, c, 0.0), color)]
-        })
-        .collect()
+    let xs = (x0..=x1).map(|i| {
+        let x = i as f32 * CELL;
+        (Vector3::new(x, y0 as f32 * CELL, 0.0), Vector3::new(x, y1 as f32 * CELL, 0.0), color)
+    });
+    let ys = (y0..=y1).map(|j| {
+        let y = j as f32 * CELL;
+        (Vector3::new(x0 as f32 * CELL, y, 0.0), Vector3::new(x1 as f32 * CELL, y, 0.0), color)
+    });
+    xs.chain(ys).collect()
 }
 
 /// Renders segments orthographically, seen from azimuth `yaw` and elevation `pitch` (radians),
