@@ -62,7 +62,10 @@ pub(crate) fn spawn_characters(
                 .spawn((Name::new(link.name.clone()), CharacterLink { character: entity, index }, Transform::default(), ChildOf(parent)))
                 .id();
             #[cfg(feature = "render")]
-            visuals.spawn_link_visuals(&mut commands, id, link);
+            {
+                commands.entity(id).insert(Visibility::default());
+                visuals.spawn_link_visuals(&mut commands, id, link);
+            }
             links.push(id);
         }
         let mut e = commands.entity(entity);

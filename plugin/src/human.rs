@@ -69,7 +69,10 @@ pub(crate) fn spawn_human_joints(
                 .spawn((Name::new(joint.name()), HumanJoint { player, joint }, Transform::default(), ChildOf(player)))
                 .id();
             #[cfg(feature = "render")]
-            visuals.spawn_joint_visual(&mut commands, id, joint);
+            {
+                commands.entity(id).insert(Visibility::default());
+                visuals.spawn_joint_visual(&mut commands, id, joint);
+            }
             id
         });
         let mut e = commands.entity(player);
