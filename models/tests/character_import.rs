@@ -2,6 +2,9 @@
 //! small hand-written URDFs, the project's own characters (`assets/characters`) and the real public
 //! URDFs in `../shared/data/robots` (set `ACE_ALLOW_MISSING_DATA=1` to skip those when absent).
 
+mod common;
+use common::robots;
+
 use std::f32::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
 
@@ -20,22 +23,6 @@ fn manifest() -> PathBuf {
 
 fn characters() -> PathBuf {
     manifest().join("../assets/characters")
-}
-
-/// The shared robot data, or `None` (with a message) when it is absent and `ACE_ALLOW_MISSING_DATA=1`.
-fn robots() -> Option<PathBuf> {
-    let dir = manifest().join("../../shared/data/robots");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: shared robot data not found at {}", dir.display());
-        return None;
-    }
-    panic!(
-        "shared robot data not found at {} (set ACE_ALLOW_MISSING_DATA=1 to skip tests that need it)",
-        dir.display()
-    );
 }
 
 fn load(path: &Path) -> (KinematicTree, Morphology) {

@@ -9,6 +9,9 @@
 //!   filter has settled ([`SETTLE`] s = 4 time constants), the achieved heading-frame velocity is within
 //!   5 % of the character's top speed (+1 cm/s) of the command, and the yaw rate within 0.03 rad/s.
 
+mod common;
+use common::robots;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -30,25 +33,6 @@ const FRAMES: usize = 2000;
 
 fn manifest() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The shared robot data, or `None` (with a message) when it is absent and `ACE_ALLOW_MISSING_DATA=1`.
-fn robots() -> Option<PathBuf> {
-    let dir = manifest().join("../../shared/data/robots");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!(
-            "skipping the real URDFs: shared robot data not found at {}",
-            dir.display()
-        );
-        return None;
-    }
-    panic!(
-        "shared robot data not found at {} (set ACE_ALLOW_MISSING_DATA=1 to skip tests that need it)",
-        dir.display()
-    );
 }
 
 /// A character with a small dataset generated once per test binary.

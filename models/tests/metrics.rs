@@ -2,6 +2,9 @@
 //! the bundled characters, FID and DIV against closed forms and hand computations, and the body-length
 //! normalisation of Ψ.
 
+mod common;
+use common::robots;
+
 use std::f32::consts::{FRAC_PI_2, PI};
 use std::path::PathBuf;
 
@@ -779,22 +782,6 @@ impl<'a, I: Iterator<Item = &'a bool>> Positions for I {
     fn positions(self) -> Vec<usize> {
         self.enumerate().filter(|(_, b)| **b).map(|(i, _)| i).collect()
     }
-}
-
-/// The shared robot data, or `None` (with a message) when it is absent and `ACE_ALLOW_MISSING_DATA=1`.
-fn robots() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/robots");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: shared robot data not found at {}", dir.display());
-        return None;
-    }
-    panic!(
-        "shared robot data not found at {} (set ACE_ALLOW_MISSING_DATA=1 to skip tests that need it)",
-        dir.display()
-    );
 }
 
 #[test]
