@@ -1,4 +1,5 @@
-//! The `ace` binary as a user runs it: `inspect` on bundled and never-seen files, `demo`, bad input.
+//! The `ace` binary as a user runs it: `inspect` on bundled and never-seen files, `demo`, `dataset` and
+//! `metrics` on bundled and real characters, bad input.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -14,7 +15,7 @@ fn shared(rel: &str) -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
-    if std::env::var_os("ACE_ALLOW_MISSING_DATA").is_some() {
+    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
         eprintln!("skipping: {} is missing", p.display());
         return None;
     }
@@ -146,4 +147,111 @@ fn demo_writes_summary_and_picture() {
     let orange = img.pixels().filter(|p| p.0 == [214, 140, 30]).count();
     let blue = img.pixels().filter(|p| p.0[2] == 235 && p.0[0] < 200).count();
     assert!(orange > 500 && blue > 500, "orange {orange}, blue {blue}");
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-dataset");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn dataset(character: &str, frames: usize, seed: u64, out: &Path, extra: &[&str]) -> Output {
+    let (frames, seed) = (frames.to_string(), seed.to_string());
+    let mut args = vec!["dataset", "--character", character, "--frames", &frames, "--seed", &seed, "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    ace(&args)
+}
+
+fn metrics_json(file: &Path, character: &str) -> Value {
+    let out = ace(&["metrics", file.to_str().unwrap(), "--character", character, "--json"]);
+    assert!(out.status.success(), "ace metrics {} failed: {}", file.display(), String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("metrics --json prints JSON")
+}
+
+#[test]
+fn dataset_and_metrics_on_bundled_and_real_characters() {
+    let mut characters: Vec<(String, String, bool)> =
+        ["spot", "crab", "stretch"].iter().map(|n| (n.to_string(), n.to_string(), true)).collect();
+    for (name, rel) in [
+        ("real-spot", "robots/spot_arm/spot_with_arm.urdf"),
+        ("phantomx", "robots/phantomx_hexapod/phantomx_description/urdf/phantomx.urdf"),
+        ("stretch-re1", "robots/stretch_re1/stretch_description_RE1V0_tool_stretch_gripper.urdf"),
+    ] {
+        let Some(p) = shared(rel) else { continue };
+        characters.push((name.to_string(), p.to_str().unwrap().to_string(), false));
+    }
+    for (name, arg, bundled) in characters {
+        let file = tmp(&format!("{name}.safetensors"));
+        let out = dataset(&arg, 3000, 3, &file, &[]);
+        assert!(out.status.success(), "ace dataset {name}: {}", String::from_utf8_lossy(&out.stderr));
+        let v = metrics_json(&file, &arg);
+        assert_eq!(v["frames"], 3000, "{name}");
+        let div = v["div"].as_f64().unwrap();
+        assert!(div.is_finite() && div > 0.0, "{name}: DIV {div}");
+        assert!(v["fid"].is_null() && v["feature_loss"].is_null(), "{name}: no reference, no source");
+        let ufr = v["ufr"]["rates"]["ufr"].as_f64().unwrap();
+        // The target for the bundled characters; real robots only need a clean enough motion.
+        let limit = if bundled { 0.005 } else { 0.05 };
+        assert!(ufr <= limit, "{name}: dataset UFR {:.3} % above {:.1} %", 100.0 * ufr, 100.0 * limit);
+    }
+}
+
+#[test]
+fn the_same_seed_gives_the_same_dataset_file() {
+    let (a, b, c) = (tmp("seed-a.safetensors"), tmp("seed-b.safetensors"), tmp("seed-c.safetensors"));
+    for (file, seed) in [(&a, 11), (&b, 11), (&c, 12)] {
+        let out = dataset("crab", 1500, seed, file, &[]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    assert_eq!(bytes(&a), bytes(&b), "same seed, same file");
+    assert_ne!(bytes(&a), bytes(&c), "another seed, another dataset");
+}
+
+#[test]
+fn dataset_report_draws_gaits_velocities_and_foot_heights() {
+    let file = tmp("report-spot.safetensors");
+    let dir = tmp("report-spot");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dataset("spot", 4000, 5, &file, &["--report", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for png in ["gait.png", "velocity.png", "foot_heights.png"] {
+        let img = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}")).to_rgb8();
+        assert!(img.width() >= 800 && img.height() >= 300, "{png}: {:?}", img.dimensions());
+        // A chart, not a blank page: a good share of pixels is neither the white background nor grey.
+        let coloured = img.pixels().filter(|p| {
+            let [r, g, b] = p.0;
+            r.max(g).max(b) - r.min(g).min(b) > 60
+        });
+        assert!(coloured.count() > 2000, "{png} has hardly any coloured pixels");
+    }
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["frames"], 4000);
+    // A wheeled character has no feet: no gait diagram, but velocities.
+    let file = tmp("report-stretch.safetensors");
+    let dir = tmp("report-stretch");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dataset("stretch", 1500, 5, &file, &["--report", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.join("velocity.png").is_file() && !dir.join("gait.png").exists());
+}
+
+#[test]
+fn dataset_and_metrics_reject_bad_input_naming_it() {
+    let out = dataset("octopus", 100, 0, &tmp("none.safetensors"), &[]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("octopus"), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let crab = tmp("mismatch-crab.safetensors");
+    assert!(dataset("crab", 300, 0, &crab, &[]).status.success());
+    let out = ace(&["metrics", crab.to_str().unwrap(), "--character", "spot"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("mismatch-crab.safetensors") && err.contains("does not match"), "{err}");
+
+    let junk = tmp("junk.safetensors");
+    std::fs::write(&junk, b"not a dataset").unwrap();
+    let out = ace(&["metrics", junk.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("junk.safetensors"));
 }

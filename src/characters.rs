@@ -1,0 +1,45 @@
+//! Where the CLI finds characters: `--character` takes a bundled character's name (`spot`, `crab`,
+//! `stretch`) or a path to any URDF.
+
+use std::path::{Path, PathBuf};
+
+use ace::models::kinematics::KinematicTree;
+use ace::models::morphology::{Morphology, load_character};
+use anyhow::{Result, bail};
+
+/// Names of the characters in `assets/characters/`.
+pub const BUNDLED: [&str; 3] = ["spot", "crab", "stretch"];
+
+/// The project's `assets/` folder: `./assets` when run from the repository root, else the one beside
+/// the sources this binary was built from.
+pub fn assets_dir() -> PathBuf {
+    let here = Path::new("assets");
+    if here.join("characters").is_dir() {
+        here.to_path_buf()
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+    }
+}
+
+/// The URDF a `--character` value names: an existing path as given, else a bundled character's name.
+pub fn character_path(arg: &str) -> Result<PathBuf> {
+    let path = Path::new(arg);
+    if path.is_file() {
+        return Ok(path.to_path_buf());
+    }
+    if BUNDLED.contains(&arg) {
+        return Ok(assets_dir().join("characters").join(format!("{arg}.urdf")));
+    }
+    bail!(
+        "no character `{arg}`: not a URDF file, nor a bundled character ({})",
+        BUNDLED.join(", ")
+    )
+}
+
+/// Loads the character a `--character` value names, with its morphology (and profile, when one sits
+/// beside the URDF).
+pub fn load(arg: &str) -> Result<(PathBuf, KinematicTree, Morphology)> {
+    let path = character_path(arg)?;
+    let (tree, morph) = load_character(&path)?;
+    Ok((path, tree, morph))
+}

@@ -1,0 +1,80 @@
+//! `ace metrics`: the motion-quality metrics of paper §7.3 (UFR with its detectors, DIV, FID) of a
+//! character motion file.
+
+use std::path::Path;
+
+use ace::models::dataset::MotionSet;
+use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, character_body_length, character_features};
+use ace::models::kinematics::KinematicTree;
+use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
+use ace::models::morphology::Morphology;
+use anyhow::{Result, bail};
+
+use crate::characters;
+
+/// Runs `ace metrics FILE [--character C] [--reference DATASET] [--json]`.
+pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json: bool) -> Result<()> {
+    let set = MotionSet::load(file)?;
+    let name = character.unwrap_or(&set.character);
+    let (urdf, tree, morph) = characters::load(name)?;
+    check_matches(&set, file, &tree, &urdf)?;
+    let reference = match reference {
+        Some(r) => {
+            let other = MotionSet::load(r)?;
+            check_matches(&other, r, &tree, &urdf)?;
+            Some(other)
+        }
+        None => None,
+    };
+    let report = dataset_metrics(&tree, &morph, &set, reference.as_ref());
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{} ({} on {})\n{report}", file.display(), set.character, urdf.display());
+    }
+    Ok(())
+}
+
+/// Fails unless the motion file was made for this character (same DoF names).
+fn check_matches(set: &MotionSet, file: &Path, tree: &KinematicTree, urdf: &Path) -> Result<()> {
+    let names: Vec<&str> = tree.dof_names();
+    if set.dof_names != names {
+        bail!(
+            "{}: made for character `{}` with {} DoF, which does not match {} ({} DoF); pass the character's URDF with --character",
+            file.display(),
+            set.character,
+            set.dof_names.len(),
+            urdf.display(),
+            names.len()
+        );
+    }
+    Ok(())
+}
+
+/// Ψ of every frame of a motion set, with the by-side end-effector mapping.
+pub fn set_features(tree: &KinematicTree, morph: &Morphology, set: &MotionSet) -> Vec<Vec<f32>> {
+    let mapping = EndEffectorMapping::by_side(tree, morph);
+    let body = character_body_length(tree, morph);
+    (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, &mapping)).collect()
+}
+
+/// The metrics of a motion set: UFR over its episodes from its stored poses, DIV of its Ψ, and FID
+/// against `reference` when given.
+pub fn dataset_metrics(tree: &KinematicTree, morph: &Morphology, set: &MotionSet, reference: Option<&MotionSet>) -> MetricsReport {
+    let poses: Vec<_> = (0..set.len()).map(|i| set.pose(i)).collect();
+    let ufr = ufr_episodes(tree, morph, &poses, &set.episodes, set.fps, &UfrConfig::for_character(tree, morph));
+    let features = set_features(tree, morph, set);
+    let fit = reference.map(|r| GaussianFit::fit(&set_features(tree, morph, r)));
+    let mapping = EndEffectorMapping::by_side(tree, morph);
+    MetricsReport::compute(
+        &MetricsInput {
+            features: &features,
+            reference: fit.as_ref(),
+            source_features: None,
+            layout: FeatureLayout::new(&mapping),
+            weights: FeatureWeights::default(),
+            div: DivConfig::default(),
+        },
+        &ufr,
+    )
+}

@@ -1,0 +1,107 @@
+//! The picture report of `ace dataset --report DIR`: so a person can see the gaits at a glance.
+//!
+//! Two windows of the dataset are shown, the episode with the slowest and the one with the fastest
+//! mean commanded speed (at most [`WINDOW_SECONDS`] of each), as
+//! - `gait.png`: the contact timeline of each foot (a bar where the foot is in stance);
+//! - `velocity.png`: commanded vs achieved base velocity (forward, sideways, yaw rate), the achieved one
+//!   read back from x^r;
+//! - `foot_heights.png`: the height of each foot point above the ground;
+//!
+//! plus `metrics.json` (what `ace metrics --json` prints for the file).
+
+use std::ops::Range;
+use std::path::Path;
+
+use ace::models::dataset::MotionSet;
+use ace::models::kinematics::KinematicTree;
+use ace::models::metrics::MetricsReport;
+use ace::models::morphology::Morphology;
+use anyhow::{Context, Result};
+
+use crate::plot::{Color, Figure, LineChart, Series, Timeline};
+
+/// Longest stretch of an episode shown (s).
+pub const WINDOW_SECONDS: f32 = 12.0;
+
+/// Writes the report into `dir` (created if needed).
+pub fn write(dir: &Path, tree: &KinematicTree, morph: &Morphology, set: &MotionSet, metrics: &MetricsReport) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let windows = windows(set);
+    let time = |w: &Range<usize>, i: usize| (i - w.start) as f64 / f64::from(set.fps);
+
+    let mut gait = Figure::new(1200);
+    let mut velocity = Figure::new(1200);
+    let mut heights = Figure::new(1200);
+    for (label, w) in &windows {
+        let mean = mean_speed(set, w);
+        let title = format!("{} — {label} episode (mean commanded speed {mean:.2} m/s)", set.character);
+        if set.n_feet > 0 {
+            let rows = (0..set.n_feet)
+                .map(|f| (set.end_effector_links[f].clone(), w.clone().map(|i| set.contact(i)[f] == 1).collect()))
+                .collect();
+            gait.push(Timeline { title: format!("Foot contacts: {title}"), x_label: "time (s)".into(), dt: 1.0 / f64::from(set.fps), rows }, 100 + 30 * set.n_feet as u32);
+        }
+        let lin = set.layout.root_linear_velocity().start;
+        let ang = set.layout.root_angular_velocity().start;
+        for (k, (name, unit)) in [("forward velocity", "m/s"), ("sideways velocity", "m/s"), ("yaw rate", "rad/s")].into_iter().enumerate() {
+            let achieved = |i: usize| f64::from(if k < 2 { set.state(i)[lin + k] } else { set.state(i)[ang + 2] });
+            velocity.push(
+                LineChart {
+                    title: format!("{name}: {title}"),
+                    x_label: "time (s)".into(),
+                    y_label: unit.into(),
+                    series: vec![
+                        Series { name: "commanded".into(), color: Color::GRAY, points: w.clone().map(|i| (time(w, i), f64::from(set.commands[i][k]))).collect() },
+                        Series { name: "achieved".into(), color: Color::BLUE, points: w.clone().map(|i| (time(w, i), achieved(i))).collect() },
+                    ],
+                    log_y: false,
+                },
+                260,
+            );
+        }
+        if set.n_feet > 0 {
+            let series = (0..set.n_feet)
+                .map(|f| Series {
+                    name: set.end_effector_links[f].clone(),
+                    color: Color::palette(f),
+                    points: w
+                        .clone()
+                        .map(|i| {
+                            let links = tree.forward_kinematics(&set.pose(i));
+                            (time(w, i), f64::from(morph.ee_point(morph.feet[f], &links).z))
+                        })
+                        .collect(),
+                })
+                .collect();
+            heights.push(LineChart { title: format!("Foot heights: {title}"), x_label: "time (s)".into(), y_label: "m".into(), series, log_y: false }, 320);
+        }
+    }
+    if set.n_feet > 0 {
+        gait.save(&dir.join("gait.png"))?;
+        heights.save(&dir.join("foot_heights.png"))?;
+    }
+    velocity.save(&dir.join("velocity.png"))?;
+    let json = dir.join("metrics.json");
+    std::fs::write(&json, serde_json::to_string_pretty(metrics)?).with_context(|| format!("writing {}", json.display()))?;
+    Ok(())
+}
+
+/// Mean commanded planar speed over a frame range.
+fn mean_speed(set: &MotionSet, w: &Range<usize>) -> f32 {
+    let n = w.len().max(1) as f32;
+    w.clone().map(|i| set.commands[i][0].hypot(set.commands[i][1])).sum::<f32>() / n
+}
+
+/// The slowest and fastest episodes by mean commanded speed, cut to [`WINDOW_SECONDS`].
+fn windows(set: &MotionSet) -> Vec<(&'static str, Range<usize>)> {
+    let max = (WINDOW_SECONDS * set.fps) as usize;
+    let cut = |e: &Range<usize>| e.start..e.end.min(e.start + max);
+    let by_speed = |e: &&Range<usize>| mean_speed(set, e);
+    let slow = set.episodes.iter().min_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
+    let fast = set.episodes.iter().max_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
+    match (slow, fast) {
+        (Some(s), Some(f)) if s != f => vec![("slowest", cut(s)), ("fastest", cut(f))],
+        (Some(s), _) => vec![("only", cut(s))],
+        _ => Vec::new(),
+    }
+}
