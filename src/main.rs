@@ -6,9 +6,10 @@ mod demo;
 mod inspect;
 mod metrics;
 mod picture;
-mod plot;
 mod progress;
 mod report;
+mod retarget;
+mod train;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -18,8 +19,33 @@ use clap::{Parser, Subcommand};
 #[derive(Parser)]
 #[command(name = "ace", version, about = "Retarget human motion capture onto nonhuman characters (ACE)")]
 struct Cli {
+    /// Threads libtorch may use [default: libtorch's choice, one per core]. On a machine shared with
+    /// other heavy jobs, 1 is often much faster.
+    #[arg(long, global = true)]
+    threads: Option<i32>,
     #[command(subcommand)]
     command: Command,
+}
+
+/// Options of `train-prior` and `train`.
+#[derive(clap::Args)]
+struct TrainOpts {
+    /// A bundled character (spot, crab, stretch) or a URDF file.
+    #[arg(long)]
+    character: String,
+    /// Checkpoint directory [default: out/checkpoints/<character>].
+    #[arg(long)]
+    checkpoint: Option<PathBuf>,
+    /// A dataset file from `ace dataset` [default: generate it (train-prior) or regenerate the
+    /// prior's (train)].
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    /// A TOML file with any subset of the training configuration.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Use the paper's network sizes and step counts (§6.4) instead of the CPU defaults.
+    #[arg(long)]
+    paper: bool,
 }
 
 #[derive(Subcommand)]
@@ -68,6 +94,43 @@ enum Command {
         #[arg(long)]
         report: Option<PathBuf>,
     },
+    /// Train a character's motion prior (VAE encoder and mode-adaptive decoder) on its dataset.
+    TrainPrior {
+        #[command(flatten)]
+        opts: TrainOpts,
+        /// Frames of the generated dataset [default: 200000].
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Seed of the generated dataset [default: 0].
+        #[arg(long)]
+        seed: Option<u64>,
+    },
+    /// Train ACE's generator and discriminator for a character whose prior is trained.
+    Train {
+        #[command(flatten)]
+        opts: TrainOpts,
+        /// Folder of human BVH clips [default: ../shared/data/human].
+        #[arg(long)]
+        humans: Option<PathBuf>,
+    },
+    /// Retarget a human clip onto a character: writes a glTF binary, the robot command trajectory
+    /// (JSON, CSV) and the clip's metrics.
+    Retarget {
+        /// The human clip (BVH).
+        clip: PathBuf,
+        /// A bundled character (spot, crab, stretch) or a URDF file.
+        #[arg(long)]
+        character: String,
+        /// Checkpoint directory [default: the bundled character's shipped one].
+        #[arg(long)]
+        checkpoint: Option<PathBuf>,
+        /// Output glTF binary (.glb); the trajectory and metrics are written beside it.
+        #[arg(long)]
+        out: PathBuf,
+        /// Leave the human skeleton out of the glTF.
+        #[arg(long)]
+        no_human: bool,
+    },
     /// Print the motion-quality metrics (UFR and its detectors, DIV, FID) of a motion file.
     Metrics {
         /// A motion file written by `ace dataset`.
@@ -86,6 +149,9 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        ace::models::learn::set_threads(n);
+    }
     let result = match cli.command {
         Command::Inspect { file, json } => inspect::run(&file, json),
         Command::Demo { character, clip, out } => demo::run(&character, &clip, &out),
@@ -97,6 +163,11 @@ fn main() -> ExitCode {
             out,
             report,
         }),
+        Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
+        Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
+        Command::Retarget { clip, character, checkpoint, out, no_human } => {
+            retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human)
+        }
         Command::Metrics { file, character, reference, json } => {
             metrics::run(&file, character.as_deref(), reference.as_deref(), json)
         }
@@ -107,5 +178,18 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+fn train_args(o: TrainOpts, frames: Option<usize>, seed: Option<u64>, humans: Option<PathBuf>) -> train::TrainArgs {
+    train::TrainArgs {
+        character: o.character,
+        out: o.checkpoint,
+        dataset: o.dataset,
+        frames,
+        seed,
+        config: o.config,
+        paper: o.paper,
+        humans,
     }
 }

@@ -18,7 +18,7 @@ use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 
-use crate::plot::{Color, Figure, LineChart, Series, Timeline};
+use ace::plot::{Color, Figure, LineChart, Series, Timeline};
 
 /// Longest stretch of an episode shown (s).
 pub const WINDOW_SECONDS: f32 = 12.0;

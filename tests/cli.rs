@@ -255,3 +255,63 @@ fn dataset_and_metrics_reject_bad_input_naming_it() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("junk.safetensors"));
 }
+
+/// Tiny networks and step counts: the whole pipeline in seconds, not a useful model.
+const TINY_PRIOR: &str = "steps = 120\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n";
+const TINY_ACE: &str = "steps = 40\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n";
+
+#[test]
+fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
+    let dir = tmp("pipeline");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |args: &[&str]| {
+        let out = ace(args);
+        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    run(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    for f in ["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"] {
+        assert!(ck.join(f).is_file(), "train-prior wrote no {f}");
+    }
+    let stdout = run(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    assert!(stdout.contains("grasp_center"), "the correspondence table names the end effectors:\n{stdout}");
+    for f in ["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", "reference.json"] {
+        assert!(ck.join(f).is_file(), "train wrote no {f}");
+    }
+
+    let glb = dir.join("wave.glb");
+    run(&["--threads", "1", "retarget", "assets/motions/wave.bvh", "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&glb)]);
+    let frames = inspect_json(&root().join("assets/motions/wave.bvh"))["frames"].as_u64().unwrap() as usize; // at 30 fps
+    let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
+    assert_eq!(csv.lines().count(), frames + 1, "one row per frame plus the header");
+    assert!(csv.lines().next().unwrap().starts_with("t,vx,vy,wz,height,"));
+    let traj: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("json")).unwrap()).unwrap();
+    assert_eq!(traj["robot"], "stretch");
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["frames"], frames);
+    for k in ["div", "fid", "feature_loss"] {
+        assert!(m[k].as_f64().is_some_and(f64::is_finite), "{k} = {}", m[k]);
+    }
+    // Khronos' validator (installed by scripts/setup.sh) finds no errors.
+    let validator = root().join(".local/node/node_modules/gltf-validator");
+    if !validator.exists() && std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+        eprintln!("skipping validation: {} is missing", validator.display());
+        return;
+    }
+    let out = Command::new("node").arg(root().join("scripts/validate-gltf.mjs")).arg(&glb).output().expect("running node (scripts/setup.sh installs it)");
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| panic!("validator output: {}", String::from_utf8_lossy(&out.stderr)));
+    assert_eq!(report["issues"]["numErrors"], 0, "{report}");
+    assert!(out.status.success());
+
+    // A checkpoint of another character is refused with the directory named.
+    let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "crab", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&s(&ck)), "{err}");
+    assert!(!dir.join("x.glb").exists(), "nothing written on error");
+}

@@ -11,11 +11,14 @@ pub use nalgebra;
 
 pub mod character_state;
 pub mod controller;
+pub mod correspondence;
 pub mod dataset;
+pub mod export;
 pub mod features;
 pub mod frame;
 pub mod geometry;
 pub mod human;
+pub mod human_set;
 pub mod kinematics;
 #[cfg(feature = "learn")]
 pub mod learn;

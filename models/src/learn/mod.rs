@@ -1,7 +1,23 @@
 //! Learning modules (libtorch through `tch`). The only part of `models` that knows tch.
 //!
-//! For now this holds the bridge between the state vectors built by [`crate::human`] and
-//! [`crate::character_state`] and tensors, and device selection; the networks build on it.
+//! This file holds the bridge between the state vectors built by [`crate::human`] and
+//! [`crate::character_state`] and tensors, and device selection. The method (paper §4–§6) is split by
+//! what each part holds:
+//! - [`nets`]: the building blocks (MLP, the mode-adaptive mixture-of-experts layer stack);
+//! - [`prior`]: the motion prior (VAE encoder c and MANN decoder π) and its training (§4);
+//! - [`psi`]: Ψ on tensors, the differentiable twin of [`crate::features`];
+//! - [`ace`]: generator G and discriminator D with their losses (§5);
+//! - [`train_ace`]: the adversarial training loop over human clips;
+//! - [`checkpoint`]: configs, normalisation statistics and weights on disk;
+//! - [`retarget`]: inference, a human clip or pose stream to character states.
+
+pub mod ace;
+pub mod checkpoint;
+pub mod nets;
+pub mod prior;
+pub mod psi;
+pub mod retarget;
+pub mod train_ace;
 
 use tch::{Device, Kind, Tensor};
 
@@ -17,6 +33,11 @@ pub enum ShapeError {
 /// The device training and inference run on: the first CUDA device when libtorch sees one, else the CPU.
 pub fn default_device() -> Device {
     Device::cuda_if_available()
+}
+
+/// Sets how many threads libtorch's CPU kernels use (intra-op parallelism).
+pub fn set_threads(n: i32) {
+    tch::set_num_threads(n.max(1));
 }
 
 /// Stacks equally wide state rows (frames × features) into a `[frames, width]` f32 tensor on `device`.

@@ -1,0 +1,887 @@
+//! Generator G and discriminator D (paper §5, §6.4), their losses, and their files.
+//!
+//! - G(x^h_t, x^r_{t−1}) → ẑ_t: an [`Mlp`] with leaky ReLU on the normalised human state and the
+//!   normalised previous character state; the frozen prior's decoder turns ẑ_t into x̂^r_t.
+//! - D(x^r_{t−1}, x^r_t) → logit: an [`Mlp`] with SiLU on a normalised transition. σ(logit) is the
+//!   paper's D ∈ [0, 1]; the losses work on logits for numerical stability.
+//!
+//! Both see the character states through the prior's state mask ([`super::prior::state_mask`]):
+//! wheel angles are zeroed in their inputs, as they are in the prior's.
+//!
+//! # Losses
+//! - [`discriminator_loss`]: `L_D = −E_real[log D] − E_fake[log(1 − D)]` (as softplus of logits) plus
+//!   the gradient penalty `w_gp/2 · E_real[‖∇_{(x_{t−1}, x_t)} logit‖²]` on the *real* transitions
+//!   (paper eq. 4; the penalty is taken on the logit, as in ASE which the paper follows).
+//! - [`generator_adv_loss`]: `L_adv = −E[log D(x_{t−1}, x̂_t)]`.
+//!
+//! # Files ([`AceCheckpoint`])
+//! An ACE checkpoint lives in the same directory as the motion prior it was trained with
+//! ([`super::checkpoint`]): `generator.safetensors` and `discriminator.safetensors` (every variable of
+//! each network's own `VarStore`, F32) and `ace.json` (pretty JSON): `kind` = [`KIND`],
+//! `format_version`, the character, the training `step`, the [`AceConfig`], the end-effector
+//! correspondence with its source (automatic or manual), the x^h normalisation statistics, the human
+//! clip folder and split, the body lengths, checksums of both weights files and of the prior's weights
+//! file it was trained against, and a free-form `provenance`. Files are written under temporary names
+//! and renamed into place (weights first); the checksums tie the files together.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use safetensors::{Dtype, SafeTensors};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use tch::{Device, Kind, Tensor, nn};
+
+use super::checkpoint::{CharacterInfo, LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
+use super::nets::{Activation, Mlp};
+use super::prior::DeviceChoice;
+use crate::correspondence::Correspondence;
+use crate::features::FeatureWeights;
+use crate::human::{EndEffector, layout as human_layout};
+use crate::human_set::{HumanSplit, HumanStats};
+
+/// The `kind` of `ace.json`.
+pub const KIND: &str = "ace_adversarial";
+/// The format version of `ace.json` this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Name of the metadata file.
+pub const ACE_FILE: &str = "ace.json";
+/// Name of the generator's weights file.
+pub const GENERATOR_FILE: &str = "generator.safetensors";
+/// Name of the discriminator's weights file.
+pub const DISCRIMINATOR_FILE: &str = "discriminator.safetensors";
+
+/// Sizes and training settings of the adversarial stage. Every field has a default (the CPU
+/// defaults, sized for about a quarter of an hour per character on two CPU cores);
+/// [`AceConfig::paper`] gives the paper's network sizes. JSON may give any subset.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AceConfig {
+    /// Hidden layer widths of G (paper: 512 × 3).
+    pub generator_hidden: Vec<usize>,
+    /// Hidden layer widths of D (paper: 512 × 3).
+    pub discriminator_hidden: Vec<usize>,
+    /// Weight of the adversarial loss w_adv.
+    pub w_adv: f64,
+    /// Weight of the feature loss w_fea.
+    pub w_fea: f64,
+    /// Per-block weights inside the feature loss.
+    pub feature_weights: FeatureWeights,
+    /// Weight of the gradient penalty w_gp (paper: 0.1).
+    pub w_gp: f64,
+    /// Adam's learning rate for G.
+    pub generator_lr: f64,
+    /// Adam's learning rate for D.
+    pub discriminator_lr: f64,
+    /// Adam's β₁ for both (0.5 is the usual choice for adversarial training).
+    pub adam_beta1: f64,
+    /// Human windows (and real transitions) per step.
+    pub batch_size: usize,
+    /// Frames per human window: G and π are rolled out over this many frames.
+    pub window: usize,
+    /// Generator steps.
+    pub steps: usize,
+    /// Discriminator updates per generator step (0 keeps D fixed; it is still evaluated for the log).
+    pub discriminator_steps: usize,
+    /// A checkpoint is saved every this many steps (and at the end).
+    pub checkpoint_every: usize,
+    /// Seed of initialisation and of every random draw of training.
+    pub seed: u64,
+    /// Where to train: the device the caller loads the prior onto ([`super::train_ace::train_ace`]
+    /// runs wherever the prior is).
+    pub device: DeviceChoice,
+    /// Manual end-effector mapping: character end-effector link name → human end effector (`null`
+    /// leaves that end effector out of Ψ). Entries override the automatic correspondence; links not
+    /// listed keep it.
+    pub end_effector_mapping: Option<BTreeMap<String, Option<EndEffector>>>,
+}
+
+impl Default for AceConfig {
+    fn default() -> Self {
+        AceConfig {
+            generator_hidden: vec![256; 3],
+            discriminator_hidden: vec![256; 3],
+            w_adv: 1.0,
+            w_fea: 10.0,
+            feature_weights: FeatureWeights::default(),
+            w_gp: 0.1,
+            generator_lr: 2e-4,
+            discriminator_lr: 2e-4,
+            adam_beta1: 0.5,
+            batch_size: 128,
+            window: 8,
+            steps: 4000,
+            discriminator_steps: 1,
+            checkpoint_every: 250,
+            seed: 0,
+            device: DeviceChoice::Auto,
+            end_effector_mapping: None,
+        }
+    }
+}
+
+impl AceConfig {
+    /// The paper's network sizes (§6.4): G and D both 512 × 3.
+    pub fn paper() -> Self {
+        AceConfig {
+            generator_hidden: vec![512; 3],
+            discriminator_hidden: vec![512; 3],
+            batch_size: 256,
+            steps: 20_000,
+            checkpoint_every: 1000,
+            ..AceConfig::default()
+        }
+    }
+
+    /// Checks that every value is in range.
+    pub fn check(&self) -> Result<(), LearnError> {
+        let bad = |m: String| Err(LearnError::Config(m));
+        if self.batch_size == 0 || self.window == 0 || self.checkpoint_every == 0 {
+            return bad("batch_size, window and checkpoint_every must be at least 1".into());
+        }
+        if self
+            .generator_hidden
+            .iter()
+            .chain(&self.discriminator_hidden)
+            .any(|&w| w == 0)
+        {
+            return bad("hidden layer widths must be at least 1".into());
+        }
+        for (name, v) in [
+            ("generator_lr", self.generator_lr),
+            ("discriminator_lr", self.discriminator_lr),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{name} must be positive, not {v}"));
+            }
+        }
+        for (name, v) in [("w_adv", self.w_adv), ("w_fea", self.w_fea), ("w_gp", self.w_gp)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} must be non-negative, not {v}"));
+            }
+        }
+        if !(0.0..1.0).contains(&self.adam_beta1) {
+            return bad(format!("adam_beta1 must be in [0, 1), not {}", self.adam_beta1));
+        }
+        Ok(())
+    }
+
+    /// True when a run with `other` may resume from a checkpoint made with `self`: everything but
+    /// `steps`, `checkpoint_every` and `device` agrees.
+    pub fn resumable_with(&self, other: &AceConfig) -> bool {
+        let neutral = |c: &AceConfig| AceConfig {
+            steps: 0,
+            checkpoint_every: 1,
+            device: DeviceChoice::Cpu,
+            ..c.clone()
+        };
+        neutral(self) == neutral(other)
+    }
+
+    /// Applies [`AceConfig::end_effector_mapping`] to an automatic correspondence. Unknown link
+    /// names are an error that lists the character's end effectors.
+    pub fn resolve_mapping(&self, automatic: Correspondence) -> Result<Correspondence, LearnError> {
+        let Some(manual) = &self.end_effector_mapping else {
+            return Ok(automatic);
+        };
+        let mut overrides = Vec::with_capacity(manual.len());
+        for (link, human) in manual {
+            let index = automatic.link_index(link).ok_or_else(|| {
+                LearnError::Config(format!(
+                    "end_effector_mapping: `{link}` is not an end effector of the character (they are: {})",
+                    automatic.character_links.join(", ")
+                ))
+            })?;
+            overrides.push((index, *human));
+        }
+        automatic
+            .with_overrides(&overrides)
+            .map_err(|e| LearnError::Config(format!("end_effector_mapping: {e}")))
+    }
+}
+
+/// Fixed offsets mixed into [`AceConfig::seed`] so that G and D start from different draws.
+const GENERATOR_STREAM: u64 = 0x6765_6e65_7261_746f;
+const DISCRIMINATOR_STREAM: u64 = 0x6469_7363_7269_6d69;
+
+/// The generator G with its own `VarStore` (variables under `generator.`).
+#[derive(Debug)]
+pub struct Generator {
+    vs: nn::VarStore,
+    net: Mlp,
+    mask: Tensor,
+    state_dim: usize,
+}
+
+impl Generator {
+    /// A freshly initialised G (seeded by `cfg.seed`) mapping `(x^h, x^r_{t−1})` to a latent of width
+    /// `latent`; `mask` is the prior's state mask (one value per x^r entry).
+    pub fn new(cfg: &AceConfig, state_dim: usize, latent: usize, mask: &[f32], device: Device) -> Generator {
+        assert_eq!(mask.len(), state_dim, "the mask needs one value per state entry");
+        let vs = nn::VarStore::new(device);
+        let mut rng = Pcg64::seed_from_u64(cfg.seed ^ GENERATOR_STREAM);
+        let net = Mlp::new(
+            &(vs.root() / "generator"),
+            human_layout::DIM + state_dim,
+            &cfg.generator_hidden,
+            Activation::LEAKY_RELU,
+            Some(latent),
+            &mut rng,
+        );
+        Generator {
+            mask: Tensor::from_slice(mask).view([1, -1]).to_device(device),
+            vs,
+            net,
+            state_dim,
+        }
+    }
+
+    /// ẑ `[B, latent]` from the normalised human states `x_h: [B, 92]` and previous character states
+    /// `prev: [B, D]`.
+    pub fn forward(&self, x_h: &Tensor, prev: &Tensor) -> Tensor {
+        self.net.forward(&Tensor::cat(&[x_h, &(prev * &self.mask)], 1))
+    }
+
+    /// Width of x^r.
+    pub fn state_dim(&self) -> usize {
+        self.state_dim
+    }
+
+    /// Width of ẑ.
+    pub fn latent_dim(&self) -> usize {
+        self.net.output_dim()
+    }
+
+    /// The variables.
+    pub fn var_store(&self) -> &nn::VarStore {
+        &self.vs
+    }
+
+    /// The variables, mutably.
+    pub fn var_store_mut(&mut self) -> &mut nn::VarStore {
+        &mut self.vs
+    }
+}
+
+/// The discriminator D with its own `VarStore` (variables under `discriminator.`).
+#[derive(Debug)]
+pub struct Discriminator {
+    vs: nn::VarStore,
+    net: Mlp,
+    mask: Tensor,
+}
+
+impl Discriminator {
+    /// A freshly initialised D (seeded by `cfg.seed`) over transitions of states of width
+    /// `state_dim`; `mask` is the prior's state mask.
+    pub fn new(cfg: &AceConfig, state_dim: usize, mask: &[f32], device: Device) -> Discriminator {
+        assert_eq!(mask.len(), state_dim, "the mask needs one value per state entry");
+        let vs = nn::VarStore::new(device);
+        let mut rng = Pcg64::seed_from_u64(cfg.seed ^ DISCRIMINATOR_STREAM);
+        let net = Mlp::new(
+            &(vs.root() / "discriminator"),
+            2 * state_dim,
+            &cfg.discriminator_hidden,
+            Activation::Silu,
+            Some(1),
+            &mut rng,
+        );
+        Discriminator {
+            mask: Tensor::from_slice(mask).view([1, -1]).to_device(device),
+            vs,
+            net,
+        }
+    }
+
+    /// The logits `[B]` of transitions `prev → cur` (`[B, D]` each, normalised); σ(logit) is the
+    /// probability that the transition comes from the character dataset.
+    pub fn forward(&self, prev: &Tensor, cur: &Tensor) -> Tensor {
+        let input = Tensor::cat(&[prev * &self.mask, cur * &self.mask], 1);
+        self.net.forward(&input).squeeze_dim(1)
+    }
+
+    /// The variables.
+    pub fn var_store(&self) -> &nn::VarStore {
+        &self.vs
+    }
+
+    /// The variables, mutably.
+    pub fn var_store_mut(&mut self) -> &mut nn::VarStore {
+        &mut self.vs
+    }
+}
+
+/// The parts of [`discriminator_loss`] (scalars but for the logits).
+#[derive(Debug)]
+pub struct DiscriminatorLoss {
+    /// `bce + gp`, what D minimises.
+    pub total: Tensor,
+    /// `−E_real[log D] − E_fake[log(1 − D)]`.
+    pub bce: Tensor,
+    /// The weighted gradient penalty `w_gp/2 · E_real[‖∇ logit‖²]`.
+    pub gp: Tensor,
+    /// Logits of the real transitions `[B]`.
+    pub real_logits: Tensor,
+    /// Logits of the fake transitions `[B']`.
+    pub fake_logits: Tensor,
+}
+
+/// D's loss on real transitions `real_prev → real_cur` from the character dataset and generated ones
+/// `fake_prev → fake_cur` (all normalised; the fakes are detached here), with the gradient penalty of
+/// weight `w_gp` on the real transitions (see the module docs).
+pub fn discriminator_loss(
+    d: &Discriminator,
+    real_prev: &Tensor,
+    real_cur: &Tensor,
+    fake_prev: &Tensor,
+    fake_cur: &Tensor,
+    w_gp: f64,
+) -> DiscriminatorLoss {
+    // Leaf copies of the real inputs, so that the penalty differentiates with respect to them.
+    let rp = real_prev.detach().set_requires_grad(true);
+    let rc = real_cur.detach().set_requires_grad(true);
+    let real_logits = d.forward(&rp, &rc);
+    let fake_logits = d.forward(&fake_prev.detach(), &fake_cur.detach());
+    // −log σ(l) = softplus(−l) and −log(1 − σ(l)) = softplus(l), without overflow for large |l|.
+    let bce = (-&real_logits).softplus().mean(Kind::Float) + fake_logits.softplus().mean(Kind::Float);
+    let gp = if w_gp > 0.0 {
+        let grads = Tensor::run_backward(&[real_logits.sum(Kind::Float)], &[&rp, &rc], true, true);
+        let sq = grads[0].square().sum_dim_intlist(1, false, Kind::Float)
+            + grads[1].square().sum_dim_intlist(1, false, Kind::Float);
+        sq.mean(Kind::Float) * (w_gp / 2.0)
+    } else {
+        Tensor::zeros([], (Kind::Float, real_logits.device()))
+    };
+    DiscriminatorLoss {
+        total: &bce + &gp,
+        bce,
+        gp,
+        real_logits,
+        fake_logits,
+    }
+}
+
+/// G's adversarial loss `−E[log D(prev, cur)]` on generated transitions (a scalar).
+pub fn generator_adv_loss(d: &Discriminator, prev: &Tensor, cur: &Tensor) -> Tensor {
+    (-d.forward(prev, cur)).softplus().mean(Kind::Float)
+}
+
+/// The body lengths Ψ was normalised with during training.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BodyLengths {
+    /// The character's (m).
+    pub character: f32,
+    /// One length for every human clip (m), when given; else each clip's own.
+    pub human_override: Option<f32>,
+    /// Each training clip's own body length (m), by relative path.
+    pub human_clips: BTreeMap<String, f32>,
+}
+
+/// A weights file's size and FNV-1a 64 checksum.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileRecord {
+    /// File name inside the checkpoint directory.
+    pub file: String,
+    /// Size in bytes.
+    pub bytes: u64,
+    /// FNV-1a 64 of the content, 16 hex digits.
+    pub fnv1a64: String,
+}
+
+impl FileRecord {
+    /// The record of `bytes` stored as `file`.
+    pub fn of(file: &str, bytes: &[u8]) -> FileRecord {
+        FileRecord {
+            file: file.into(),
+            bytes: bytes.len() as u64,
+            fnv1a64: format!("{:016x}", fnv1a64(bytes)),
+        }
+    }
+
+    /// Fails with [`LearnError::CorruptFile`] naming `path` unless `bytes` match the record.
+    pub fn verify(&self, path: &Path, bytes: &[u8], recorded_in: &str) -> Result<(), LearnError> {
+        if *self == FileRecord::of(&self.file, bytes) {
+            return Ok(());
+        }
+        Err(LearnError::CorruptFile {
+            path: path.into(),
+            problem: format!(
+                "its content differs from the one `{recorded_in}` records ({} bytes, checksum {}); the \
+                 files are not from the same save",
+                self.bytes, self.fnv1a64
+            ),
+        })
+    }
+}
+
+/// The character of an `ace.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CharacterRecord {
+    /// Robot name.
+    pub name: String,
+    /// Width of x^r.
+    pub state_dim: usize,
+    /// Joint name of each DoF.
+    pub dof_names: Vec<String>,
+    /// End-effector link names, in state order.
+    pub end_effector_links: Vec<String>,
+}
+
+impl CharacterRecord {
+    /// The record of a prior's character.
+    pub fn of(c: &CharacterInfo) -> CharacterRecord {
+        CharacterRecord {
+            name: c.name.clone(),
+            state_dim: c.layout.dim(),
+            dof_names: c.dof_names.clone(),
+            end_effector_links: c.end_effector_links.clone(),
+        }
+    }
+}
+
+/// Everything `ace.json` holds (see the module docs), in file order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AceRecord {
+    /// [`KIND`].
+    pub kind: String,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The character.
+    pub character: CharacterRecord,
+    /// Generator steps done.
+    pub step: usize,
+    /// The configuration.
+    pub config: AceConfig,
+    /// The end-effector correspondence Ψ used, with its scores and source.
+    pub correspondence: Correspondence,
+    /// x^h normalisation statistics (over the training clips).
+    pub human_stats: HumanStats,
+    /// The folder the human clips came from.
+    pub human_folder: PathBuf,
+    /// The held-out split of the human clips.
+    pub human_split: HumanSplit,
+    /// Body lengths of Ψ.
+    pub body_lengths: BodyLengths,
+    /// The generator's weights file.
+    pub generator: FileRecord,
+    /// The discriminator's weights file.
+    pub discriminator: FileRecord,
+    /// The prior's weights file G was trained against.
+    pub prior: FileRecord,
+    /// Free-form record of how it was made (command line, data files, commit, …).
+    pub provenance: Value,
+}
+
+/// G and D with their record: what training writes and inference reads.
+#[derive(Debug)]
+pub struct AceCheckpoint {
+    /// The metadata (its file records are refreshed by [`AceCheckpoint::save`]).
+    pub record: AceRecord,
+    /// The generator.
+    pub generator: Generator,
+    /// The discriminator (`None` when loaded for inference only).
+    pub discriminator: Option<Discriminator>,
+}
+
+impl AceRecord {
+    /// Writes the weights of `generator` (and `discriminator`, if given) and this record as `ace.json`
+    /// into `dir`, which must already hold the prior the networks were trained with (its weights file's
+    /// checksum is recorded). The file records are refreshed. Each file goes to a temporary name first
+    /// and is renamed into place, the weights before `ace.json`.
+    pub fn save(
+        &mut self,
+        dir: &Path,
+        generator: &Generator,
+        discriminator: Option<&Discriminator>,
+    ) -> Result<(), LearnError> {
+        let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
+        self.prior = FileRecord::of(PRIOR_WEIGHTS_FILE, &read_file(&prior_path)?);
+        let pid = std::process::id();
+        let mut moves: Vec<(PathBuf, PathBuf)> = Vec::new();
+        let result = (|| {
+            let mut stores = vec![(GENERATOR_FILE, generator.var_store())];
+            if let Some(d) = discriminator {
+                stores.push((DISCRIMINATOR_FILE, d.var_store()));
+            }
+            for (file, vs) in stores {
+                // The temporary name keeps the `.safetensors` extension: tch picks the format by it.
+                let tmp = dir.join(format!(".{file}.{pid}.tmp.safetensors"));
+                moves.push((tmp.clone(), dir.join(file)));
+                vs.save(&tmp)?;
+                let record = FileRecord::of(file, &read_file(&tmp)?);
+                if file == GENERATOR_FILE {
+                    self.generator = record;
+                } else {
+                    self.discriminator = record;
+                }
+            }
+            let tmp = dir.join(format!(".{ACE_FILE}.{pid}.tmp"));
+            moves.push((tmp.clone(), dir.join(ACE_FILE)));
+            let mut text = serde_json::to_string_pretty(&*self)
+                .map_err(|e| LearnError::Config(format!("cannot serialise {ACE_FILE}: {e}")))?;
+            text.push('\n');
+            write_synced(&tmp, text.as_bytes())?;
+            for (from, to) in &moves {
+                fs::rename(from, to).map_err(|e| LearnError::io(to, e))?;
+            }
+            Ok(())
+        })();
+        if result.is_err() {
+            for (from, _) in &moves {
+                let _ = fs::remove_file(from);
+            }
+        }
+        result
+    }
+}
+
+impl AceCheckpoint {
+    /// [`AceRecord::save`] of this checkpoint's record and networks.
+    pub fn save(&mut self, dir: &Path) -> Result<(), LearnError> {
+        self.record
+            .save(dir, &self.generator, self.discriminator.as_ref())
+    }
+
+    /// Reads the ACE checkpoint in `dir` for the prior of latent width `prior_latent` and state mask
+    /// `prior_mask` (one value per x^r entry) beside it, checking kind, version, the weights' shapes and checksums and that the
+    /// prior's weights file is the one it was trained against. With `with_discriminator` false, D is
+    /// neither read nor required.
+    pub fn load(
+        dir: &Path,
+        prior_latent: usize,
+        prior_mask: &[f32],
+        device: Device,
+        with_discriminator: bool,
+    ) -> Result<AceCheckpoint, LearnError> {
+        let path = dir.join(ACE_FILE);
+        let record = read_record(&path)?;
+        let corrupt = |problem: String| LearnError::CorruptFile {
+            path: path.clone(),
+            problem,
+        };
+        record.config.check().map_err(|e| corrupt(e.to_string()))?;
+        let dim = record.character.state_dim;
+        if prior_mask.len() != dim {
+            return Err(LearnError::WrongCharacter {
+                path: path.clone(),
+                problem: format!(
+                    "`{}` has states of width {dim}, the prior in {} has {}",
+                    record.character.name,
+                    dir.display(),
+                    prior_mask.len()
+                ),
+            });
+        }
+        for (name, len) in [
+            ("mean", record.human_stats.mean.len()),
+            ("std", record.human_stats.std.len()),
+        ] {
+            if len != human_layout::DIM {
+                return Err(corrupt(format!(
+                    "`human_stats.{name}` has {len} entries, x^h has {}",
+                    human_layout::DIM
+                )));
+            }
+        }
+        if let Some(i) = record
+            .human_stats
+            .std
+            .iter()
+            .position(|s| !(s.is_finite() && *s > 0.0))
+        {
+            return Err(corrupt(format!("`human_stats.std` entry {i} is not positive")));
+        }
+        let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
+        record
+            .prior
+            .verify(&prior_path, &read_file(&prior_path)?, ACE_FILE)?;
+
+        let generator = Generator::new(&record.config, dim, prior_latent, prior_mask, device);
+        load_weights(
+            &dir.join(GENERATOR_FILE),
+            &record.generator,
+            generator.var_store(),
+        )?;
+        let discriminator = if with_discriminator {
+            let d = Discriminator::new(&record.config, dim, prior_mask, device);
+            load_weights(
+                &dir.join(DISCRIMINATOR_FILE),
+                &record.discriminator,
+                d.var_store(),
+            )?;
+            Some(d)
+        } else {
+            None
+        };
+        Ok(AceCheckpoint {
+            record,
+            generator,
+            discriminator,
+        })
+    }
+}
+
+/// FNV-1a, 64 bits (the same checksum the prior's checkpoint uses).
+fn fnv1a64(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
+    match fs::read(path) {
+        Ok(b) => Ok(b),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Err(LearnError::MissingFile { path: path.into() })
+        }
+        Err(e) => Err(LearnError::io(path, e)),
+    }
+}
+
+fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> {
+    (|| {
+        let mut f = fs::File::create(path)?;
+        f.write_all(bytes)?;
+        f.sync_all()
+    })()
+    .map_err(|e| LearnError::io(path, e))
+}
+
+/// Reads `ace.json`, checking kind and version before the rest.
+pub fn read_record(path: &Path) -> Result<AceRecord, LearnError> {
+    let bytes = read_file(path)?;
+    let corrupt = |problem: String| LearnError::CorruptFile {
+        path: path.into(),
+        problem,
+    };
+    let value: Value = serde_json::from_slice(&bytes).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
+    let format = |problem: String| LearnError::Format {
+        path: path.into(),
+        problem,
+    };
+    match value.get("kind").and_then(Value::as_str) {
+        Some(KIND) => {}
+        other => {
+            return Err(format(format!(
+                "not an ACE checkpoint (kind {}, expected `{KIND}`)",
+                other.map_or("missing".to_string(), |k| format!("`{k}`"))
+            )));
+        }
+    }
+    match value.get("format_version").and_then(Value::as_u64) {
+        Some(v) if v == u64::from(FORMAT_VERSION) => {}
+        v => {
+            return Err(format(format!(
+                "format version {} is not supported (this build reads version {FORMAT_VERSION})",
+                v.map_or("(none)".to_string(), |v| v.to_string())
+            )));
+        }
+    }
+    serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
+}
+
+/// Checks a weights file against a `VarStore`'s variables and its record, then copies it in.
+fn load_weights(path: &Path, record: &FileRecord, vs: &nn::VarStore) -> Result<(), LearnError> {
+    let bytes = read_file(path)?;
+    let corrupt = |problem: String| LearnError::CorruptFile {
+        path: path.into(),
+        problem,
+    };
+    let mismatch = |problem: String| LearnError::ShapeMismatch {
+        path: path.into(),
+        problem,
+    };
+    let st = SafeTensors::deserialize(&bytes).map_err(|e| {
+        corrupt(format!(
+            "not a readable safetensors file ({} bytes): {e}",
+            bytes.len()
+        ))
+    })?;
+    let vars = vs.variables();
+    if let Some(extra) = st.names().into_iter().find(|n| !vars.contains_key(*n)) {
+        return Err(mismatch(format!(
+            "tensor `{extra}` is not a variable of the network `{ACE_FILE}` describes"
+        )));
+    }
+    for (name, var) in &vars {
+        let t = st
+            .tensor(name)
+            .map_err(|_| mismatch(format!("tensor `{name}` is missing")))?;
+        let shape: Vec<i64> = t.shape().iter().map(|&d| d as i64).collect();
+        if shape != var.size() {
+            return Err(mismatch(format!(
+                "tensor `{name}` has shape {shape:?}, `{ACE_FILE}` gives {:?}",
+                var.size()
+            )));
+        }
+        if t.dtype() != Dtype::F32 {
+            return Err(corrupt(format!(
+                "tensor `{name}` has dtype {:?}, expected F32",
+                t.dtype()
+            )));
+        }
+    }
+    record.verify(path, &bytes, ACE_FILE)?;
+    tch::no_grad(|| -> Result<(), LearnError> {
+        for (name, var) in &vars {
+            let t = st.tensor(name).expect("checked above");
+            let src = Tensor::f_from_data_size(t.data(), &var.size(), Kind::Float)?;
+            var.shallow_clone().f_copy_(&src)?;
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learn::checkpoint::Normaliser;
+    use crate::learn::prior::test_support::spot;
+    use crate::learn::rows_to_tensor;
+
+    fn tiny() -> AceConfig {
+        AceConfig {
+            generator_hidden: vec![32, 32],
+            discriminator_hidden: vec![32, 32],
+            device: DeviceChoice::Cpu,
+            ..AceConfig::default()
+        }
+    }
+
+    /// Normalised consecutive frames `(i − 1, i)` of the Spot test dataset.
+    fn transitions(frames: &[usize]) -> (Tensor, Tensor) {
+        let set = &spot().2;
+        let norm = Normaliser::of_set(set);
+        let rows = |off: usize| {
+            frames
+                .iter()
+                .map(|&i| set.state(i - off).to_vec())
+                .collect::<Vec<_>>()
+        };
+        let t = |r: Vec<Vec<f32>>| norm.normalise(&rows_to_tensor(&r, Device::Cpu).unwrap());
+        (t(rows(1)), t(rows(0)))
+    }
+
+    #[test]
+    fn gradient_penalty_is_taken_on_the_real_samples() {
+        let (tree, morph, set) = spot();
+        let mask = crate::learn::prior::state_mask(tree, morph);
+        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let (rp, rc) = transitions(&[10, 200, 900, 1500]);
+        let (rp2, rc2) = transitions(&[40, 600, 1200, 3000]);
+        let (fp, fc) = transitions(&[20, 300, 700, 2500]);
+        let fake_noise = fc.randn_like();
+        let base = discriminator_loss(&d, &rp, &rc, &fp, &fc, 0.1);
+        let gp = |l: &DiscriminatorLoss| l.gp.double_value(&[]);
+        assert!(gp(&base) > 0.0);
+        // Other fakes: the penalty stays, the cross-entropy moves.
+        let other_fake = discriminator_loss(&d, &rp, &rc, &fp, &fake_noise, 0.1);
+        assert_eq!(gp(&other_fake), gp(&base));
+        assert_ne!(other_fake.bce.double_value(&[]), base.bce.double_value(&[]));
+        // Other reals: the penalty moves.
+        let other_real = discriminator_loss(&d, &rp2, &rc2, &fp, &fc, 0.1);
+        assert!((gp(&other_real) - gp(&base)).abs() > 1e-9 * gp(&base));
+        // It scales with w_gp, and total = bce + gp.
+        let double = discriminator_loss(&d, &rp, &rc, &fp, &fc, 0.2);
+        assert!((gp(&double) - 2.0 * gp(&base)).abs() < 1e-6 * gp(&base));
+        let t = base.total.double_value(&[]);
+        assert!((t - base.bce.double_value(&[]) - gp(&base)).abs() < 1e-6);
+        // The penalty is differentiable in D's weights (it is part of what D minimises).
+        base.total.backward();
+        let w = d.var_store().variables()["discriminator.layer0.weight"].grad();
+        assert!(w.abs().sum(Kind::Float).double_value(&[]) > 0.0);
+
+        // A D that ignores its input (first layer all zero) has no input gradient: penalty 0.
+        tch::no_grad(|| {
+            let _ = d.var_store().variables()["discriminator.layer0.weight"]
+                .shallow_clone()
+                .zero_();
+        });
+        let blind = discriminator_loss(&d, &rp, &rc, &fp, &fc, 0.1);
+        assert_eq!(gp(&blind), 0.0);
+    }
+
+    #[test]
+    fn cross_entropy_matches_the_paper_formula() {
+        let (tree, morph, set) = spot();
+        let mask = crate::learn::prior::state_mask(tree, morph);
+        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let (rp, rc) = transitions(&[5, 50, 500]);
+        let (fp, fc) = transitions(&[7, 70, 700]);
+        let l = discriminator_loss(&d, &rp, &rc, &fp, &fc, 0.0);
+        let real = Vec::<f64>::try_from(l.real_logits.to_kind(Kind::Double)).unwrap();
+        let fake = Vec::<f64>::try_from(l.fake_logits.to_kind(Kind::Double)).unwrap();
+        let sig = |x: f64| 1.0 / (1.0 + (-x).exp());
+        let want = -real.iter().map(|&x| sig(x).ln()).sum::<f64>() / 3.0
+            - fake.iter().map(|&x| (1.0 - sig(x)).ln()).sum::<f64>() / 3.0;
+        assert!(
+            (l.bce.double_value(&[]) - want).abs() < 1e-5,
+            "{} vs {want}",
+            l.bce.double_value(&[])
+        );
+        assert_eq!(l.gp.double_value(&[]), 0.0);
+        let adv = generator_adv_loss(&d, &fp, &fc).double_value(&[]);
+        let want = -fake.iter().map(|&x| sig(x).ln()).sum::<f64>() / 3.0;
+        assert!((adv - want).abs() < 1e-5);
+    }
+
+    #[test]
+    fn manual_mapping_overrides_by_link_name() {
+        use crate::correspondence::MappingSource;
+        use crate::features::EndEffectorMapping;
+        let auto = Correspondence {
+            mapping: EndEffectorMapping::new(vec![Some(EndEffector::LeftFoot), Some(EndEffector::RightHand)]),
+            character_links: vec!["foot".into(), "gripper".into()],
+            scores: vec![vec![0.0; 5]; 2],
+            source: MappingSource::Automatic,
+        };
+        let mut cfg = AceConfig::default();
+        assert_eq!(cfg.resolve_mapping(auto.clone()).unwrap(), auto);
+        cfg.end_effector_mapping = Some(BTreeMap::from([(
+            "gripper".to_string(),
+            Some(EndEffector::LeftHand),
+        )]));
+        let m = cfg.resolve_mapping(auto.clone()).unwrap();
+        assert_eq!(
+            m.mapping.human,
+            vec![Some(EndEffector::LeftFoot), Some(EndEffector::LeftHand)]
+        );
+        assert_eq!(m.source, MappingSource::Manual);
+        cfg.end_effector_mapping = Some(BTreeMap::from([("tail".to_string(), None)]));
+        let e = cfg.resolve_mapping(auto).unwrap_err().to_string();
+        assert!(e.contains("`tail`") && e.contains("foot, gripper"), "{e}");
+    }
+
+    #[test]
+    fn configs_round_trip_through_json_and_check_ranges() {
+        let paper = AceConfig::paper();
+        assert_eq!(paper.generator_hidden, vec![512; 3]);
+        assert_eq!(paper.discriminator_hidden, vec![512; 3]);
+        assert_eq!(paper.w_gp, 0.1);
+        let text = serde_json::to_string(&paper).unwrap();
+        assert_eq!(serde_json::from_str::<AceConfig>(&text).unwrap(), paper);
+        let partial: AceConfig = serde_json::from_str(r#"{"w_fea": 3.5}"#).unwrap();
+        assert_eq!(partial.w_fea, 3.5);
+        assert_eq!(partial.generator_hidden, AceConfig::default().generator_hidden);
+        let bad = AceConfig {
+            w_adv: -1.0,
+            ..AceConfig::default()
+        };
+        assert!(bad.check().unwrap_err().to_string().contains("w_adv"));
+        assert!(AceConfig::default().resumable_with(&AceConfig {
+            steps: 99,
+            ..AceConfig::default()
+        }));
+        assert!(!AceConfig::default().resumable_with(&AceConfig {
+            w_fea: 0.0,
+            ..AceConfig::default()
+        }));
+    }
+}

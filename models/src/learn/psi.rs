@@ -1,0 +1,233 @@
+//! Ψ on tensors: the differentiable twin of [`crate::features`], used by the feature loss L_fea while
+//! training the generator (paper §5.3, §6.3).
+//!
+//! [`Psi::features`] computes exactly what [`crate::features::character_features`] computes for each
+//! row of a batch of *denormalised* character states — the same [`FeatureLayout`], the same 6D
+//! orientation formula (the first and third columns of the root rotation from the normalised
+//! quaternion, identity for a degenerate one), the same division by the body length — so the feature
+//! loss during training and the L_fea metric afterwards measure one thing. [`feature_loss`] is the
+//! batch mean of [`crate::features::feature_loss`].
+
+use tch::{Device, Kind, Tensor};
+
+use super::ShapeError;
+use crate::character_state::CharacterLayout;
+use crate::features::{EndEffectorMapping, FeatureLayout, FeatureWeights};
+
+/// Ψ of character states for one character, mapping and body length.
+#[derive(Debug)]
+pub struct Psi {
+    layout: CharacterLayout,
+    features: FeatureLayout,
+    /// Columns of x^r holding the mapped end effectors' positions, in character order.
+    ee_columns: Tensor,
+    body_length: f64,
+}
+
+impl Psi {
+    /// Ψ for states laid out by `layout`, with the end effectors `mapping` selects, for a character of
+    /// `body_length` metres.
+    ///
+    /// # Panics
+    /// If `mapping` does not have one entry per character end effector or `body_length` is not
+    /// positive (as [`crate::features::character_features`]).
+    pub fn new(
+        layout: &CharacterLayout,
+        mapping: &EndEffectorMapping,
+        body_length: f32,
+        device: Device,
+    ) -> Psi {
+        assert_eq!(
+            mapping.human.len(),
+            layout.end_effectors,
+            "the end-effector mapping needs one entry per character end effector"
+        );
+        assert!(
+            body_length > 0.0,
+            "body length must be positive, got {body_length}"
+        );
+        let ee = layout.ee_positions().start as i64;
+        let columns: Vec<i64> = mapping
+            .selected()
+            .flat_map(|(k, _)| (0..3).map(move |c| ee + 3 * k as i64 + c))
+            .collect();
+        Psi {
+            layout: *layout,
+            features: FeatureLayout::new(mapping),
+            ee_columns: Tensor::from_slice(&columns).to_device(device),
+            body_length: f64::from(body_length),
+        }
+    }
+
+    /// The layout of the output.
+    pub fn layout(&self) -> &FeatureLayout {
+        &self.features
+    }
+
+    /// Width of Ψ.
+    pub fn dim(&self) -> usize {
+        self.features.dim()
+    }
+
+    /// Ψ `[B, F]` of denormalised states `x: [B, D]`; differentiable in `x`.
+    pub fn features(&self, x: &Tensor) -> Result<Tensor, ShapeError> {
+        let l = &self.layout;
+        let size = x.size();
+        if size.len() != 2 || size[1] != l.dim() as i64 {
+            return Err(ShapeError::Tensor {
+                expected: l.dim(),
+                found: size,
+            });
+        }
+        let cols = |r: std::ops::Range<usize>| x.narrow(1, r.start as i64, r.len() as i64);
+        let inv = 1.0 / self.body_length;
+        let height = cols(l.root_height()) * inv;
+        let orientation = orientation_6d(&cols(l.root_orientation()));
+        let linear = cols(l.root_linear_velocity()) * inv;
+        let angular = cols(l.root_angular_velocity());
+        let ees = x.index_select(1, &self.ee_columns.to_device(x.device())) * inv;
+        Ok(Tensor::cat(&[height, orientation, linear, angular, ees], 1))
+    }
+}
+
+/// The 6D orientation `[fwd, up]` (first and third rotation-matrix columns) of quaternions
+/// `q: [B, 4]` (`w, x, y, z`, any norm), as in [`crate::features`]: the quaternion is normalised, and
+/// one of norm below 1e-6 counts as the identity.
+pub fn orientation_6d(q: &Tensor) -> Tensor {
+    let identity = Tensor::from_slice(&[1.0f32, 0.0, 0.0, 0.0])
+        .to_kind(q.kind())
+        .to_device(q.device());
+    let norm2 = q.square().sum_dim_intlist(1, true, q.kind());
+    let regular = norm2.ge(1e-12);
+    // The divisor of degenerate rows is replaced before the square root, so that no gradient passes
+    // through √0 (whose derivative is infinite) even on the branch `where` discards.
+    let norm = norm2.where_self(&regular, &norm2.ones_like()).sqrt();
+    let q = q.where_self(&regular, &identity.unsqueeze(0)) / norm;
+    let c = |i: i64| q.narrow(1, i, 1);
+    let (w, x, y, z) = (c(0), c(1), c(2), c(3));
+    let two = |a: &Tensor| a * 2.0;
+    let fwd_x = 1.0 - two(&(y.square() + z.square()));
+    let fwd_y = two(&(&x * &y + &w * &z));
+    let fwd_z = two(&(&x * &z - &w * &y));
+    let up_x = two(&(&x * &z + &w * &y));
+    let up_y = two(&(&y * &z - &w * &x));
+    let up_z = 1.0 - two(&(x.square() + y.square()));
+    Tensor::cat(&[fwd_x, fwd_y, fwd_z, up_x, up_y, up_z], 1)
+}
+
+/// The per-entry weights of [`feature_loss`] as a `[1, F]` tensor ([`FeatureWeights::per_element`]).
+pub fn weight_tensor(layout: &FeatureLayout, weights: &FeatureWeights, device: Device) -> Tensor {
+    Tensor::from_slice(&weights.per_element(layout))
+        .view([1, -1])
+        .to_device(device)
+}
+
+/// The feature loss of a batch: the mean over rows of [`crate::features::feature_loss`], i.e. the
+/// mean over all `[B, F]` entries of `w ⊙ (a − b)²` with `weights` from [`weight_tensor`]. A scalar.
+pub fn feature_loss(a: &Tensor, b: &Tensor, weights: &Tensor) -> Tensor {
+    ((a - b).square() * weights).mean(Kind::Float)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::{DatasetConfig, generate};
+    use crate::features::{character_body_length, character_features, feature_loss as slice_loss};
+    use crate::learn::rows_to_tensor;
+    use crate::morphology::load_character;
+
+    fn generated(name: &str, frames: usize) -> (CharacterLayout, EndEffectorMapping, f32, Vec<Vec<f32>>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../assets/characters/{name}.urdf"));
+        let (tree, morph) = load_character(&path).unwrap();
+        let cfg = DatasetConfig {
+            frames,
+            seed: 11,
+            ..DatasetConfig::default()
+        };
+        let set = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+        let mut mapping = EndEffectorMapping::by_side(&tree, &morph);
+        // Leave one end effector out so that the selection matters.
+        mapping.human[1] = None;
+        let rows = (0..set.len()).map(|i| set.state(i).to_vec()).collect();
+        (set.layout, mapping, character_body_length(&tree, &morph), rows)
+    }
+
+    #[test]
+    fn tensor_psi_and_loss_equal_the_slice_versions_on_generated_data() {
+        for name in ["spot", "crab"] {
+            let (layout, mapping, body, rows) = generated(name, 3000);
+            let psi = Psi::new(&layout, &mapping, body, Device::Cpu);
+            let x = rows_to_tensor(&rows, Device::Cpu).unwrap();
+            let got = Vec::<f32>::try_from(psi.features(&x).unwrap().flatten(0, -1)).unwrap();
+            let want: Vec<f32> = rows
+                .iter()
+                .flat_map(|r| character_features(&layout, r, body, &mapping))
+                .collect();
+            assert_eq!(got.len(), want.len());
+            let worst = got
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f32, f32::max);
+            assert!(worst < 1e-5, "{name}: largest difference {worst}");
+
+            // The loss against the features of frames shifted by 7 (a real, non-zero difference).
+            let weights = FeatureWeights {
+                root_height: 2.0,
+                root_orientation: 0.5,
+                root_linear_velocity: 1.5,
+                root_angular_velocity: 0.25,
+                ee_positions: 3.0,
+            };
+            let (a, b) = (&want[..], &want[7 * psi.dim()..]);
+            let n = b.len() / psi.dim();
+            let f = psi.dim();
+            let expected: f64 = (0..n)
+                .map(|t| {
+                    f64::from(slice_loss(
+                        psi.layout(),
+                        &a[t * f..(t + 1) * f],
+                        &b[t * f..(t + 1) * f],
+                        &weights,
+                    ))
+                })
+                .sum::<f64>()
+                / n as f64;
+            let ta = Tensor::from_slice(&a[..n * f]).view([n as i64, f as i64]);
+            let tb = Tensor::from_slice(b).view([n as i64, f as i64]);
+            let got =
+                feature_loss(&ta, &tb, &weight_tensor(psi.layout(), &weights, Device::Cpu)).double_value(&[]);
+            assert!(expected > 1e-3, "{name}: the frames differ");
+            assert!(
+                (got - expected).abs() < 1e-5 * expected.max(1.0),
+                "{name}: {got} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn orientation_is_sign_and_norm_invariant_and_degenerate_is_identity() {
+        let q = Tensor::from_slice(&[0.9f32, 0.1, -0.3, 0.2, -1.8, -0.2, 0.6, -0.4, 0.0, 0.0, 0.0, 1e-8])
+            .view([3, 4]);
+        let r = Vec::<f32>::try_from(orientation_6d(&q).flatten(0, -1)).unwrap();
+        for k in 0..6 {
+            assert!(
+                (r[k] - r[6 + k]).abs() < 1e-6,
+                "entry {k}: {} vs {}",
+                r[k],
+                r[6 + k]
+            );
+        }
+        assert_eq!(&r[12..], &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        // Gradients stay finite through the degenerate branch.
+        let q = q.set_requires_grad(true);
+        orientation_6d(&q).sum(Kind::Float).backward();
+        assert!(
+            Vec::<f32>::try_from(q.grad().flatten(0, -1))
+                .unwrap()
+                .iter()
+                .all(|g| g.is_finite())
+        );
+    }
+}

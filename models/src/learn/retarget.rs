@@ -1,0 +1,571 @@
+//! Inference: human motion to character motion with a trained generator and motion prior.
+//!
+//! A [`Retargeter`] holds a checkpoint directory's prior, generator and normalisation statistics. Per
+//! frame, for each character of a batch, `ẑ = G(x^h_t, x^r_{t−1})` and `x^r_t = π(ẑ, x^r_{t−1})`,
+//! without gradients; each character keeps its own previous state ([`Retargeter::reset`] sets the
+//! start states, usually [`Retargeter::start_state`]: the standing pose at rest).
+//!
+//! [`Retargeter::retarget_clip`] turns a whole human clip into character states and poses: the root is
+//! integrated from the states' displacements and delta rotations
+//! ([`crate::character_state::decode_pose`]), joint positions are clamped into the URDF limits
+//! ([`KinematicTree::clamp`]), and wheel angles — which the networks do not model (the prior's state
+//! mask) — are rolled from the base motion ([`crate::controller::wheels`]). The returned states carry
+//! the clamped and rolled joint positions, so states and poses agree.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector2;
+use tch::{Device, Kind, Tensor};
+
+use super::ace::AceCheckpoint;
+use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
+use super::{rows_to_tensor, tensor_to_rows};
+use crate::character_state::{CharacterLayout, character_state, decode_pose};
+use crate::controller::wheels;
+use crate::human::HumanClip;
+use crate::human_set::{HumanRow, PROJECT_FPS};
+use crate::kinematics::{CharacterPose, KinematicTree};
+use crate::morphology::Morphology;
+
+/// A retargeted motion: one state and one pose per human frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RetargetedMotion {
+    /// Frame rate (the project's, [`PROJECT_FPS`]).
+    pub fps: f32,
+    /// Denormalised x^r per frame (joint entries as in `poses`).
+    pub states: Vec<Vec<f32>>,
+    /// The character's pose per frame, starting from the standing pose at the origin facing +x.
+    pub poses: Vec<CharacterPose>,
+}
+
+/// A loaded prior and generator (see the module docs).
+#[derive(Debug)]
+pub struct Retargeter {
+    dir: PathBuf,
+    prior: PriorCheckpoint,
+    ace: AceCheckpoint,
+    human_mean: Tensor,
+    human_std: Tensor,
+    /// `[N, D]` normalised previous states of the batch.
+    prev: Tensor,
+}
+
+impl Retargeter {
+    /// Loads the prior and the generator from a checkpoint directory onto `device`, checking that the
+    /// files belong together (see [`PriorCheckpoint::load`] and [`AceCheckpoint::load`]); every error
+    /// names the file and the problem.
+    pub fn load(dir: &Path, device: Device) -> Result<Retargeter, LearnError> {
+        let prior = PriorCheckpoint::load(dir, device)?;
+        let ace = AceCheckpoint::load(dir, prior.prior.latent_dim(), &prior.mask, device, false)?;
+        Retargeter::from_checkpoints(dir, prior, ace)
+    }
+
+    /// A retargeter from checkpoints already in memory (e.g. right after training; `dir` names them
+    /// in errors). Fails when the generator was trained for another character than the prior's.
+    pub fn from_checkpoints(
+        dir: &Path,
+        mut prior: PriorCheckpoint,
+        ace: AceCheckpoint,
+    ) -> Result<Retargeter, LearnError> {
+        if let Some(problem) = ace_character_difference(&ace, &prior.character) {
+            return Err(LearnError::WrongCharacter {
+                path: dir.join(super::ace::ACE_FILE),
+                problem,
+            });
+        }
+        prior.prior.freeze();
+        let device = prior.prior.device();
+        let stats = &ace.record.human_stats;
+        Ok(Retargeter {
+            human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
+            human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
+            prev: Tensor::zeros([0, prior.prior.state_dim() as i64], (Kind::Float, device)),
+            dir: dir.to_path_buf(),
+            prior,
+            ace,
+        })
+    }
+
+    /// The prior's checkpoint (character, statistics, mask).
+    pub fn prior(&self) -> &PriorCheckpoint {
+        &self.prior
+    }
+
+    /// The ACE checkpoint (configuration, correspondence, human data record).
+    pub fn ace(&self) -> &AceCheckpoint {
+        &self.ace
+    }
+
+    /// Width of x^r.
+    pub fn state_dim(&self) -> usize {
+        self.prior.prior.state_dim()
+    }
+
+    /// Fails with [`LearnError::WrongCharacter`] unless `tree` and `morph` are the checkpoint's
+    /// character.
+    pub fn check_character(&self, tree: &KinematicTree, morph: &Morphology) -> Result<(), LearnError> {
+        self.prior
+            .check_character(&self.dir, &CharacterInfo::of_character(tree, morph))
+    }
+
+    /// The normalised x^r of the character standing at rest (the standing pose, zero velocities).
+    pub fn start_state(&self, tree: &KinematicTree, morph: &Morphology) -> Result<Vec<f32>, LearnError> {
+        self.check_character(tree, morph)?;
+        let standing = tree.standing_pose();
+        let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
+        let s = &self.prior.stats;
+        Ok(x.iter()
+            .zip(&s.mean)
+            .zip(&s.std)
+            .zip(&self.prior.mask)
+            .map(|(((v, m), sd), k)| (v - m) / sd * k)
+            .collect())
+    }
+
+    /// Starts a batch: one normalised start state per character (e.g. [`Retargeter::start_state`]).
+    pub fn reset(&mut self, starts: &[Vec<f32>]) -> Result<(), LearnError> {
+        let t = rows_to_tensor(starts, self.prior.prior.device())?;
+        if starts.is_empty() {
+            self.prev = t.view([0, self.state_dim() as i64]);
+            return Ok(());
+        }
+        if t.size()[1] != self.state_dim() as i64 {
+            return Err(LearnError::Data(format!(
+                "start states have {} values, the character's states have {}",
+                t.size()[1],
+                self.state_dim()
+            )));
+        }
+        self.prev = t;
+        Ok(())
+    }
+
+    /// Characters in the current batch.
+    pub fn batch_size(&self) -> usize {
+        self.prev.size()[0] as usize
+    }
+
+    /// One frame for the whole batch: `x_h[i]` drives character `i`. Returns each character's new
+    /// denormalised x^r (wheel-angle entries hold the dataset mean: the networks do not model them).
+    ///
+    /// # Panics
+    /// If `x_h.len()` is not [`Retargeter::batch_size`] (call [`Retargeter::reset`] first).
+    pub fn step(&mut self, x_h: &[HumanRow]) -> Vec<Vec<f32>> {
+        assert_eq!(
+            x_h.len(),
+            self.batch_size(),
+            "one human state per character of the batch (call reset first)"
+        );
+        if x_h.is_empty() {
+            return Vec::new();
+        }
+        let next = self.advance(x_h, &self.prev);
+        let rows = self.prior.stats.denormalise(&next);
+        self.prev = next;
+        tensor_to_rows(&rows, self.state_dim()).expect("the prior's output has the state width")
+    }
+
+    /// `π(G(x^h, prev), prev)` without gradients, normalised.
+    fn advance(&self, x_h: &[HumanRow], prev: &Tensor) -> Tensor {
+        tch::no_grad(|| {
+            let device = prev.device();
+            let x = rows_to_tensor(x_h, device).expect("x^h rows are 92 wide");
+            let x = (x - &self.human_mean) / &self.human_std;
+            let z = self.ace.generator.forward(&x, prev);
+            self.prior.prior.decode(&z, prev)
+        })
+    }
+
+    /// Retargets a human clip (resampled to [`PROJECT_FPS`] if needed) from the standing pose (see the
+    /// module docs).
+    pub fn retarget_clip(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        clip: &HumanClip,
+    ) -> Result<RetargetedMotion, LearnError> {
+        let states = if (clip.fps - PROJECT_FPS).abs() > 1e-3 {
+            clip.resampled(PROJECT_FPS).states()
+        } else {
+            clip.states()
+        };
+        let rows: Vec<HumanRow> = states.into_iter().map(|s| s.0).collect();
+        self.retarget_states(tree, morph, &rows)
+    }
+
+    /// Retargets a sequence of x^h rows at [`PROJECT_FPS`] from the standing pose (see the module
+    /// docs); independent of the batch of [`Retargeter::step`].
+    pub fn retarget_states(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        x_h: &[HumanRow],
+    ) -> Result<RetargetedMotion, LearnError> {
+        let start = self.start_state(tree, morph)?;
+        let layout = CharacterLayout::new(tree, morph);
+        let dt = 1.0 / PROJECT_FPS;
+        let standing = tree.standing_pose();
+        let wheels = wheels::find(tree, morph, &standing);
+        let mut prev = rows_to_tensor(&[start], self.prior.prior.device())?;
+        let mut root = standing.root;
+        let mut wheel_q = standing.q.clone();
+        let (mut states, mut poses) = (Vec::with_capacity(x_h.len()), Vec::with_capacity(x_h.len()));
+        let joints = layout.joint_positions();
+        for x in x_h {
+            let next = self.advance(std::slice::from_ref(x), &prev);
+            let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), layout.dim())?.remove(0);
+            prev = next;
+            let mut pose = decode_pose(&layout, &root, &state);
+            tree.clamp(&mut pose.q);
+            let v = &state[layout.root_linear_velocity()];
+            let wz = state[layout.root_angular_velocity()][2];
+            wheels::roll(&wheels, &mut wheel_q, Vector2::new(v[0], v[1]), wz, dt);
+            for w in &wheels {
+                pose.q[w.dof] = wheel_q[w.dof];
+            }
+            state[joints.clone()].copy_from_slice(&pose.q);
+            root = pose.root;
+            states.push(state);
+            poses.push(pose);
+        }
+        Ok(RetargetedMotion {
+            fps: PROJECT_FPS,
+            states,
+            poses,
+        })
+    }
+}
+
+/// How the character an `ace.json` records differs from the prior's, if it does.
+fn ace_character_difference(ace: &AceCheckpoint, prior: &CharacterInfo) -> Option<String> {
+    let c = &ace.record.character;
+    let same = c.name == prior.name
+        && c.state_dim == prior.layout.dim()
+        && c.dof_names == prior.dof_names
+        && c.end_effector_links == prior.end_effector_links;
+    (!same).then(|| {
+        format!(
+            "the generator was trained for `{}` (state dim {}), the prior beside it is for `{}` (state dim {})",
+            c.name,
+            c.state_dim,
+            prior.name,
+            prior.layout.dim()
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::fs;
+
+    use super::*;
+    use crate::human::ImportOptions;
+    use crate::human_set::{DEFAULT_FOLDER, HumanSet};
+    use crate::learn::ace::{ACE_FILE, DISCRIMINATOR_FILE, GENERATOR_FILE};
+    use crate::learn::checkpoint::WEIGHTS_FILE;
+    use crate::learn::prior::MotionPrior;
+    use crate::learn::prior::test_support::{scratch_dir, spot};
+    use crate::learn::train_ace::test_support::{bundled_humans, tiny_config, train_in, trained_ace_dir};
+    use crate::morphology::load_character;
+
+    fn asset(path: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+    }
+
+    /// A copy of the trained run directory to break.
+    fn copy_of_trained(name: &str) -> PathBuf {
+        let dir = scratch_dir(name);
+        for e in fs::read_dir(trained_ace_dir()).unwrap() {
+            let p = e.unwrap().path();
+            fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+        }
+        dir
+    }
+
+    #[test]
+    fn saved_and_loaded_generators_retarget_identically() {
+        let (tree, morph, _) = spot();
+        let dir = scratch_dir("retarget_same");
+        let (trained, _) = train_in(&dir, &tiny_config(20)).unwrap();
+        let from_memory =
+            Retargeter::from_checkpoints(&dir, PriorCheckpoint::load(&dir, Device::Cpu).unwrap(), trained)
+                .unwrap();
+        let loaded = Retargeter::load(&dir, Device::Cpu).unwrap();
+        let walk = &bundled_humans().clips[1].states;
+        let a = from_memory.retarget_states(tree, morph, walk).unwrap();
+        let b = loaded.retarget_states(tree, morph, walk).unwrap();
+        assert_eq!(a.states.len(), walk.len());
+        assert_eq!(a, b);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_looped_clip_gives_finite_poses_for_sixty_seconds() {
+        let (tree, morph, _) = spot();
+        let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let clip =
+            HumanClip::from_bvh_file(&asset("assets/motions/wave.bvh"), &ImportOptions::default()).unwrap();
+        let once = r.retarget_clip(tree, morph, &clip).unwrap();
+        // Imported at the file's rate and resampled to the project's.
+        assert_eq!(once.states.len(), clip.resampled(PROJECT_FPS).frames.len());
+        let rows: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
+        let looped: Vec<HumanRow> = rows.iter().cycle().take(1800).copied().collect();
+        let m = r.retarget_states(tree, morph, &looped).unwrap();
+        assert_eq!(m.poses.len(), 1800);
+        let layout = CharacterLayout::new(tree, morph);
+        for (t, (p, s)) in m.poses.iter().zip(&m.states).enumerate() {
+            let root = p.root.translation.vector;
+            assert!(
+                root.iter().all(|v| v.is_finite()) && p.root.rotation.coords.iter().all(|v| v.is_finite()),
+                "frame {t}"
+            );
+            assert!(p.q.iter().all(|v| v.is_finite()), "frame {t}");
+            // Joint positions lie within the URDF limits and the states carry them.
+            let mut clamped = p.q.clone();
+            tree.clamp(&mut clamped);
+            assert_eq!(clamped, p.q, "frame {t}");
+            assert_eq!(&s[layout.joint_positions()], &p.q[..], "frame {t}");
+            assert!((-1.0..3.0).contains(&root.z), "frame {t}: root height {}", root.z);
+        }
+    }
+
+    #[test]
+    fn a_batch_steps_each_character_on_its_own() {
+        let (tree, morph, _) = spot();
+        let mut r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let start = r.start_state(tree, morph).unwrap();
+        let clips = &bundled_humans().clips;
+        let (walk, wave) = (&clips[1].states, &clips[2].states);
+        let single = r.retarget_states(tree, morph, &walk[..20]).unwrap();
+        r.reset(&vec![start; 3]).unwrap();
+        assert_eq!(r.batch_size(), 3);
+        let layout = CharacterLayout::new(tree, morph);
+        let root = 0..layout.joint_positions().start;
+        for t in 0..20 {
+            let out = r.step(&[walk[t], wave[t], walk[t]]);
+            assert_eq!(out.len(), 3);
+            // Characters 0 and 2 see the same motion from the same start (equal up to the rounding
+            // of batched matrix products); 1 does not.
+            let gap = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+            assert!(gap(&out[0], &out[2]) < 1e-4, "frame {t}");
+            assert!(gap(&out[0], &out[1]) > 1e-3, "frame {t}");
+            for (a, b) in out[0][root.clone()].iter().zip(&single.states[t][root.clone()]) {
+                assert!((a - b).abs() < 1e-4, "frame {t}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn wheel_angles_roll_with_the_base_instead_of_coming_from_the_networks() {
+        use crate::correspondence::{Correspondence, MappingSource};
+        use crate::dataset::{DatasetConfig, generate};
+        use crate::features::EndEffectorMapping;
+        use crate::human_set::HumanStats;
+        use crate::learn::ace::{AceConfig, AceRecord, BodyLengths, CharacterRecord, FileRecord, Generator};
+        use crate::learn::checkpoint::Normaliser;
+        use crate::learn::prior::{PriorConfig, state_mask};
+
+        let (tree, morph) = load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+        let wheels = wheels::find(&tree, &morph, &tree.standing_pose());
+        assert!(!wheels.is_empty(), "the bundled Stretch has wheels");
+        let set = generate(
+            &tree,
+            &morph,
+            &DatasetConfig {
+                frames: 600,
+                ..DatasetConfig::default()
+            },
+            &mut |_| {},
+        )
+        .unwrap();
+        let mask = state_mask(&tree, &morph);
+        // Untrained networks: the base wanders, which is all this test needs.
+        let pc = PriorConfig {
+            decoder_hidden: vec![32],
+            encoder_hidden: vec![32],
+            ..PriorConfig::default()
+        };
+        let mut prior = MotionPrior::new(&pc, set.layout.dim(), Device::Cpu);
+        prior.set_mask(&mask).unwrap();
+        let ac = AceConfig {
+            generator_hidden: vec![32],
+            ..AceConfig::default()
+        };
+        let generator = Generator::new(&ac, set.layout.dim(), prior.latent_dim(), &mask, Device::Cpu);
+        let humans = bundled_humans();
+        let stats = humans.train_statistics();
+        let character = CharacterInfo::of_set(&set);
+        let correspondence = Correspondence {
+            mapping: EndEffectorMapping::by_side(&tree, &morph),
+            character_links: set.end_effector_links.clone(),
+            scores: Vec::new(),
+            source: MappingSource::Manual,
+        };
+        let ace = AceCheckpoint {
+            record: AceRecord {
+                kind: String::new(),
+                format_version: 1,
+                character: CharacterRecord::of(&character),
+                step: 0,
+                config: ac,
+                correspondence,
+                human_stats: HumanStats {
+                    mean: stats.mean.clone(),
+                    std: stats.std.clone(),
+                },
+                human_folder: PathBuf::new(),
+                human_split: humans.split.clone(),
+                body_lengths: BodyLengths {
+                    character: 1.0,
+                    human_override: None,
+                    human_clips: Default::default(),
+                },
+                generator: FileRecord::default(),
+                discriminator: FileRecord::default(),
+                prior: FileRecord::default(),
+                provenance: serde_json::Value::Null,
+            },
+            generator,
+            discriminator: None,
+        };
+        let prior = PriorCheckpoint {
+            config: pc,
+            stats: Normaliser::of_set(&set),
+            mask,
+            character,
+            step: 0,
+            provenance: serde_json::Value::Null,
+            prior,
+        };
+        let r = Retargeter::from_checkpoints(Path::new("<memory>"), prior, ace).unwrap();
+        let m = r.retarget_states(&tree, &morph, &humans.clips[1].states).unwrap();
+        let layout = CharacterLayout::new(&tree, &morph);
+        let dt = 1.0 / PROJECT_FPS;
+        let mut moved = 0.0f32;
+        let mut prev_q = tree.standing_pose().q;
+        for (t, (s, p)) in m.states.iter().zip(&m.poses).enumerate() {
+            let v = &s[layout.root_linear_velocity()];
+            let wz = s[layout.root_angular_velocity()][2];
+            for w in &wheels {
+                // The angle advanced by the rolling rate of the base's motion, whatever π output.
+                let rate = wheels::spin_rate(w, Vector2::new(v[0], v[1]), wz);
+                let step = wheels::wrap(p.q[w.dof] - prev_q[w.dof]);
+                assert!(
+                    (step - wheels::wrap(rate * dt)).abs() < 1e-4,
+                    "frame {t}, DoF {}",
+                    w.dof
+                );
+                moved += step.abs();
+            }
+            prev_q = p.q.clone();
+        }
+        assert!(moved > 0.1, "the wheels turned by {moved} rad in total");
+    }
+
+    #[test]
+    fn a_clip_of_the_shared_human_data_retargets_when_present() {
+        let repo = asset("");
+        let Some(folder) = HumanSet::default_folder(&repo) else {
+            eprintln!(
+                "skipping: no shared human data at {}",
+                repo.join(DEFAULT_FOLDER).display()
+            );
+            return;
+        };
+        let mut files: Vec<PathBuf> = fs::read_dir(folder.join("cmu_cgspeed_mb"))
+            .into_iter()
+            .flatten()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "bvh"))
+            .collect();
+        files.sort();
+        let Some(file) = files.first() else {
+            eprintln!("skipping: no CMU clips in {}", folder.display());
+            return;
+        };
+        let (tree, morph, _) = spot();
+        let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let opts = ImportOptions {
+            fps: Some(PROJECT_FPS),
+            mapping: None,
+        };
+        let clip = HumanClip::from_bvh_file(file, &opts).unwrap();
+        let m = r.retarget_clip(tree, morph, &clip).unwrap();
+        assert_eq!(m.poses.len(), clip.frames.len());
+        assert!(
+            m.states.iter().flatten().all(|v| v.is_finite()),
+            "{}",
+            file.display()
+        );
+    }
+
+    #[test]
+    fn broken_or_mismatched_checkpoints_are_named() {
+        let err = |dir: &Path| Retargeter::load(dir, Device::Cpu).unwrap_err().to_string();
+        let mut broken = Vec::new();
+
+        let dir = copy_of_trained("retarget_missing");
+        broken.push(dir.clone());
+        fs::remove_file(dir.join(GENERATOR_FILE)).unwrap();
+        let e = err(&dir);
+        assert!(e.contains(GENERATOR_FILE) && e.contains("missing file"), "{e}");
+        // Inference does not need D.
+        fs::copy(trained_ace_dir().join(GENERATOR_FILE), dir.join(GENERATOR_FILE)).unwrap();
+        fs::remove_file(dir.join(DISCRIMINATOR_FILE)).unwrap();
+        assert!(Retargeter::load(&dir, Device::Cpu).is_ok());
+
+        let dir = copy_of_trained("retarget_truncated");
+        broken.push(dir.clone());
+        let bytes = fs::read(dir.join(GENERATOR_FILE)).unwrap();
+        fs::write(dir.join(GENERATOR_FILE), &bytes[..bytes.len() / 2]).unwrap();
+        let e = err(&dir);
+        assert!(e.contains(GENERATOR_FILE) && e.contains("corrupt"), "{e}");
+
+        let dir = copy_of_trained("retarget_kind");
+        broken.push(dir.clone());
+        let text = fs::read_to_string(dir.join(ACE_FILE)).unwrap();
+        fs::write(
+            dir.join(ACE_FILE),
+            text.replace("ace_adversarial", "something_else"),
+        )
+        .unwrap();
+        let e = err(&dir);
+        assert!(e.contains(ACE_FILE) && e.contains("not an ACE checkpoint"), "{e}");
+        fs::write(dir.join(ACE_FILE), &text[..text.len() / 2]).unwrap();
+        let e = err(&dir);
+        assert!(e.contains(ACE_FILE) && e.contains("not valid JSON"), "{e}");
+
+        // `ace.json` describing other network sizes than the weights hold.
+        let dir = copy_of_trained("retarget_shape");
+        broken.push(dir.clone());
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["config"]["generator_hidden"] = serde_json::json!([48, 64]);
+        fs::write(dir.join(ACE_FILE), v.to_string()).unwrap();
+        let e = err(&dir);
+        assert!(e.contains(GENERATOR_FILE) && e.contains("shape mismatch"), "{e}");
+
+        // Another prior in the directory (well-formed on its own) than the one G was trained with.
+        let dir = copy_of_trained("retarget_prior");
+        broken.push(dir.clone());
+        let mut other = PriorCheckpoint::load(&dir, Device::Cpu).unwrap();
+        let cfg = other.config.clone();
+        other.prior = MotionPrior::new(
+            &crate::learn::prior::PriorConfig { seed: 99, ..cfg },
+            other.prior.state_dim(),
+            Device::Cpu,
+        );
+        other.prior.set_mask(&other.mask).unwrap();
+        other.save(&dir).unwrap();
+        let e = err(&dir);
+        assert!(e.contains(WEIGHTS_FILE) && e.contains(ACE_FILE), "{e}");
+
+        // Another character than the checkpoint's.
+        let (crab, crab_morph) = load_character(&asset("assets/characters/crab.urdf")).unwrap();
+        let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let e = r.start_state(&crab, &crab_morph).unwrap_err().to_string();
+        assert!(e.contains("another character") && e.contains("crab"), "{e}");
+        for dir in broken {
+            fs::remove_dir_all(dir).unwrap();
+        }
+    }
+}

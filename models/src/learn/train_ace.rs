@@ -1,0 +1,691 @@
+//! ACE training (paper §5): the generator G learns to drive the frozen motion prior π from human
+//! motion, against a discriminator D that tells its transitions from the character dataset's.
+//!
+//! Each generator step:
+//! 1. draws `batch_size` windows of `window` consecutive frames from the training human clips (uniform
+//!    over all windows, so longer clips count more) and as many start states from the character
+//!    dataset (real frames, normalised);
+//! 2. rolls G and π out over the window, `x̂_t = π(G(x^h_t, x̂_{t−1}), x̂_{t−1})` from the start
+//!    state, keeping the whole rollout in the graph so that gradients reach G through every step
+//!    (π's weights are frozen, its inputs are not);
+//! 3. minimises `w_adv·L_adv + w_fea·L_fea` averaged over the window, where L_fea compares Ψ of the
+//!    denormalised x̂_t ([`super::psi`]) with Ψ of the human frame (precomputed with
+//!    [`crate::features::human_features`], the same mapping and each clip's body length) and L_adv is
+//!    [`generator_adv_loss`] on the generated transitions (D's weights are frozen for this step);
+//! 4. then updates D `discriminator_steps` times on real dataset transitions against generated ones
+//!    drawn from the rollout (detached), with the gradient penalty on the real ones.
+//!
+//! Both optimisers are Adam (β₁ = [`AceConfig::adam_beta1`]). Randomness (initialisation, windows,
+//! start states, D batches) comes from PCG-64 generators seeded with [`AceConfig::seed`] and the step
+//! number, so the same inputs give the same weights on the CPU.
+//!
+//! # Run directory
+//! The run directory holds the motion prior's checkpoint ([`PriorCheckpoint`]; written there if it is
+//! not already), the ACE checkpoint ([`AceCheckpoint`]: `generator.safetensors`,
+//! `discriminator.safetensors`, `ace.json`) saved every `checkpoint_every` steps and at the end, and
+//! `ace_losses.csv` (`step,d_loss,d_bce,gp,g_loss,adv,fea,d_real,d_fake,seconds`; `step` counts from
+//! 0, `d_real`/`d_fake` are the mean σ(logit) of the last D update's real and fake batches, `seconds`
+//! is cumulative over sessions). A run started in a directory that holds an ACE checkpoint of the same
+//! configuration, character, correspondence and human data resumes from it: weights and step are
+//! restored and the draws continue as in an uninterrupted run, but Adam's moment estimates restart
+//! from zero (they are not saved), so a resumed run is not bit-identical to an uninterrupted one.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde_json::Value;
+use tch::nn::OptimizerConfig;
+use tch::{Device, Kind, Tensor, nn};
+
+use super::ace::{
+    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, CharacterRecord, Discriminator,
+    FORMAT_VERSION, FileRecord, Generator, KIND, discriminator_loss, generator_adv_loss,
+};
+use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint};
+use super::prior::window_starts;
+use super::psi::{Psi, feature_loss, weight_tensor};
+use super::rows_to_tensor;
+use crate::correspondence::Correspondence;
+use crate::dataset::MotionSet;
+use crate::features::{FeatureLayout, human_features_into};
+use crate::human::layout as human_layout;
+use crate::human_set::{HumanSet, HumanStats};
+
+/// Name of the loss log in a run directory.
+pub const LOSSES_FILE: &str = "ace_losses.csv";
+
+const HEADER: &str = "step,d_loss,d_bce,gp,g_loss,adv,fea,d_real,d_fake,seconds";
+
+/// What ACE trains on.
+#[derive(Clone, Copy, Debug)]
+pub struct AceInputs<'a> {
+    /// The motion prior (its variables stop tracking gradients during training, as after
+    /// [`super::prior::MotionPrior::freeze`]). Training runs on its device.
+    pub prior: &'a PriorCheckpoint,
+    /// The character dataset the prior was trained on (its normalisation must be the prior's).
+    pub dataset: &'a MotionSet,
+    /// The human clips; only the training split is used.
+    pub humans: &'a HumanSet,
+    /// The end-effector correspondence of Ψ (after any manual overrides).
+    pub correspondence: &'a Correspondence,
+    /// The character's body length (m), [`crate::features::character_body_length`] times any user scale.
+    pub character_body_length: f32,
+    /// One body length for every human clip (m); `None` uses each clip's own.
+    pub human_body_length: Option<f32>,
+    /// Recorded in `ace.json` (a resumed run keeps the stored one when this is `null`).
+    pub provenance: &'a Value,
+}
+
+/// Reported after every generator step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AceProgress {
+    /// Steps done (1 after the first).
+    pub step: usize,
+    /// Steps in the run.
+    pub steps: usize,
+    /// `w_adv·adv + w_fea·fea`.
+    pub g_loss: f64,
+    /// D's total loss (cross-entropy plus penalty) of the step's last D update.
+    pub d_loss: f64,
+    /// L_fea, averaged over the window.
+    pub fea: f64,
+    /// L_adv, averaged over the window.
+    pub adv: f64,
+    /// Seconds of training so far (including earlier sessions of a resumed run).
+    pub seconds: f64,
+}
+
+/// The training human data as tensors: normalised x^h rows and Ψ rows of all usable clips back to
+/// back, with the first row of every window.
+struct HumanWindows {
+    states: Tensor,
+    features: Tensor,
+    starts: Vec<usize>,
+}
+
+/// Trains G and D (see the module docs) in `run_dir`, resuming from the checkpoint there if any, and
+/// returns the final checkpoint (also saved in `run_dir`).
+pub fn train_ace(
+    inputs: &AceInputs<'_>,
+    cfg: &AceConfig,
+    run_dir: &Path,
+    progress: &mut dyn FnMut(&AceProgress),
+) -> Result<AceCheckpoint, LearnError> {
+    cfg.check()?;
+    let prior = inputs.prior;
+    let device = prior.prior.device();
+    check_inputs(inputs, run_dir)?;
+    fs::create_dir_all(run_dir).map_err(|e| LearnError::io(run_dir, e))?;
+    place_prior(prior, run_dir)?;
+
+    let human_stats = inputs.humans.train_statistics();
+    let psi = Psi::new(
+        &prior.character.layout,
+        &inputs.correspondence.mapping,
+        inputs.character_body_length,
+        device,
+    );
+    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, device)?;
+    let ckpt = start_or_resume(inputs, cfg, &human_stats, run_dir, device)?;
+    if ckpt.record.step >= cfg.steps {
+        return Ok(ckpt);
+    }
+    let AceCheckpoint {
+        mut record,
+        generator,
+        discriminator,
+    } = ckpt;
+    let mut discriminator = discriminator.expect("training checkpoints hold D");
+    let losses_path = run_dir.join(LOSSES_FILE);
+    let (mut log, seconds_before) = open_losses(&losses_path, record.step)?;
+
+    // The prior stays fixed: no gradients for its variables (they still flow through it).
+    for v in prior.prior.var_store().trainable_variables() {
+        let _ = v.set_requires_grad(false);
+    }
+    let set = inputs.dataset;
+    let dim = set.layout.dim();
+    let stats = &prior.stats;
+    let data = stats.normalise(&rows_to_tensor(
+        &set.states.chunks(dim).collect::<Vec<_>>(),
+        device,
+    )?) * prior.prior.mask();
+    let (mean, std) = (
+        Tensor::from_slice(&stats.mean).to_device(device),
+        Tensor::from_slice(&stats.std).to_device(device),
+    );
+    let real_starts = window_starts(&set.episodes, 1);
+    let weights = weight_tensor(psi.layout(), &cfg.feature_weights, device);
+    let adam = nn::Adam {
+        beta1: cfg.adam_beta1,
+        ..nn::Adam::default()
+    };
+    let mut opt_g = adam.build(generator.var_store(), cfg.generator_lr)?;
+    let mut opt_d = adam.build(discriminator.var_store(), cfg.discriminator_lr)?;
+    let (b, window) = (cfg.batch_size, cfg.window);
+    let clock = Instant::now();
+
+    for step in record.step..cfg.steps {
+        let mut rng = step_rng(cfg.seed, step);
+        let draw = |rng: &mut Pcg64, pool: &[usize]| -> Tensor {
+            let v: Vec<i64> = (0..b)
+                .map(|_| pool[rng.random_range(0..pool.len())] as i64)
+                .collect();
+            Tensor::from_slice(&v).to_device(device)
+        };
+        let human = draw(&mut rng, &humans.starts);
+        let starts: Vec<i64> = (0..b).map(|_| rng.random_range(0..set.len()) as i64).collect();
+        let mut prev = data.index_select(0, &Tensor::from_slice(&starts).to_device(device));
+
+        // Generator step through the rollout, with D fixed.
+        discriminator.var_store_mut().freeze();
+        let mut fea = Tensor::zeros([], (Kind::Float, device));
+        let mut adv = Tensor::zeros([], (Kind::Float, device));
+        let (mut fake_prev, mut fake_cur) = (Vec::with_capacity(window), Vec::with_capacity(window));
+        for t in 0..window {
+            let rows = &human + t as i64;
+            let z = generator.forward(&humans.states.index_select(0, &rows), &prev);
+            let cur = prior.prior.decode(&z, &prev);
+            let psi_r = psi.features(&(&cur * &std + &mean))?;
+            fea += feature_loss(&psi_r, &humans.features.index_select(0, &rows), &weights);
+            adv += generator_adv_loss(&discriminator, &prev, &cur);
+            fake_prev.push(prev.detach());
+            fake_cur.push(cur.detach());
+            prev = cur;
+        }
+        let (fea, adv) = (fea / window as f64, adv / window as f64);
+        let g_loss = &adv * cfg.w_adv + &fea * cfg.w_fea;
+        opt_g.backward_step(&g_loss);
+        discriminator.var_store_mut().unfreeze();
+
+        // Discriminator updates on real transitions against this rollout's.
+        let (fake_prev, fake_cur) = (Tensor::cat(&fake_prev, 0), Tensor::cat(&fake_cur, 0));
+        let fake_pool: Vec<usize> = (0..window * b).collect();
+        let mut last = None;
+        for _ in 0..cfg.discriminator_steps.max(1) {
+            let real = draw(&mut rng, &real_starts);
+            let fake = draw(&mut rng, &fake_pool);
+            let l = discriminator_loss(
+                &discriminator,
+                &data.index_select(0, &real),
+                &data.index_select(0, &(&real + 1)),
+                &fake_prev.index_select(0, &fake),
+                &fake_cur.index_select(0, &fake),
+                cfg.w_gp,
+            );
+            if cfg.discriminator_steps > 0 {
+                opt_d.backward_step(&l.total);
+            }
+            last = Some(l);
+        }
+        let d = last.expect("at least one D evaluation");
+
+        let scalar = |t: &Tensor| t.double_value(&[]);
+        let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
+        let report = AceProgress {
+            step: step + 1,
+            steps: cfg.steps,
+            g_loss: scalar(&g_loss),
+            d_loss: scalar(&d.total),
+            fea: scalar(&fea),
+            adv: scalar(&adv),
+            seconds: seconds_before + clock.elapsed().as_secs_f64(),
+        };
+        if !(report.g_loss.is_finite() && report.d_loss.is_finite()) {
+            return Err(LearnError::Data(format!(
+                "the losses became non-finite at step {} (G {}, D {}); lower the learning rates",
+                report.step, report.g_loss, report.d_loss
+            )));
+        }
+        writeln!(
+            log,
+            "{step},{},{},{},{},{},{},{},{},{:.3}",
+            report.d_loss,
+            scalar(&d.bce),
+            scalar(&d.gp),
+            report.g_loss,
+            report.adv,
+            report.fea,
+            mean_sigmoid(&d.real_logits),
+            mean_sigmoid(&d.fake_logits),
+            report.seconds
+        )
+        .and_then(|_| log.flush())
+        .map_err(|e| LearnError::io(&losses_path, e))?;
+        progress(&report);
+        record.step = step + 1;
+        if record.step % cfg.checkpoint_every == 0 || record.step == cfg.steps {
+            record.save(run_dir, &generator, Some(&discriminator))?;
+        }
+    }
+    Ok(AceCheckpoint {
+        record,
+        generator,
+        discriminator: Some(discriminator),
+    })
+}
+
+/// The inputs must describe one character with one normalisation.
+fn check_inputs(inputs: &AceInputs<'_>, run_dir: &Path) -> Result<(), LearnError> {
+    let prior = inputs.prior;
+    let set = inputs.dataset;
+    if let Some(problem) = CharacterInfo::of_set(set).difference(&prior.character) {
+        return Err(LearnError::WrongCharacter {
+            path: run_dir.to_path_buf(),
+            problem: format!("the dataset and the prior differ: {problem}"),
+        });
+    }
+    if Normaliser::of_set(set) != prior.stats {
+        return Err(LearnError::Data(format!(
+            "the dataset of `{}` has other normalisation statistics than the prior: the prior was trained \
+             on another dataset",
+            set.character
+        )));
+    }
+    if window_starts(&set.episodes, 1).is_empty() {
+        return Err(LearnError::Data(format!(
+            "the dataset of `{}` has no episode of two frames, so no real transition",
+            set.character
+        )));
+    }
+    let corr = inputs.correspondence;
+    if corr.mapping.human.len() != set.layout.end_effectors || corr.character_links != set.end_effector_links
+    {
+        return Err(LearnError::Data(format!(
+            "the end-effector correspondence is for links [{}], the character `{}` has [{}]",
+            corr.character_links.join(", "),
+            set.character,
+            set.end_effector_links.join(", ")
+        )));
+    }
+    let lengths = [Some(inputs.character_body_length), inputs.human_body_length];
+    if lengths.iter().flatten().any(|l| !(l.is_finite() && *l > 0.0)) {
+        return Err(LearnError::Config(format!(
+            "body lengths must be positive, not character {} / human {:?}",
+            inputs.character_body_length, inputs.human_body_length
+        )));
+    }
+    Ok(())
+}
+
+/// Makes sure `run_dir` holds `prior`: an equal prior checkpoint there (same configuration, step,
+/// statistics, mask and character) is kept, anything else is replaced — unless an ACE checkpoint
+/// already depends on it.
+fn place_prior(prior: &PriorCheckpoint, run_dir: &Path) -> Result<(), LearnError> {
+    if run_dir.join(CONFIG_FILE).exists() {
+        let there = PriorCheckpoint::load(run_dir, Device::Cpu)?;
+        let same = there.config == prior.config
+            && there.step == prior.step
+            && there.stats == prior.stats
+            && there.mask == prior.mask
+            && there.character == prior.character;
+        if same {
+            return Ok(());
+        }
+        if run_dir.join(ACE_FILE).exists() {
+            return Err(LearnError::Config(format!(
+                "{} holds an ACE checkpoint trained against another motion prior; use another run \
+                 directory to start afresh",
+                run_dir.display()
+            )));
+        }
+    }
+    prior.save(run_dir)
+}
+
+/// Normalised x^h and Ψ of every training clip long enough for a window.
+fn human_windows(
+    inputs: &AceInputs<'_>,
+    stats: &HumanStats,
+    features: &FeatureLayout,
+    window: usize,
+    device: Device,
+) -> Result<HumanWindows, LearnError> {
+    let mapping = &inputs.correspondence.mapping;
+    let (f, h) = (features.dim(), human_layout::DIM);
+    let mut states: Vec<f32> = Vec::new();
+    let mut psi: Vec<f32> = Vec::new();
+    let mut starts = Vec::new();
+    let mut rows = 0;
+    for clip in inputs.humans.train_clips().filter(|c| c.states.len() >= window) {
+        let body = inputs.human_body_length.unwrap_or(clip.body_length);
+        starts.extend(rows..rows + clip.states.len() + 1 - window);
+        rows += clip.states.len();
+        for x in &clip.states {
+            states.extend(
+                x.iter()
+                    .zip(&stats.mean)
+                    .zip(&stats.std)
+                    .map(|((v, m), s)| (v - m) / s),
+            );
+            let at = psi.len();
+            psi.resize(at + f, 0.0);
+            human_features_into(x, body, mapping, &mut psi[at..]);
+        }
+    }
+    if starts.is_empty() {
+        return Err(LearnError::Data(format!(
+            "{}: no training clip has the {window} frames a window needs",
+            inputs.humans.folder.display()
+        )));
+    }
+    let n = rows as i64;
+    Ok(HumanWindows {
+        states: Tensor::from_slice(&states).view([n, h as i64]).to_device(device),
+        features: Tensor::from_slice(&psi).view([n, f as i64]).to_device(device),
+        starts,
+    })
+}
+
+/// A new ACE checkpoint, or the one in `run_dir` when it fits the configuration and data.
+fn start_or_resume(
+    inputs: &AceInputs<'_>,
+    cfg: &AceConfig,
+    human_stats: &HumanStats,
+    run_dir: &Path,
+    device: Device,
+) -> Result<AceCheckpoint, LearnError> {
+    let prior = &inputs.prior;
+    let (dim, latent) = (prior.prior.state_dim(), prior.prior.latent_dim());
+    let body_lengths = BodyLengths {
+        character: inputs.character_body_length,
+        human_override: inputs.human_body_length,
+        human_clips: inputs
+            .humans
+            .train_clips()
+            .map(|c| (c.relative.clone(), c.body_length))
+            .collect::<BTreeMap<_, _>>(),
+    };
+    let record = AceRecord {
+        kind: KIND.into(),
+        format_version: FORMAT_VERSION,
+        character: CharacterRecord::of(&prior.character),
+        step: 0,
+        config: cfg.clone(),
+        correspondence: inputs.correspondence.clone(),
+        human_stats: human_stats.clone(),
+        human_folder: inputs.humans.folder.clone(),
+        human_split: inputs.humans.split.clone(),
+        body_lengths,
+        // The file records are filled in when the checkpoint is saved.
+        generator: FileRecord::default(),
+        discriminator: FileRecord::default(),
+        prior: FileRecord::default(),
+        provenance: inputs.provenance.clone(),
+    };
+    if !run_dir.join(ACE_FILE).exists() {
+        return Ok(AceCheckpoint {
+            generator: Generator::new(cfg, dim, latent, &prior.mask, device),
+            discriminator: Some(Discriminator::new(cfg, dim, &prior.mask, device)),
+            record,
+        });
+    }
+    let mut ckpt = AceCheckpoint::load(run_dir, latent, &prior.mask, device, true)?;
+    let stored = &ckpt.record;
+    let refuse = |what: &str| {
+        Err(LearnError::Config(format!(
+            "{} holds an ACE checkpoint made with {what}; use another run directory to start afresh",
+            run_dir.display()
+        )))
+    };
+    if stored.character != record.character {
+        return refuse("another character");
+    }
+    if !stored.config.resumable_with(cfg) {
+        return refuse("another configuration");
+    }
+    if stored.correspondence.mapping != record.correspondence.mapping {
+        return refuse("another end-effector mapping");
+    }
+    if stored.human_stats != record.human_stats
+        || stored.human_split != record.human_split
+        || stored.body_lengths != record.body_lengths
+    {
+        return refuse("other human data (statistics, split or body lengths differ)");
+    }
+    let step = stored.step;
+    let provenance = if inputs.provenance.is_null() {
+        stored.provenance.clone()
+    } else {
+        inputs.provenance.clone()
+    };
+    ckpt.record = AceRecord {
+        step,
+        provenance,
+        ..record
+    };
+    Ok(ckpt)
+}
+
+/// Opens the loss log for appending after `step` steps: a fresh file with its header when `step` is 0,
+/// else the rows of earlier steps are kept (later ones came after the last checkpoint and are redone).
+/// Also returns the seconds of the last kept row.
+fn open_losses(path: &Path, step: usize) -> Result<(fs::File, f64), LearnError> {
+    let mut kept = vec![HEADER.to_string()];
+    let mut seconds = 0.0;
+    if step > 0 && path.exists() {
+        let f = fs::File::open(path).map_err(|e| LearnError::io(path, e))?;
+        for line in BufReader::new(f).lines().skip(1) {
+            let line = line.map_err(|e| LearnError::io(path, e))?;
+            let row_step = line.split(',').next().and_then(|s| s.parse::<usize>().ok());
+            if row_step.is_some_and(|s| s < step) {
+                seconds = line
+                    .rsplit(',')
+                    .next()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(seconds);
+                kept.push(line);
+            }
+        }
+    }
+    let tmp = path.with_extension("csv.tmp");
+    let mut text = kept.join("\n");
+    text.push('\n');
+    fs::write(&tmp, text)
+        .and_then(|_| fs::rename(&tmp, path))
+        .map_err(|e| LearnError::io(path, e))?;
+    let f = fs::OpenOptions::new()
+        .append(true)
+        .open(path)
+        .map_err(|e| LearnError::io(path, e))?;
+    Ok((f, seconds))
+}
+
+/// The generator of step `step`: a step's draws do not depend on how the run got there, so a resumed
+/// run draws what an uninterrupted one would.
+fn step_rng(seed: u64, step: usize) -> Pcg64 {
+    Pcg64::seed_from_u64(seed ^ 0xace0_ace0_ace0_ace0 ^ (step as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
+}
+
+/// Shared inputs of the ACE tests: the bundled clips as a human set and a small ACE run on the small
+/// Spot prior of [`super::prior::test_support`], trained once per test process.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use std::path::PathBuf;
+    use std::sync::OnceLock;
+
+    use super::*;
+    use crate::correspondence::EndEffectorStats;
+    use crate::features::character_body_length;
+    use crate::human_set::HumanSetOptions;
+    use crate::learn::prior::DeviceChoice;
+    use crate::learn::prior::test_support::{scratch_dir, spot, trained_spot_dir};
+
+    /// The bundled clips (`assets/motions`), all for training.
+    pub(crate) fn bundled_humans() -> &'static HumanSet {
+        static SET: OnceLock<HumanSet> = OnceLock::new();
+        SET.get_or_init(|| {
+            let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions");
+            let opts = HumanSetOptions {
+                held_out_fraction: 0.0,
+                ..HumanSetOptions::default()
+            };
+            HumanSet::load(&folder, &opts, &mut |_| {}).unwrap()
+        })
+    }
+
+    /// The automatic correspondence of the test Spot dataset and the bundled clips.
+    pub(crate) fn spot_correspondence() -> Correspondence {
+        let (tree, morph, set) = spot();
+        let body = character_body_length(tree, morph);
+        let mut human = EndEffectorStats::human();
+        for c in &bundled_humans().clips {
+            human.add_human_states(&c.states, c.body_length);
+        }
+        Correspondence::automatic(&EndEffectorStats::from_motion_set(set, body), &human).unwrap()
+    }
+
+    /// Small networks, a learning rate for short runs.
+    pub(crate) fn tiny_config(steps: usize) -> AceConfig {
+        AceConfig {
+            generator_hidden: vec![64, 64],
+            discriminator_hidden: vec![64, 64],
+            batch_size: 32,
+            window: 6,
+            steps,
+            checkpoint_every: 50,
+            generator_lr: 1e-3,
+            discriminator_lr: 1e-3,
+            device: DeviceChoice::Cpu,
+            ..AceConfig::default()
+        }
+    }
+
+    /// Trains [`tiny_config`] for `steps` steps in `dir`.
+    pub(crate) fn train_in(
+        dir: &Path,
+        cfg: &AceConfig,
+    ) -> Result<(AceCheckpoint, Vec<AceProgress>), LearnError> {
+        let (tree, morph, set) = spot();
+        let prior = PriorCheckpoint::load(trained_spot_dir(), Device::Cpu).unwrap();
+        let corr = spot_correspondence();
+        let provenance = serde_json::json!({"test": "train_ace"});
+        let inputs = AceInputs {
+            prior: &prior,
+            dataset: set,
+            humans: bundled_humans(),
+            correspondence: &corr,
+            character_body_length: character_body_length(tree, morph),
+            human_body_length: None,
+            provenance: &provenance,
+        };
+        let mut reports = Vec::new();
+        let ckpt = train_ace(&inputs, cfg, dir, &mut |p| reports.push(p.clone()))?;
+        Ok((ckpt, reports))
+    }
+
+    /// A run directory holding 100 steps of [`tiny_config`] (trained once per process).
+    pub(crate) fn trained_ace_dir() -> &'static Path {
+        static DIR: OnceLock<PathBuf> = OnceLock::new();
+        DIR.get_or_init(|| {
+            let dir = scratch_dir("trained_ace");
+            train_in(&dir, &tiny_config(100)).unwrap();
+            dir
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_support::*;
+    use super::*;
+    use crate::learn::prior::test_support::scratch_dir;
+
+    fn read_losses(dir: &Path) -> Vec<Vec<f64>> {
+        let text = fs::read_to_string(dir.join(LOSSES_FILE)).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next().unwrap(), HEADER);
+        lines
+            .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect())
+            .collect()
+    }
+
+    #[test]
+    fn a_short_run_lowers_the_feature_loss_and_writes_a_checkpoint() {
+        let dir = trained_ace_dir();
+        let rows = read_losses(dir);
+        assert_eq!(rows.len(), 100);
+        assert!(
+            rows.iter()
+                .enumerate()
+                .all(|(i, r)| r[0] == i as f64 && r.len() == 10)
+        );
+        assert!(rows.iter().flatten().all(|v| v.is_finite()));
+        let fea = |r: &[Vec<f64>]| r.iter().map(|r| r[6]).sum::<f64>() / r.len() as f64;
+        let (first, last) = (fea(&rows[..10]), fea(&rows[90..]));
+        println!("L_fea: first 10 steps {first:.4}, last 10 steps {last:.4}");
+        assert!(last < 0.7 * first, "L_fea {first} → {last}");
+        // D's probabilities are probabilities, and the penalty is non-negative.
+        assert!(
+            rows.iter()
+                .all(|r| (0.0..=1.0).contains(&r[7]) && (0.0..=1.0).contains(&r[8]) && r[3] >= 0.0)
+        );
+        for f in [
+            ACE_FILE,
+            "generator.safetensors",
+            "discriminator.safetensors",
+            CONFIG_FILE,
+        ] {
+            assert!(dir.join(f).is_file(), "{f} missing");
+        }
+        let record = super::super::ace::read_record(&dir.join(ACE_FILE)).unwrap();
+        assert_eq!(record.step, 100);
+        assert_eq!(record.config, tiny_config(100));
+        assert_eq!(record.human_split.train.len(), 3);
+        assert_eq!(record.provenance["test"], "train_ace");
+        let corr = spot_correspondence();
+        assert_eq!(
+            (&record.correspondence.mapping, record.correspondence.source),
+            (&corr.mapping, corr.source)
+        );
+    }
+
+    #[test]
+    fn a_stopped_run_resumes_from_its_checkpoint() {
+        let dir = scratch_dir("ace_resume");
+        let (_, first) = train_in(&dir, &tiny_config(60)).unwrap();
+        assert_eq!(first.len(), 60);
+        // Pretend the run died at step 65, after its step-60 checkpoint: its later rows are redone.
+        let mut log = fs::OpenOptions::new()
+            .append(true)
+            .open(dir.join(LOSSES_FILE))
+            .unwrap();
+        for step in 60..65 {
+            writeln!(log, "{step},-1,-1,-1,-1,-1,-1,-1,-1,999").unwrap();
+        }
+        drop(log);
+        let (ckpt, second) = train_in(&dir, &tiny_config(80)).unwrap();
+        assert_eq!(second.first().map(|p| p.step), Some(61));
+        assert_eq!(second.len(), 20);
+        assert_eq!(ckpt.record.step, 80);
+        let rows = read_losses(&dir);
+        assert_eq!(
+            rows.iter().map(|r| r[0] as usize).collect::<Vec<_>>(),
+            (0..80).collect::<Vec<_>>()
+        );
+        assert!(
+            rows.iter().all(|r| r[1] >= 0.0),
+            "the rows after the checkpoint were replaced"
+        );
+        assert!(
+            rows.windows(2).all(|w| w[1][9] >= w[0][9]),
+            "seconds are cumulative"
+        );
+        // A run with other networks refuses the directory.
+        let other = AceConfig {
+            generator_hidden: vec![16],
+            ..tiny_config(90)
+        };
+        let e = train_in(&dir, &other).unwrap_err().to_string();
+        assert!(
+            e.contains(&dir.display().to_string()) && e.contains("another configuration"),
+            "{e}"
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,138 @@
+//! `ace retarget`: a human clip onto a character with a trained checkpoint, written as a glTF binary
+//! (the character's animation, optionally with the human skeleton beside it), a robot command
+//! trajectory (JSON and CSV) and the clip's metrics.
+
+use std::path::{Path, PathBuf};
+
+use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
+use ace::models::export::trajectory::CommandTrajectory;
+use ace::models::features::{FeatureLayout, character_features, human_body_length, human_features};
+use ace::models::human::{HumanClip, ImportOptions, Joint};
+use ace::models::human_set::PROJECT_FPS;
+use ace::models::kinematics::KinematicTree;
+use ace::models::learn::retarget::Retargeter;
+use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr};
+use ace::models::morphology::Morphology;
+use ace::models::nalgebra::Vector3;
+use anyhow::{Context, Result, bail};
+
+use crate::characters;
+use crate::train::REFERENCE_FILE;
+
+/// Where a bundled character's shipped checkpoint lives.
+pub fn shipped_checkpoint(name: &str) -> PathBuf {
+    characters::assets_dir().join("checkpoints").join(name)
+}
+
+/// The checkpoint for `--character` when `--checkpoint` is not given.
+pub fn default_checkpoint(character_arg: &str) -> Result<PathBuf> {
+    if characters::BUNDLED.contains(&character_arg) {
+        Ok(shipped_checkpoint(character_arg))
+    } else {
+        bail!("`{character_arg}` has no shipped checkpoint: pass --checkpoint DIR (made by `ace train-prior` and `ace train`)")
+    }
+}
+
+/// The files one retargeted clip produced.
+pub struct Written {
+    pub glb: PathBuf,
+    pub json: PathBuf,
+    pub csv: PathBuf,
+    pub metrics: PathBuf,
+    pub report: MetricsReport,
+}
+
+/// Runs `ace retarget`.
+pub fn run(clip: &Path, character: &str, checkpoint: Option<&Path>, out: &Path, with_human: bool) -> Result<()> {
+    let (_, tree, morph) = characters::load(character)?;
+    let dir = match checkpoint {
+        Some(d) => d.to_path_buf(),
+        None => default_checkpoint(character)?,
+    };
+    let retargeter = Retargeter::load(&dir, ace::models::learn::default_device())?;
+    let clip = HumanClip::from_bvh_file(clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })?;
+    let w = retarget(&retargeter, &dir, &tree, &morph, &clip, out, with_human)?;
+    println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);
+    println!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display());
+    Ok(())
+}
+
+/// Retargets one clip (already at the project frame rate) and writes `out` (.glb) with the trajectory
+/// (`.json`, `.csv`) and metrics (`.metrics.json`) beside it.
+pub fn retarget(
+    retargeter: &Retargeter,
+    dir: &Path,
+    tree: &KinematicTree,
+    morph: &Morphology,
+    clip: &HumanClip,
+    out: &Path,
+    with_human: bool,
+) -> Result<Written> {
+    retargeter.check_character(tree, morph)?;
+    let motion = retargeter.retarget_clip(tree, morph, clip)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+    }
+
+    // The human walks beside the character: its first pelvis position is put 1.2 m to its left.
+    let first = clip.frames.first().context("the clip has no frames")?.positions[Joint::Pelvis.index()];
+    let offset = Vector3::new(-first.x, 1.2 - first.y, 0.0);
+    let opts = GltfOptions {
+        human: with_human.then(|| HumanOverlay::new(&clip.frames, offset)),
+        ..GltfOptions::default()
+    };
+    let glb = write_glb(out, tree, &motion.poses, motion.fps, &opts)?;
+    for w in &glb.warnings {
+        eprintln!("warning: {w}");
+    }
+    let trajectory = CommandTrajectory::from_poses(tree, &motion.poses, motion.fps)?;
+    let (json, csv) = (out.with_extension("json"), out.with_extension("csv"));
+    trajectory.write_json(&json)?;
+    trajectory.write_csv(&csv)?;
+
+    let report = clip_metrics(retargeter, dir, tree, morph, clip, &motion.states, &motion.poses)?;
+    let metrics = out.with_extension("metrics.json");
+    std::fs::write(&metrics, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", metrics.display()))?;
+    Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report })
+}
+
+/// L_fea against the human, UFR, DIV and (when the checkpoint has its dataset's fit) FID of a
+/// retargeted clip, with the checkpoint's end-effector correspondence and body lengths.
+fn clip_metrics(
+    retargeter: &Retargeter,
+    dir: &Path,
+    tree: &KinematicTree,
+    morph: &Morphology,
+    clip: &HumanClip,
+    states: &[Vec<f32>],
+    poses: &[ace::models::kinematics::CharacterPose],
+) -> Result<MetricsReport> {
+    let record = &retargeter.ace().record;
+    let mapping = &record.correspondence.mapping;
+    let body = record.body_lengths.character;
+    let layout = retargeter.prior().character.layout;
+    let psi: Vec<Vec<f32>> = states.iter().map(|x| character_features(&layout, x, body, mapping)).collect();
+    let human_body = record.body_lengths.human_override.unwrap_or_else(|| human_body_length(clip));
+    let human_psi: Vec<Vec<f32>> = clip.states().iter().map(|x| human_features(&x.0, human_body, mapping)).collect();
+    let reference_path = dir.join(REFERENCE_FILE);
+    let reference: Option<GaussianFit> = if reference_path.is_file() {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&reference_path)?)
+            .with_context(|| format!("{}: not valid JSON", reference_path.display()))?;
+        Some(serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", reference_path.display()))?)
+    } else {
+        None
+    };
+    let ufr = ufr(tree, morph, poses, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
+    Ok(MetricsReport::compute(
+        &MetricsInput {
+            features: &psi,
+            reference: reference.as_ref(),
+            source_features: Some(&human_psi),
+            layout: FeatureLayout::new(mapping),
+            weights: record.config.feature_weights,
+            div: DivConfig::default(),
+        },
+        &ufr,
+    ))
+}
+

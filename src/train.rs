@@ -1,0 +1,226 @@
+//! `ace train-prior` and `ace train`: the two learning stages (paper §4 and §5) for one character, into
+//! one checkpoint directory that `ace retarget`, the plugin and the editor load.
+//!
+//! The directory holds the prior (`config.json`, `prior.safetensors`), the generator and
+//! discriminator (`ace.json`, `generator.safetensors`, `discriminator.safetensors`), the loss curves
+//! (`prior_losses.csv`/`.png`, `ace_losses.csv`/`.png`) and `reference.json`, the Gaussian fit of the
+//! character dataset's Ψ that FID is measured against. The character dataset is not stored (it is
+//! large): its generator configuration and seed are recorded in the prior's provenance and `ace train`
+//! regenerates it, byte for byte, unless `--dataset` gives the file.
+
+use std::path::{Path, PathBuf};
+
+use ace::models::correspondence::{Correspondence, EndEffectorStats};
+use ace::models::dataset::{DatasetConfig, MotionSet, generate};
+use ace::models::features::{FeatureLayout, character_body_length, character_features};
+use ace::models::human_set::{HumanSet, HumanSetOptions};
+use ace::models::kinematics::KinematicTree;
+use ace::models::learn::ace::AceConfig;
+use ace::models::learn::checkpoint::PriorCheckpoint;
+use ace::models::learn::prior::{PriorConfig, state_mask, train_prior_with};
+use ace::models::learn::train_ace::{AceInputs, train_ace};
+use ace::models::metrics::GaussianFit;
+use ace::models::morphology::Morphology;
+use anyhow::{Context, Result, bail};
+use serde::de::DeserializeOwned;
+use serde_json::{Value, json};
+
+use ace::plot::{Figure, LineChart, Series};
+use crate::{characters, progress};
+
+/// The file beside the weights with the dataset's Ψ fit (for FID).
+pub const REFERENCE_FILE: &str = "reference.json";
+
+/// Options shared by both stages.
+pub struct TrainArgs {
+    pub character: String,
+    pub out: Option<PathBuf>,
+    pub dataset: Option<PathBuf>,
+    pub frames: Option<usize>,
+    pub seed: Option<u64>,
+    pub config: Option<PathBuf>,
+    pub paper: bool,
+    pub humans: Option<PathBuf>,
+}
+
+/// The checkpoint directory used when `--out`/`--checkpoint` is not given.
+pub fn default_dir(character_arg: &str, tree: &KinematicTree) -> PathBuf {
+    let name = if characters::BUNDLED.contains(&character_arg) { character_arg.to_string() } else { tree.name.clone() };
+    PathBuf::from("out/checkpoints").join(name)
+}
+
+fn read_config<T: DeserializeOwned + Default>(path: Option<&Path>, paper: impl FnOnce() -> T, use_paper: bool) -> Result<T> {
+    let base = if use_paper { paper() } else { T::default() };
+    let Some(path) = path else { return Ok(base) };
+    if use_paper {
+        bail!("--paper and --config both set the network sizes; put `paper` sizes in the config instead");
+    }
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("{}: invalid configuration", path.display()))
+}
+
+/// Loads `--dataset` or generates the dataset with `cfg` (progress bar).
+fn dataset(tree: &KinematicTree, morph: &Morphology, file: Option<&Path>, cfg: &DatasetConfig) -> Result<MotionSet> {
+    if let Some(file) = file {
+        let set = MotionSet::load(file)?;
+        if set.dof_names != tree.dof_names() {
+            bail!("{}: a dataset of `{}`, which does not match character `{}`", file.display(), set.character, tree.name);
+        }
+        return Ok(set);
+    }
+    let bar = progress::bar(cfg.frames as u64, "frames");
+    bar.set_message("generating the character dataset");
+    let set = generate(tree, morph, cfg, &mut |done| bar.set_position(done as u64))?;
+    bar.finish_and_clear();
+    Ok(set)
+}
+
+/// What the command line, data and code version were, for the checkpoint's provenance.
+fn provenance(extra: Value) -> Value {
+    let commit = std::process::Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let mut v = json!({
+        "command": std::env::args().collect::<Vec<_>>().join(" "),
+        "commit": commit,
+        "ace_version": env!("CARGO_PKG_VERSION"),
+    });
+    if let (Some(v), Value::Object(extra)) = (v.as_object_mut(), extra) {
+        v.extend(extra);
+    }
+    v
+}
+
+/// Runs `ace train-prior`.
+pub fn prior(args: &TrainArgs) -> Result<()> {
+    let (urdf, tree, morph) = characters::load(&args.character)?;
+    let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
+    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper)?;
+    let mut data_cfg = DatasetConfig::default();
+    if let Some(n) = args.frames {
+        data_cfg.frames = n;
+    }
+    if let Some(s) = args.seed {
+        data_cfg.seed = s;
+    }
+    let set = dataset(&tree, &morph, args.dataset.as_deref(), &data_cfg)?;
+    println!("character {} ({}): dataset of {} frames, x^r of {} values", tree.name, urdf.display(), set.len(), set.layout.dim());
+    let record = json!({
+        "character_urdf": urdf.display().to_string(),
+        "dataset": { "file": args.dataset.as_ref().map(|p| p.display().to_string()), "frames": set.len(), "config": set.config },
+    });
+    let bar = progress::bar(cfg.steps as u64, "steps");
+    let mask = state_mask(&tree, &morph);
+    train_prior_with(&set, &mask, &cfg, &dir, provenance(record), &mut |p| {
+        bar.set_position(p.step as u64);
+        bar.set_message(format!("loss {:.4} (recon {:.4}, kl {:.3})", p.loss, p.recon, p.kl));
+    })?;
+    bar.finish_and_clear();
+    plot_losses(&dir.join("prior_losses.csv"), "Motion prior", &["total", "reconstruction", "kl"])?;
+    println!("prior saved in {} (curves: prior_losses.csv, prior_losses.png)", dir.display());
+    Ok(())
+}
+
+/// Runs `ace train` (the prior must be in the checkpoint directory).
+pub fn ace(args: &TrainArgs) -> Result<()> {
+    let (_, tree, morph) = characters::load(&args.character)?;
+    let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
+    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper)?;
+    let device = ace::models::learn::default_device();
+    let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
+        .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
+    let data_cfg: DatasetConfig = serde_json::from_value(prior.provenance["dataset"]["config"].clone())
+        .context("the prior's provenance does not record its dataset configuration; pass --dataset")?;
+    let set = dataset(&tree, &morph, args.dataset.as_deref(), &data_cfg)?;
+    if set.mean != prior.stats.mean || set.std != prior.stats.std {
+        bail!("the dataset is not the one the prior in {} was trained on (its statistics differ)", dir.display());
+    }
+
+    let folder = match &args.humans {
+        Some(f) => f.clone(),
+        None => HumanSet::default_folder(&characters::assets_dir().join(".."))
+            .context("no human clips: ../shared/data/human is missing; pass --humans FOLDER")?,
+    };
+    let opts = HumanSetOptions::default();
+    let bar = progress::bar(0, "clips");
+    bar.set_message(format!("importing {}", folder.display()));
+    let humans = HumanSet::load(&folder, &opts, &mut |p| {
+        bar.set_length(p.total as u64);
+        bar.set_position(p.done as u64);
+    })?;
+    bar.finish_and_clear();
+    for s in &humans.skipped {
+        eprintln!("skipped {}: {}", s.path.display(), s.error);
+    }
+    println!(
+        "human clips from {}: {} for training, {} held out ({} frames in all)",
+        folder.display(),
+        humans.train_clips().count(),
+        humans.held_out_clips().count(),
+        humans.frames()
+    );
+
+    let body = character_body_length(&tree, &morph);
+    let mut human_stats = EndEffectorStats::human();
+    for c in humans.train_clips() {
+        human_stats.add_human_states(&c.states, c.body_length);
+    }
+    let automatic = Correspondence::automatic(&EndEffectorStats::from_motion_set(&set, body), &human_stats)?;
+    let correspondence = cfg.resolve_mapping(automatic)?;
+    println!("{correspondence}");
+
+    write_reference(&dir, &set, &correspondence, body)?;
+    let record = json!({ "humans": folder.display().to_string() });
+    let inputs = AceInputs {
+        prior: &prior,
+        dataset: &set,
+        humans: &humans,
+        correspondence: &correspondence,
+        character_body_length: body,
+        human_body_length: None,
+        provenance: &provenance(record),
+    };
+    let bar = progress::bar(cfg.steps as u64, "steps");
+    train_ace(&inputs, &cfg, &dir, &mut |p| {
+        bar.set_position(p.step as u64);
+        bar.set_message(format!("G {:.3} (fea {:.3}, adv {:.3}), D {:.3}", p.g_loss, p.fea, p.adv, p.d_loss));
+    })?;
+    bar.finish_and_clear();
+    plot_losses(&dir.join("ace_losses.csv"), "ACE", &["g_loss", "d_loss", "fea", "adv", "gp"])?;
+    println!("generator and discriminator saved in {} (curves: ace_losses.csv, ace_losses.png)", dir.display());
+    Ok(())
+}
+
+/// Writes [`REFERENCE_FILE`]: the Gaussian fit of the dataset's Ψ under the chosen correspondence.
+fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Correspondence, body: f32) -> Result<()> {
+    let mapping = &correspondence.mapping;
+    let psi: Vec<Vec<f32>> = (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, mapping)).collect();
+    let fit = GaussianFit::fit(&psi);
+    let v = json!({ "features": FeatureLayout::new(mapping).entry_names(), "frames": set.len(), "fit": fit });
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join(REFERENCE_FILE);
+    let tmp = dir.join(format!("{REFERENCE_FILE}.tmp"));
+    std::fs::write(&tmp, serde_json::to_string(&v)?).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Plots the named columns of a loss CSV (first column: step) beside it as PNG, log scale.
+pub fn plot_losses(csv: &Path, title: &str, columns: &[&str]) -> Result<()> {
+    let text = std::fs::read_to_string(csv).with_context(|| format!("reading {}", csv.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.trim().parse().unwrap_or(f64::NAN)).collect()).collect();
+    let mut chart = LineChart::new(format!("{title} losses ({})", csv.display()), "step", "loss").log_y(true);
+    for (k, name) in columns.iter().enumerate() {
+        let Some(c) = header.iter().position(|h| h == name) else { continue };
+        let points = rows.iter().filter_map(|r| Some((*r.first()?, *r.get(c)?))).collect();
+        chart.series.push(Series::new(*name, k, points));
+    }
+    let mut fig = Figure::new(1000);
+    fig.push(chart, 500);
+    fig.save(&csv.with_extension("png"))
+}
