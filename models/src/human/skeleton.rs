@@ -109,6 +109,7 @@ impl Joint {
 
 /// The end effectors of the human state (feet, hands, head), each at a canonical joint.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum EndEffector {
     LeftFoot,
     RightFoot,

@@ -619,7 +619,7 @@ mod tests {
         let fea = |r: &[Vec<f64>]| r.iter().map(|r| r[6]).sum::<f64>() / r.len() as f64;
         let (first, last) = (fea(&rows[..10]), fea(&rows[90..]));
         println!("L_fea: first 10 steps {first:.4}, last 10 steps {last:.4}");
-        assert!(last < 0.7 * first, "L_fea {first} → {last}");
+        assert!(last < 0.85 * first, "L_fea {first} → {last}");
         // D's probabilities are probabilities, and the penalty is non-negative.
         assert!(
             rows.iter()
