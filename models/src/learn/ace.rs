@@ -26,17 +26,17 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use safetensors::{Dtype, SafeTensors};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::checkpoint::{CharacterInfo, LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
+pub use super::files::FileRecord;
+use super::files::{load_weights, read_file, write_synced};
 use super::nets::{Activation, Mlp};
 use super::prior::DeviceChoice;
 use crate::correspondence::Correspondence;
@@ -381,44 +381,6 @@ pub struct BodyLengths {
     pub human_clips: BTreeMap<String, f32>,
 }
 
-/// A weights file's size and FNV-1a 64 checksum.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FileRecord {
-    /// File name inside the checkpoint directory.
-    pub file: String,
-    /// Size in bytes.
-    pub bytes: u64,
-    /// FNV-1a 64 of the content, 16 hex digits.
-    pub fnv1a64: String,
-}
-
-impl FileRecord {
-    /// The record of `bytes` stored as `file`.
-    pub fn of(file: &str, bytes: &[u8]) -> FileRecord {
-        FileRecord {
-            file: file.into(),
-            bytes: bytes.len() as u64,
-            fnv1a64: format!("{:016x}", fnv1a64(bytes)),
-        }
-    }
-
-    /// Fails with [`LearnError::CorruptFile`] naming `path` unless `bytes` match the record.
-    pub fn verify(&self, path: &Path, bytes: &[u8], recorded_in: &str) -> Result<(), LearnError> {
-        if *self == FileRecord::of(&self.file, bytes) {
-            return Ok(());
-        }
-        Err(LearnError::CorruptFile {
-            path: path.into(),
-            problem: format!(
-                "its content differs from the one `{recorded_in}` records ({} bytes, checksum {}); the \
-                 files are not from the same save",
-                self.bytes, self.fnv1a64
-            ),
-        })
-    }
-}
-
 /// The character of an `ace.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -604,18 +566,18 @@ impl AceCheckpoint {
             .verify(&prior_path, &read_file(&prior_path)?, ACE_FILE)?;
 
         let generator = Generator::new(&record.config, dim, prior_latent, prior_mask, device);
+        let path = dir.join(GENERATOR_FILE);
         load_weights(
-            &dir.join(GENERATOR_FILE),
+            &path,
             &record.generator,
             generator.var_store(),
+            "network",
+            ACE_FILE,
         )?;
         let discriminator = if with_discriminator {
             let d = Discriminator::new(&record.config, dim, prior_mask, device);
-            load_weights(
-                &dir.join(DISCRIMINATOR_FILE),
-                &record.discriminator,
-                d.var_store(),
-            )?;
+            let path = dir.join(DISCRIMINATOR_FILE);
+            load_weights(&path, &record.discriminator, d.var_store(), "network", ACE_FILE)?;
             Some(d)
         } else {
             None
@@ -626,32 +588,6 @@ impl AceCheckpoint {
             discriminator,
         })
     }
-}
-
-/// FNV-1a, 64 bits (the same checksum the prior's checkpoint uses).
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
-    match fs::read(path) {
-        Ok(b) => Ok(b),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Err(LearnError::MissingFile { path: path.into() })
-        }
-        Err(e) => Err(LearnError::io(path, e)),
-    }
-}
-
-fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> {
-    (|| {
-        let mut f = fs::File::create(path)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })()
-    .map_err(|e| LearnError::io(path, e))
 }
 
 /// Reads `ace.json`, checking kind and version before the rest.
@@ -685,58 +621,6 @@ pub fn read_record(path: &Path) -> Result<AceRecord, LearnError> {
         }
     }
     serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
-}
-
-/// Checks a weights file against a `VarStore`'s variables and its record, then copies it in.
-fn load_weights(path: &Path, record: &FileRecord, vs: &nn::VarStore) -> Result<(), LearnError> {
-    let bytes = read_file(path)?;
-    let corrupt = |problem: String| LearnError::CorruptFile {
-        path: path.into(),
-        problem,
-    };
-    let mismatch = |problem: String| LearnError::ShapeMismatch {
-        path: path.into(),
-        problem,
-    };
-    let st = SafeTensors::deserialize(&bytes).map_err(|e| {
-        corrupt(format!(
-            "not a readable safetensors file ({} bytes): {e}",
-            bytes.len()
-        ))
-    })?;
-    let vars = vs.variables();
-    if let Some(extra) = st.names().into_iter().find(|n| !vars.contains_key(*n)) {
-        return Err(mismatch(format!(
-            "tensor `{extra}` is not a variable of the network `{ACE_FILE}` describes"
-        )));
-    }
-    for (name, var) in &vars {
-        let t = st
-            .tensor(name)
-            .map_err(|_| mismatch(format!("tensor `{name}` is missing")))?;
-        let shape: Vec<i64> = t.shape().iter().map(|&d| d as i64).collect();
-        if shape != var.size() {
-            return Err(mismatch(format!(
-                "tensor `{name}` has shape {shape:?}, `{ACE_FILE}` gives {:?}",
-                var.size()
-            )));
-        }
-        if t.dtype() != Dtype::F32 {
-            return Err(corrupt(format!(
-                "tensor `{name}` has dtype {:?}, expected F32",
-                t.dtype()
-            )));
-        }
-    }
-    record.verify(path, &bytes, ACE_FILE)?;
-    tch::no_grad(|| -> Result<(), LearnError> {
-        for (name, var) in &vars {
-            let t = st.tensor(name).expect("checked above");
-            let src = Tensor::f_from_data_size(t.data(), &var.size(), Kind::Float)?;
-            var.shallow_clone().f_copy_(&src)?;
-        }
-        Ok(())
-    })
 }
 
 #[cfg(test)]

@@ -19,16 +19,15 @@
 //! or directory and the problem.
 
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use safetensors::{Dtype, SafeTensors};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use tch::{Device, Kind, TchError, Tensor};
+use tch::{Device, TchError, Tensor};
 use thiserror::Error;
 
 use super::ShapeError;
+use super::files::{FileRecord, load_weights, write_synced};
 use super::prior::{MotionPrior, PriorConfig};
 use crate::character_state::CharacterLayout;
 use crate::dataset::MotionSet;
@@ -317,15 +316,6 @@ struct LayoutRecord {
     dim: usize,
 }
 
-/// The `weights` entry of `config.json`.
-#[derive(Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct WeightsRecord {
-    file: String,
-    bytes: u64,
-    fnv1a64: String,
-}
-
 /// `config.json`, field order as written.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -344,21 +334,8 @@ struct ConfigFile {
     std: Vec<f32>,
     mask: Vec<f32>,
     bounds: StateBounds,
-    weights: WeightsRecord,
+    weights: FileRecord,
     provenance: Value,
-}
-
-/// FNV-1a, 64 bits: a cheap checksum that ties `config.json` to its weights file.
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-fn write_synced(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut f = fs::File::create(path)?;
-    f.write_all(bytes)?;
-    f.sync_all()
 }
 
 impl PriorCheckpoint {
@@ -386,7 +363,7 @@ impl PriorCheckpoint {
             let mut text = serde_json::to_string_pretty(&record)
                 .map_err(|e| LearnError::Config(format!("cannot serialise the checkpoint: {e}")))?;
             text.push('\n');
-            write_synced(&config_tmp, text.as_bytes()).map_err(|e| LearnError::io(&config_tmp, e))?;
+            write_synced(&config_tmp, text.as_bytes())?;
             fs::rename(&weights_tmp, &weights).map_err(|e| LearnError::io(&weights, e))?;
             fs::rename(&config_tmp, &config).map_err(|e| LearnError::io(&config, e))
         })();
@@ -417,11 +394,7 @@ impl PriorCheckpoint {
             std: self.stats.std.clone(),
             mask: self.mask.clone(),
             bounds: self.prior.state_bounds(),
-            weights: WeightsRecord {
-                file: WEIGHTS_FILE.into(),
-                bytes: weights.len() as u64,
-                fnv1a64: format!("{:016x}", fnv1a64(weights)),
-            },
+            weights: FileRecord::of(WEIGHTS_FILE, weights),
             provenance: self.provenance.clone(),
         }
     }
@@ -477,7 +450,13 @@ impl PriorCheckpoint {
         prior
             .set_bounds(&record.bounds)
             .map_err(|e| corrupt(e.to_string()))?;
-        load_weights(&dir.join(WEIGHTS_FILE), &record.weights, &prior)?;
+        load_weights(
+            &dir.join(WEIGHTS_FILE),
+            &record.weights,
+            prior.var_store(),
+            "prior",
+            CONFIG_FILE,
+        )?;
         Ok(PriorCheckpoint {
             config: record.config,
             stats: Normaliser {
@@ -565,79 +544,12 @@ fn read_config(path: &Path) -> Result<ConfigFile, LearnError> {
     serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
 }
 
-/// Checks the weights file against the prior's variables and the record, then copies it in.
-fn load_weights(path: &Path, record: &WeightsRecord, prior: &MotionPrior) -> Result<(), LearnError> {
-    let bytes = match fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(LearnError::MissingFile { path: path.into() });
-        }
-        Err(e) => return Err(LearnError::io(path, e)),
-    };
-    let corrupt = |problem: String| LearnError::CorruptFile {
-        path: path.into(),
-        problem,
-    };
-    let mismatch = |problem: String| LearnError::ShapeMismatch {
-        path: path.into(),
-        problem,
-    };
-    let st = SafeTensors::deserialize(&bytes).map_err(|e| {
-        corrupt(format!(
-            "not a readable safetensors file ({} bytes): {e}",
-            bytes.len()
-        ))
-    })?;
-    let mut vars: Vec<(String, Tensor)> = prior.var_store().variables().into_iter().collect();
-    vars.sort_by(|a, b| a.0.cmp(&b.0));
-    let mut stored: Vec<String> = st.names().into_iter().map(String::from).collect();
-    stored.sort();
-    if let Some(extra) = stored.iter().find(|n| !vars.iter().any(|(v, _)| v == *n)) {
-        return Err(mismatch(format!(
-            "tensor `{extra}` is not a variable of the prior `config.json` describes"
-        )));
-    }
-    for (name, var) in &vars {
-        let t = st
-            .tensor(name)
-            .map_err(|_| mismatch(format!("tensor `{name}` is missing")))?;
-        let shape: Vec<i64> = t.shape().iter().map(|&d| d as i64).collect();
-        if shape != var.size() {
-            return Err(mismatch(format!(
-                "tensor `{name}` has shape {shape:?}, `config.json` gives {:?}",
-                var.size()
-            )));
-        }
-        if t.dtype() != Dtype::F32 {
-            return Err(corrupt(format!(
-                "tensor `{name}` has dtype {:?}, expected F32",
-                t.dtype()
-            )));
-        }
-    }
-    if bytes.len() as u64 != record.bytes || format!("{:016x}", fnv1a64(&bytes)) != record.fnv1a64 {
-        return Err(corrupt(format!(
-            "its content differs from the one `config.json` records ({} bytes, checksum {}); the files \
-             are not from the same save",
-            record.bytes, record.fnv1a64
-        )));
-    }
-    tch::no_grad(|| -> Result<(), LearnError> {
-        for (name, var) in &vars {
-            let t = st.tensor(name).expect("checked above");
-            let src = Tensor::f_from_data_size(t.data(), &var.size(), Kind::Float)?;
-            let mut dst = var.shallow_clone();
-            dst.f_copy_(&src)?;
-        }
-        Ok(())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::learn::prior::test_support::{scratch_dir, spot_set, trained_spot_dir};
     use crate::morphology::load_character;
+    use tch::Kind;
 
     fn character(name: &str) -> (KinematicTree, Morphology) {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
@@ -820,13 +732,5 @@ mod tests {
         );
         assert_eq!(CharacterInfo::of_character(&spot_tree, &spot_morph), spot);
         fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn checksum_is_fnv1a() {
-        // Published FNV-1a 64 test vectors.
-        assert_eq!(fnv1a64(b""), 0xcbf29ce484222325);
-        assert_eq!(fnv1a64(b"a"), 0xaf63dc4c8601ec8c);
-        assert_eq!(fnv1a64(b"foobar"), 0x85944171f73967e8);
     }
 }

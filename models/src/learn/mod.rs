@@ -9,10 +9,12 @@
 //! - [`ace`]: generator G and discriminator D with their losses (§5);
 //! - [`train_ace`]: the adversarial training loop over human clips;
 //! - [`checkpoint`]: configs, normalisation statistics and weights on disk;
+//! - `files`: file handling both stages share (checksums, weights loading, loss logs, step generators);
 //! - [`retarget`]: inference, a human clip or pose stream to character states.
 
 pub mod ace;
 pub mod checkpoint;
+mod files;
 pub mod nets;
 pub mod prior;
 pub mod psi;

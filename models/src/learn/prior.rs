@@ -44,7 +44,7 @@
 //! without training; one of another configuration or data is refused.
 
 use std::fs;
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
@@ -57,6 +57,7 @@ use tch::nn::OptimizerConfig;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint, StateBounds};
+use super::files::{open_losses, step_rng};
 use super::nets::{Activation, Mann, MannSpec, Mlp};
 use crate::character_state::CharacterLayout;
 use crate::dataset::MotionSet;
@@ -65,6 +66,10 @@ use crate::morphology::Morphology;
 
 /// Name of the loss log in a run directory.
 pub const LOSSES_FILE: &str = "prior_losses.csv";
+
+/// The columns of [`LOSSES_FILE`]; `seconds` is column [`SECONDS_COLUMN`].
+const HEADER: &str = "step,total,reconstruction,kl,sampling_probability,seconds";
+const SECONDS_COLUMN: usize = 5;
 
 /// Where training and inference run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -577,7 +582,7 @@ pub fn train_prior_with(
         return Ok(ckpt.prior);
     }
     let losses_path = run_dir.join(LOSSES_FILE);
-    let (mut log, seconds_before) = open_losses(&losses_path, ckpt.step)?;
+    let (mut log, seconds_before) = open_losses(&losses_path, ckpt.step, HEADER, SECONDS_COLUMN)?;
 
     let stats = Normaliser::of_set(set);
     let data = stats.normalise(&super::rows_to_tensor(
@@ -589,7 +594,7 @@ pub fn train_prior_with(
     let clock = Instant::now();
     for step in ckpt.step..cfg.steps {
         let p = cfg.sampling.probability(step, cfg.steps);
-        let mut rng = step_rng(cfg.seed, step);
+        let mut rng = step_rng(cfg.seed, 0, step);
         let first: Vec<i64> = (0..b)
             .map(|_| starts[rng.random_range(0..starts.len())] as i64)
             .collect();
@@ -692,50 +697,12 @@ fn start_or_resume(
     Ok(ckpt)
 }
 
-/// Opens the loss log for appending after `step` steps: a fresh file with its header when `step` is 0,
-/// else the existing rows of steps before `step` are kept (later ones came after the last checkpoint
-/// and are redone). Also returns the seconds logged by the last kept row.
-fn open_losses(path: &Path, step: usize) -> Result<(fs::File, f64), LearnError> {
-    const HEADER: &str = "step,total,reconstruction,kl,sampling_probability,seconds";
-    let mut kept = vec![HEADER.to_string()];
-    let mut seconds = 0.0;
-    if step > 0 && path.exists() {
-        let f = fs::File::open(path).map_err(|e| LearnError::io(path, e))?;
-        for line in BufReader::new(f).lines().skip(1) {
-            let line = line.map_err(|e| LearnError::io(path, e))?;
-            let mut fields = line.split(',');
-            let row_step = fields.next().and_then(|s| s.parse::<usize>().ok());
-            if row_step.is_some_and(|s| s < step) {
-                seconds = fields.nth(4).and_then(|s| s.parse().ok()).unwrap_or(seconds);
-                kept.push(line);
-            }
-        }
-    }
-    let tmp = path.with_extension("csv.tmp");
-    let mut text = kept.join("\n");
-    text.push('\n');
-    fs::write(&tmp, text)
-        .and_then(|_| fs::rename(&tmp, path))
-        .map_err(|e| LearnError::io(path, e))?;
-    let f = fs::OpenOptions::new()
-        .append(true)
-        .open(path)
-        .map_err(|e| LearnError::io(path, e))?;
-    Ok((f, seconds))
-}
-
 /// Every first frame `s` of a window `s..=s + rollout` that lies inside one episode.
 pub fn window_starts(episodes: &[Range<usize>], rollout: usize) -> Vec<usize> {
     episodes
         .iter()
         .flat_map(|e| e.start..e.end.saturating_sub(rollout).max(e.start))
         .collect()
-}
-
-/// The generator of optimiser step `step`: windows, noise and coins of a step do not depend on how the
-/// run got there, so a resumed run draws what an uninterrupted one would.
-fn step_rng(seed: u64, step: usize) -> Pcg64 {
-    Pcg64::seed_from_u64(seed ^ (step as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
 }
 
 /// `n` standard normal draws (Box–Muller).

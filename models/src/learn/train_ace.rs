@@ -32,11 +32,11 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_pcg::Pcg64;
 use serde_json::Value;
 use tch::nn::OptimizerConfig;
@@ -47,6 +47,7 @@ use super::ace::{
     FORMAT_VERSION, FileRecord, Generator, KIND, discriminator_loss, generator_adv_loss,
 };
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint};
+use super::files::{open_losses, step_rng};
 use super::prior::window_starts;
 use super::psi::{Psi, feature_loss, weight_tensor};
 use super::rows_to_tensor;
@@ -59,7 +60,11 @@ use crate::human_set::{HumanSet, HumanStats};
 /// Name of the loss log in a run directory.
 pub const LOSSES_FILE: &str = "ace_losses.csv";
 
+/// The columns of [`LOSSES_FILE`]; `seconds` is column [`SECONDS_COLUMN`].
 const HEADER: &str = "step,d_loss,d_bce,gp,g_loss,adv,fea,d_real,d_fake,seconds";
+const SECONDS_COLUMN: usize = 9;
+/// The stream of ACE's step generators, apart from the prior's for the same seed.
+const RNG_STREAM: u64 = 0xace0_ace0_ace0_ace0;
 
 /// What ACE trains on.
 #[derive(Clone, Copy, Debug)]
@@ -142,7 +147,7 @@ pub fn train_ace(
     } = ckpt;
     let mut discriminator = discriminator.expect("training checkpoints hold D");
     let losses_path = run_dir.join(LOSSES_FILE);
-    let (mut log, seconds_before) = open_losses(&losses_path, record.step)?;
+    let (mut log, seconds_before) = open_losses(&losses_path, record.step, HEADER, SECONDS_COLUMN)?;
 
     // The prior stays fixed: no gradients for its variables (they still flow through it).
     for v in prior.prior.var_store().trainable_variables() {
@@ -171,7 +176,7 @@ pub fn train_ace(
     let clock = Instant::now();
 
     for step in record.step..cfg.steps {
-        let mut rng = step_rng(cfg.seed, step);
+        let mut rng = step_rng(cfg.seed, RNG_STREAM, step);
         let draw = |rng: &mut Pcg64, pool: &[usize]| -> Tensor {
             let v: Vec<i64> = (0..b)
                 .map(|_| pool[rng.random_range(0..pool.len())] as i64)
@@ -460,46 +465,6 @@ fn start_or_resume(
         ..record
     };
     Ok(ckpt)
-}
-
-/// Opens the loss log for appending after `step` steps: a fresh file with its header when `step` is 0,
-/// else the rows of earlier steps are kept (later ones came after the last checkpoint and are redone).
-/// Also returns the seconds of the last kept row.
-fn open_losses(path: &Path, step: usize) -> Result<(fs::File, f64), LearnError> {
-    let mut kept = vec![HEADER.to_string()];
-    let mut seconds = 0.0;
-    if step > 0 && path.exists() {
-        let f = fs::File::open(path).map_err(|e| LearnError::io(path, e))?;
-        for line in BufReader::new(f).lines().skip(1) {
-            let line = line.map_err(|e| LearnError::io(path, e))?;
-            let row_step = line.split(',').next().and_then(|s| s.parse::<usize>().ok());
-            if row_step.is_some_and(|s| s < step) {
-                seconds = line
-                    .rsplit(',')
-                    .next()
-                    .and_then(|s| s.parse().ok())
-                    .unwrap_or(seconds);
-                kept.push(line);
-            }
-        }
-    }
-    let tmp = path.with_extension("csv.tmp");
-    let mut text = kept.join("\n");
-    text.push('\n');
-    fs::write(&tmp, text)
-        .and_then(|_| fs::rename(&tmp, path))
-        .map_err(|e| LearnError::io(path, e))?;
-    let f = fs::OpenOptions::new()
-        .append(true)
-        .open(path)
-        .map_err(|e| LearnError::io(path, e))?;
-    Ok((f, seconds))
-}
-
-/// The generator of step `step`: a step's draws do not depend on how the run got there, so a resumed
-/// run draws what an uninterrupted one would.
-fn step_rng(seed: u64, step: usize) -> Pcg64 {
-    Pcg64::seed_from_u64(seed ^ 0xace0_ace0_ace0_ace0 ^ (step as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15))
 }
 
 /// Shared inputs of the ACE tests: the bundled clips as a human set and a small ACE run on the small
