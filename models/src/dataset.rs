@@ -181,11 +181,7 @@ pub fn generate(
         config: cfg.clone(),
         layout,
         dof_names: tree.dof_names().into_iter().map(String::from).collect(),
-        end_effector_links: morph
-            .end_effectors()
-            .iter()
-            .map(|&l| tree.links[l].name.clone())
-            .collect(),
+        end_effector_links: morph.end_effector_links(tree),
         n_feet,
         episodes: Vec::new(),
         roots: Vec::with_capacity(n),

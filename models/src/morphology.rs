@@ -126,6 +126,11 @@ impl Morphology {
             .collect()
     }
 
+    /// Link names of [`Morphology::end_effectors`], in the same order.
+    pub fn end_effector_links(&self, tree: &KinematicTree) -> Vec<String> {
+        self.end_effectors().iter().map(|&l| tree.links[l].name.clone()).collect()
+    }
+
     /// Number of end effectors (feet + manipulators + head).
     pub fn n_end_effectors(&self) -> usize {
         self.feet.len() + self.manipulators.len() + usize::from(self.head.is_some())

@@ -235,11 +235,7 @@ impl CharacterInfo {
             name: tree.name.clone(),
             layout: CharacterLayout::new(tree, morph),
             dof_names: tree.dof_names().into_iter().map(String::from).collect(),
-            end_effector_links: morph
-                .end_effectors()
-                .iter()
-                .map(|&l| tree.links[l].name.clone())
-                .collect(),
+            end_effector_links: morph.end_effector_links(tree),
         }
     }
 
