@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use ace::models::dataset::MotionSet;
 use ace::models::kinematics::KinematicTree;
 use ace::models::morphology::{Morphology, load_character};
 use anyhow::{Result, bail};
@@ -42,4 +43,20 @@ pub fn load(arg: &str) -> Result<(PathBuf, KinematicTree, Morphology)> {
     let path = character_path(arg)?;
     let (tree, morph) = load_character(&path)?;
     Ok((path, tree, morph))
+}
+
+/// Fails unless a motion file was made for this character (same DoF names).
+pub fn check_dataset(set: &MotionSet, file: &Path, tree: &KinematicTree, urdf: &Path) -> Result<()> {
+    let names = tree.dof_names();
+    if set.dof_names != names {
+        bail!(
+            "{}: made for character `{}` with {} DoF, which does not match {} ({} DoF); pass the character's URDF with --character",
+            file.display(),
+            set.character,
+            set.dof_names.len(),
+            urdf.display(),
+            names.len()
+        );
+    }
+    Ok(())
 }

@@ -8,7 +8,7 @@ use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, c
 use ace::models::kinematics::KinematicTree;
 use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
 use ace::models::morphology::Morphology;
-use anyhow::{Result, bail};
+use anyhow::Result;
 
 use crate::characters;
 
@@ -17,11 +17,11 @@ pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json:
     let set = MotionSet::load(file)?;
     let name = character.unwrap_or(&set.character);
     let (urdf, tree, morph) = characters::load(name)?;
-    check_matches(&set, file, &tree, &urdf)?;
+    characters::check_dataset(&set, file, &tree, &urdf)?;
     let reference = match reference {
         Some(r) => {
             let other = MotionSet::load(r)?;
-            check_matches(&other, r, &tree, &urdf)?;
+            characters::check_dataset(&other, r, &tree, &urdf)?;
             Some(other)
         }
         None => None,
@@ -31,22 +31,6 @@ pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json:
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         println!("{} ({} on {})\n{report}", file.display(), set.character, urdf.display());
-    }
-    Ok(())
-}
-
-/// Fails unless the motion file was made for this character (same DoF names).
-fn check_matches(set: &MotionSet, file: &Path, tree: &KinematicTree, urdf: &Path) -> Result<()> {
-    let names: Vec<&str> = tree.dof_names();
-    if set.dof_names != names {
-        bail!(
-            "{}: made for character `{}` with {} DoF, which does not match {} ({} DoF); pass the character's URDF with --character",
-            file.display(),
-            set.character,
-            set.dof_names.len(),
-            urdf.display(),
-            names.len()
-        );
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
 use ace::models::export::trajectory::CommandTrajectory;
 use ace::models::features::{FeatureLayout, character_features, human_body_length, human_features};
 use ace::models::human::{HumanClip, ImportOptions, Joint};
-use ace::models::human_set::PROJECT_FPS;
+use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr};
@@ -69,7 +69,12 @@ pub fn retarget(
     with_human: bool,
 ) -> Result<Written> {
     retargeter.check_character(tree, morph)?;
-    let motion = retargeter.retarget_clip(tree, morph, clip)?;
+    if (clip.fps - PROJECT_FPS).abs() > 1e-3 {
+        bail!("{}: retargeting needs the clip at {PROJECT_FPS} fps, it is at {}", clip.name, clip.fps);
+    }
+    // x^h once: the generator's input and the source of the human Ψ for L_fea.
+    let human: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
+    let motion = retargeter.retarget_states(tree, morph, &human)?;
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
     }
@@ -90,12 +95,13 @@ pub fn retarget(
     trajectory.write_json(&json)?;
     trajectory.write_csv(&csv)?;
 
-    let report = clip_metrics(retargeter, dir, tree, morph, clip, &motion.states, &motion.poses)?;
+    let report = clip_metrics(retargeter, dir, tree, morph, clip, &human, &motion.states, &motion.poses)?;
     let metrics = out.with_extension("metrics.json");
     std::fs::write(&metrics, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", metrics.display()))?;
     Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report })
 }
 
+#[allow(clippy::too_many_arguments)]
 /// L_fea against the human, UFR, DIV and (when the checkpoint has its dataset's fit) FID of a
 /// retargeted clip, with the checkpoint's end-effector correspondence and body lengths.
 fn clip_metrics(
@@ -104,6 +110,7 @@ fn clip_metrics(
     tree: &KinematicTree,
     morph: &Morphology,
     clip: &HumanClip,
+    human: &[HumanRow],
     states: &[Vec<f32>],
     poses: &[ace::models::kinematics::CharacterPose],
 ) -> Result<MetricsReport> {
@@ -113,7 +120,7 @@ fn clip_metrics(
     let layout = retargeter.prior().character.layout;
     let psi: Vec<Vec<f32>> = states.iter().map(|x| character_features(&layout, x, body, mapping)).collect();
     let human_body = record.body_lengths.human_override.unwrap_or_else(|| human_body_length(clip));
-    let human_psi: Vec<Vec<f32>> = clip.states().iter().map(|x| human_features(&x.0, human_body, mapping)).collect();
+    let human_psi: Vec<Vec<f32>> = human.iter().map(|x| human_features(x, human_body, mapping)).collect();
     let reference_path = dir.join(REFERENCE_FILE);
     let reference: Option<GaussianFit> = if reference_path.is_file() {
         let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&reference_path)?)

@@ -60,12 +60,10 @@ fn read_config<T: DeserializeOwned + Default>(path: Option<&Path>, paper: impl F
 }
 
 /// Loads `--dataset` or generates the dataset with `cfg` (progress bar).
-fn dataset(tree: &KinematicTree, morph: &Morphology, file: Option<&Path>, cfg: &DatasetConfig) -> Result<MotionSet> {
+fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&Path>, cfg: &DatasetConfig) -> Result<MotionSet> {
     if let Some(file) = file {
         let set = MotionSet::load(file)?;
-        if set.dof_names != tree.dof_names() {
-            bail!("{}: a dataset of `{}`, which does not match character `{}`", file.display(), set.character, tree.name);
-        }
+        characters::check_dataset(&set, file, tree, urdf)?;
         return Ok(set);
     }
     let bar = progress::bar(cfg.frames as u64, "frames");
@@ -106,7 +104,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
     if let Some(s) = args.seed {
         data_cfg.seed = s;
     }
-    let set = dataset(&tree, &morph, args.dataset.as_deref(), &data_cfg)?;
+    let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;
     println!("character {} ({}): dataset of {} frames, x^r of {} values", tree.name, urdf.display(), set.len(), set.layout.dim());
     let record = json!({
         "character_urdf": urdf.display().to_string(),
@@ -126,7 +124,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
 
 /// Runs `ace train` (the prior must be in the checkpoint directory).
 pub fn ace(args: &TrainArgs) -> Result<()> {
-    let (_, tree, morph) = characters::load(&args.character)?;
+    let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
     let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper)?;
     let device = ace::models::learn::default_device();
@@ -134,7 +132,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
     let data_cfg: DatasetConfig = serde_json::from_value(prior.provenance["dataset"]["config"].clone())
         .context("the prior's provenance does not record its dataset configuration; pass --dataset")?;
-    let set = dataset(&tree, &morph, args.dataset.as_deref(), &data_cfg)?;
+    let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;
     if set.mean != prior.stats.mean || set.std != prior.stats.std {
         bail!("the dataset is not the one the prior in {} was trained on (its statistics differ)", dir.display());
     }
