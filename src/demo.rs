@@ -1,42 +1,133 @@
-//! `ace demo`: the main job on the bundled defaults. For now (before the learning pipeline lands)
-//! it loads a character and a human clip, prints their summaries, and writes `summary.json` and a
-//! picture of the scene (`scene.png`: the clip's poses over time beside the character).
+//! `ace demo`: the main job on the bundled defaults. Every bundled human clip (`assets/motions/`) is
+//! retargeted onto every bundled character with its shipped checkpoint (`assets/checkpoints/`); for
+//! each pair it writes the glTF binary (with the human beside the character), the robot command
+//! trajectory (JSON, CSV) and the clip's metrics, then a report over all pairs (`report.md`,
+//! `report.json`) and, per character, a picture of the retargeted first clip (`<character>.png`: the
+//! character at five moments, the human beside it).
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
+use ace::models::human::{HumanClip, ImportOptions};
+use ace::models::human_set::PROJECT_FPS;
+use ace::models::learn::retarget::Retargeter;
+use ace::models::metrics::MetricsReport;
 use ace::models::nalgebra::Vector3;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
+use serde_json::json;
 
-use crate::{inspect, picture};
+use crate::{characters, picture, retarget};
 
-/// Runs the demo and writes its outputs into `out`.
-pub fn run(character: &Path, clip_path: &Path, out: &Path) -> Result<()> {
-    let (clip, clip_summary) = inspect::bvh_summary(clip_path)?;
-    let (tree, _morphology, character_summary) = inspect::urdf_summary(character)?;
-    println!("human clip\n{}", inspect::text(&clip_summary));
-    println!("character\n{}", inspect::text(&character_summary));
+/// The bundled clips, sorted by name.
+fn bundled_clips() -> Result<Vec<PathBuf>> {
+    let dir = characters::assets_dir().join("motions");
+    let mut clips: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .with_context(|| format!("listing {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")))
+        .collect();
+    clips.sort();
+    if clips.is_empty() {
+        bail!("{}: no bundled BVH clips", dir.display());
+    }
+    Ok(clips)
+}
 
+/// Runs the demo for `characters` (bundled names) and `clips` (BVH files; the bundled ones when empty),
+/// writing into `out`.
+pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path) -> Result<()> {
+    let clips = if clips.is_empty() { bundled_clips()? } else { clips.to_vec() };
+    let import = ImportOptions { fps: Some(PROJECT_FPS), mapping: None };
+    let humans: Vec<HumanClip> = clips
+        .iter()
+        .map(|p| HumanClip::from_bvh_file(p, &import).map_err(anyhow::Error::from))
+        .collect::<Result<_>>()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let summary = serde_json::json!({ "clip": clip_summary, "character": character_summary });
-    let summary_path = out.join("summary.json");
-    std::fs::write(&summary_path, serde_json::to_string_pretty(&summary)?).with_context(|| format!("writing {}", summary_path.display()))?;
+    let mut rows: Vec<(String, String, MetricsReport, PathBuf)> = Vec::new();
+    for name in characters_arg {
+        let (_, tree, morph) = characters::load(name)?;
+        let dir = retarget::default_checkpoint(name)?;
+        let retargeter = Retargeter::load(&dir, ace::models::learn::default_device())
+            .with_context(|| format!("the shipped checkpoint of `{name}`"))?;
+        for (k, clip) in humans.iter().enumerate() {
+            let glb = out.join(&tree.name).join(format!("{}.glb", clip.name));
+            let w = retarget::retarget(&retargeter, &dir, &tree, &morph, clip, &glb, true)?;
+            println!(
+                "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  UFR {:5.2} %  → {}",
+                tree.name,
+                clip.name,
+                w.report.frames,
+                w.report.feature_loss.unwrap_or(f32::NAN),
+                100.0 * w.report.ufr.rates.ufr,
+                glb.display()
+            );
+            if k == 0 {
+                let motion = retargeter.retarget_clip(&tree, &morph, clip)?;
+                picture_of(&tree, &motion.poses, clip, &out.join(format!("{}.png", tree.name)))?;
+            }
+            rows.push((tree.name.clone(), clip.name.clone(), w.report, glb));
+        }
+    }
+    let (md, json_path) = (out.join("report.md"), out.join("report.json"));
+    std::fs::write(&md, report_markdown(&rows)).with_context(|| format!("writing {}", md.display()))?;
+    let v: Vec<_> = rows
+        .iter()
+        .map(|(c, clip, r, glb)| json!({ "character": c, "clip": clip, "glb": glb, "metrics": r }))
+        .collect();
+    std::fs::write(&json_path, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", json_path.display()))?;
+    println!("wrote {} retargeted clips under {}, {} and {}", rows.len(), out.display(), md.display(), json_path.display());
+    Ok(())
+}
 
-    let pose = tree.standing_pose();
-    let mut segments = picture::character_segments(&tree, &pose, [214, 140, 30]);
-    // The human stands 1.5 m to the character's left; its path is shifted so that it starts there.
-    let start = clip.frames.first().context("the clip has no frames")?.positions[0];
-    let offset = Vector3::new(-start.x, 1.5 - start.y, 0.0);
+fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String {
+    let mut s = String::from(
+        "| character | clip | frames | L_fea | UFR | self-collision | penetration | sliding | DIV | FID |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let opt = |v: Option<f32>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
+    for (c, clip, r, _) in rows {
+        let u = &r.ufr.rates;
+        let _ = writeln!(
+            s,
+            "| {c} | {clip} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} |",
+            r.frames,
+            opt(r.feature_loss),
+            100.0 * u.ufr,
+            100.0 * u.self_collision,
+            100.0 * u.penetration,
+            100.0 * u.sliding,
+            r.div,
+            opt(r.fid)
+        );
+    }
+    s
+}
+
+/// A filmstrip of the retargeted motion: the character at five moments side by side (each moved back
+/// to where it started, so progress along the ground does not pile them up), the human behind each.
+fn picture_of(
+    tree: &ace::models::kinematics::KinematicTree,
+    poses: &[ace::models::kinematics::CharacterPose],
+    clip: &HumanClip,
+    path: &Path,
+) -> Result<()> {
     const SAMPLES: usize = 5;
+    const SPACING: f32 = 1.6;
+    let first_root = poses.first().context("no retargeted frames")?.root.translation.vector;
+    let mut segments = Vec::new();
     for k in 0..SAMPLES {
-        let t = clip.duration() * k as f32 / (SAMPLES - 1) as f32;
-        let shade = (170.0 * (1.0 - k as f32 / (SAMPLES - 1) as f32)) as u8;
-        segments.extend(picture::human_segments(&clip.frame_at(t), offset, [shade, shade.saturating_add(60), 235]));
+        let t = (poses.len() - 1) * k / (SAMPLES - 1);
+        let slot = Vector3::new(0.0, -(k as f32) * SPACING, 0.0);
+        let mut pose = poses[t].clone();
+        let r = pose.root.translation.vector;
+        pose.root.translation.vector = Vector3::new(first_root.x, first_root.y, r.z) + slot;
+        segments.extend(picture::character_segments(tree, &pose, [214, 140, 30]));
+        let frame = &clip.frames[t.min(clip.frames.len() - 1)];
+        let pelvis = frame.positions[0];
+        let behind = Vector3::new(-pelvis.x - 1.2, -pelvis.y, 0.0) + slot;
+        segments.extend(picture::human_segments(frame, behind, [40, 100, 235]));
     }
     // The grid goes underneath: drawn first, everything else over it.
     let mut scene = picture::ground_segments(&segments);
     scene.extend(segments);
-    let picture_path = out.join("scene.png");
-    picture::render(&scene, 1280, 720, 0.9, 0.35, &picture_path)?;
-    println!("wrote {} and {}", summary_path.display(), picture_path.display());
-    Ok(())
+    picture::render(&scene, 1280, 720, 0.9, 0.35, path)
 }

@@ -3,12 +3,15 @@
 mod characters;
 mod dataset;
 mod demo;
+mod eval;
+mod humans;
 mod inspect;
 mod metrics;
 mod picture;
 mod progress;
 mod report;
 mod retarget;
+mod scoring;
 mod train;
 
 use std::path::PathBuf;
@@ -58,17 +61,18 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// The main job on the bundled defaults: load a character and a human clip, print their
-    /// summaries and write a picture of the scene.
+    /// The main job on the bundled defaults: retarget the bundled human clips onto the bundled
+    /// characters with their shipped checkpoints; writes a glTF binary, the robot command trajectory
+    /// and the metrics per pair, a report over all of them and a picture per character.
     Demo {
-        /// Character URDF.
-        #[arg(long, default_value = "assets/characters/spot.urdf")]
-        character: PathBuf,
-        /// Human clip (BVH).
-        #[arg(long, default_value = "assets/motions/walk.bvh")]
-        clip: PathBuf,
+        /// Bundled characters to retarget onto.
+        #[arg(long, value_delimiter = ',', default_value = "spot,crab,stretch")]
+        characters: Vec<String>,
+        /// Human clips (BVH) [default: every clip in assets/motions].
+        #[arg(long)]
+        clip: Vec<PathBuf>,
         /// Output folder.
-        #[arg(long, default_value = "out")]
+        #[arg(long, default_value = "out/demo")]
         out: PathBuf,
     },
     /// Generate a character motion dataset by rolling out its kinematic controllers under random
@@ -131,6 +135,32 @@ enum Command {
         #[arg(long)]
         no_human: bool,
     },
+    /// Evaluate a checkpoint on the human clips it never saw: DIV, FID, L_fea and UFR of the dataset,
+    /// ACE and the prior driven by random latents, plus long-rollout stability. Writes Markdown, CSV,
+    /// JSON and a chart.
+    Eval {
+        /// A bundled character (spot, crab, stretch) or a URDF file.
+        #[arg(long)]
+        character: String,
+        /// Checkpoint directory [default: the bundled character's shipped one].
+        #[arg(long)]
+        checkpoint: Option<PathBuf>,
+        /// Folder of human BVH clips the checkpoint was trained on [default: ../shared/data/human].
+        #[arg(long)]
+        humans: Option<PathBuf>,
+        /// Output folder [default: out/eval/<character>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Seed of the random latents and of the fresh dataset.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Length of the stability rollouts in seconds.
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f32,
+        /// Evaluate at most this many held-out clips [default: all].
+        #[arg(long)]
+        max_clips: Option<usize>,
+    },
     /// Print the motion-quality metrics (UFR and its detectors, DIV, FID) of a motion file.
     Metrics {
         /// A motion file written by `ace dataset`.
@@ -154,7 +184,7 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Inspect { file, json } => inspect::run(&file, json),
-        Command::Demo { character, clip, out } => demo::run(&character, &clip, &out),
+        Command::Demo { characters, clip, out } => demo::run(&characters, &clip, &out),
         Command::Dataset { character, frames, seed, config, out, report } => dataset::run(&dataset::DatasetArgs {
             character,
             frames,
@@ -168,6 +198,15 @@ fn main() -> ExitCode {
         Command::Retarget { clip, character, checkpoint, out, no_human } => {
             retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human)
         }
+        Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips } => eval::run(&eval::EvalArgs {
+            character,
+            checkpoint,
+            humans,
+            out,
+            seed,
+            seconds,
+            max_clips,
+        }),
         Command::Metrics { file, character, reference, json } => {
             metrics::run(&file, character.as_deref(), reference.as_deref(), json)
         }

@@ -6,18 +6,18 @@ use std::path::{Path, PathBuf};
 
 use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
 use ace::models::export::trajectory::CommandTrajectory;
-use ace::models::features::{FeatureLayout, character_features, human_body_length, human_features};
+use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions, Joint};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::retarget::Retargeter;
-use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr};
+use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
 use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 
 use crate::characters;
-use crate::train::REFERENCE_FILE;
+use crate::scoring::Scorer;
 
 /// Where a bundled character's shipped checkpoint lives.
 pub fn shipped_checkpoint(name: &str) -> PathBuf {
@@ -95,51 +95,11 @@ pub fn retarget(
     trajectory.write_json(&json)?;
     trajectory.write_csv(&csv)?;
 
-    let report = clip_metrics(retargeter, dir, tree, morph, clip, &human, &motion.states, &motion.poses)?;
+    let scorer = Scorer::new(retargeter, dir)?;
+    let psi = scorer.character_psi(&motion.states);
+    let human_psi = scorer.human_psi(&human, human_body_length(clip));
+    let report = scorer.report(tree, morph, &psi, Some(&human_psi), &motion.poses, &[0..motion.poses.len()]);
     let metrics = out.with_extension("metrics.json");
     std::fs::write(&metrics, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", metrics.display()))?;
     Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report })
 }
-
-#[allow(clippy::too_many_arguments)]
-/// L_fea against the human, UFR, DIV and (when the checkpoint has its dataset's fit) FID of a
-/// retargeted clip, with the checkpoint's end-effector correspondence and body lengths.
-fn clip_metrics(
-    retargeter: &Retargeter,
-    dir: &Path,
-    tree: &KinematicTree,
-    morph: &Morphology,
-    clip: &HumanClip,
-    human: &[HumanRow],
-    states: &[Vec<f32>],
-    poses: &[ace::models::kinematics::CharacterPose],
-) -> Result<MetricsReport> {
-    let record = &retargeter.ace().record;
-    let mapping = &record.correspondence.mapping;
-    let body = record.body_lengths.character;
-    let layout = retargeter.prior().character.layout;
-    let psi: Vec<Vec<f32>> = states.iter().map(|x| character_features(&layout, x, body, mapping)).collect();
-    let human_body = record.body_lengths.human_override.unwrap_or_else(|| human_body_length(clip));
-    let human_psi: Vec<Vec<f32>> = human.iter().map(|x| human_features(x, human_body, mapping)).collect();
-    let reference_path = dir.join(REFERENCE_FILE);
-    let reference: Option<GaussianFit> = if reference_path.is_file() {
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&reference_path)?)
-            .with_context(|| format!("{}: not valid JSON", reference_path.display()))?;
-        Some(serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", reference_path.display()))?)
-    } else {
-        None
-    };
-    let ufr = ufr(tree, morph, poses, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
-    Ok(MetricsReport::compute(
-        &MetricsInput {
-            features: &psi,
-            reference: reference.as_ref(),
-            source_features: Some(&human_psi),
-            layout: FeatureLayout::new(mapping),
-            weights: record.config.feature_weights,
-            div: DivConfig::default(),
-        },
-        &ufr,
-    ))
-}
-

@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 use ace::models::correspondence::{Correspondence, EndEffectorStats};
 use ace::models::dataset::{DatasetConfig, MotionSet, generate};
 use ace::models::features::{FeatureLayout, character_body_length, character_features};
-use ace::models::human_set::{HumanSet, HumanSetOptions};
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::AceConfig;
 use ace::models::learn::checkpoint::PriorCheckpoint;
@@ -26,7 +25,7 @@ use serde::de::DeserializeOwned;
 use serde_json::{Value, json};
 
 use ace::plot::{Figure, LineChart, Series};
-use crate::{characters, progress};
+use crate::{characters, humans, progress};
 
 /// The file beside the weights with the dataset's Ψ fit (for FID).
 pub const REFERENCE_FILE: &str = "reference.json";
@@ -137,22 +136,8 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         bail!("the dataset is not the one the prior in {} was trained on (its statistics differ)", dir.display());
     }
 
-    let folder = match &args.humans {
-        Some(f) => f.clone(),
-        None => HumanSet::default_folder(&characters::assets_dir().join(".."))
-            .context("no human clips: ../shared/data/human is missing; pass --humans FOLDER")?,
-    };
-    let opts = HumanSetOptions::default();
-    let bar = progress::bar(0, "clips");
-    bar.set_message(format!("importing {}", folder.display()));
-    let humans = HumanSet::load(&folder, &opts, &mut |p| {
-        bar.set_length(p.total as u64);
-        bar.set_position(p.done as u64);
-    })?;
-    bar.finish_and_clear();
-    for s in &humans.skipped {
-        eprintln!("skipped {}: {}", s.path.display(), s.error);
-    }
+    let folder = humans::folder(args.humans.as_deref())?;
+    let humans = humans::load(&folder)?;
     println!(
         "human clips from {}: {} for training, {} held out ({} frames in all)",
         folder.display(),

@@ -10,11 +10,14 @@
 pub use nalgebra;
 
 pub mod character_state;
+pub mod cleanup;
+pub mod collision_guard;
 pub mod controller;
 pub mod correspondence;
 pub mod dataset;
 pub mod export;
 pub mod features;
+pub mod foot_lock;
 pub mod frame;
 pub mod geometry;
 pub mod human;

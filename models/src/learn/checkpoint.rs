@@ -2,8 +2,8 @@
 //!
 //! One checkpoint is one directory holding two files:
 //! - [`CONFIG_FILE`] (`config.json`, pretty JSON): `kind` = [`KIND`], `format_version` =
-//!   [`FORMAT_VERSION`], the character (`character`, `state_dim`, `layout` `{dof, end_effectors, dim}`,
-//!   `dof_names`, `end_effector_links`), the full [`PriorConfig`] under `config`, the training `step`
+//!   [`FORMAT_VERSION`], the `character` ([`CharacterInfo`]: `name`, `state_dim`, `layout`
+//!   `{dof, end_effectors}`, `dof_names`, `end_effector_links`), the full [`PriorConfig`] under `config`, the training `step`
 //!   reached and the `seed`, the dataset's normalisation statistics `mean` and `std`, the state `mask`
 //!   ([`super::prior::state_mask`]), the `bounds` `{lo, hi}` of the decoder's normalised output
 //!   ([`StateBounds`]), a record of the weights file (`weights`: name, size in bytes and
@@ -27,7 +27,7 @@ use tch::{Device, TchError, Tensor};
 use thiserror::Error;
 
 use super::ShapeError;
-use super::files::{FileRecord, load_weights, write_synced};
+use super::files::{FileRecord, load_weights, read_json, write_synced};
 use super::prior::{MotionPrior, PriorConfig};
 use crate::character_state::CharacterLayout;
 use crate::dataset::MotionSet;
@@ -205,8 +205,10 @@ impl StateBounds {
     }
 }
 
-/// The character a prior was trained for.
-#[derive(Clone, Debug, PartialEq)]
+/// The character a checkpoint was trained for. Stored as the `character` object of both `config.json`
+/// and `ace.json`; reading it checks that the widths agree.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(into = "CharacterFile", try_from = "CharacterFile")]
 pub struct CharacterInfo {
     /// Robot name.
     pub name: String,
@@ -283,6 +285,77 @@ impl CharacterInfo {
     }
 }
 
+/// [`CharacterInfo`] as stored: the state width is written out so a reader sees it without adding up
+/// the layout, and is checked on reading.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CharacterFile {
+    name: String,
+    state_dim: usize,
+    layout: LayoutFile,
+    dof_names: Vec<String>,
+    end_effector_links: Vec<String>,
+}
+
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LayoutFile {
+    dof: usize,
+    end_effectors: usize,
+}
+
+impl From<CharacterInfo> for CharacterFile {
+    fn from(c: CharacterInfo) -> CharacterFile {
+        CharacterFile {
+            name: c.name,
+            state_dim: c.layout.dim(),
+            layout: LayoutFile {
+                dof: c.layout.dof,
+                end_effectors: c.layout.end_effectors,
+            },
+            dof_names: c.dof_names,
+            end_effector_links: c.end_effector_links,
+        }
+    }
+}
+
+impl TryFrom<CharacterFile> for CharacterInfo {
+    type Error = String;
+
+    fn try_from(f: CharacterFile) -> Result<CharacterInfo, String> {
+        let layout = CharacterLayout {
+            dof: f.layout.dof,
+            end_effectors: f.layout.end_effectors,
+        };
+        if f.state_dim != layout.dim() {
+            return Err(format!(
+                "character `{}`: state_dim {} disagrees with the layout ({} DoF, {} end effectors: width {})",
+                f.name,
+                f.state_dim,
+                layout.dof,
+                layout.end_effectors,
+                layout.dim()
+            ));
+        }
+        if f.dof_names.len() != layout.dof || f.end_effector_links.len() != layout.end_effectors {
+            return Err(format!(
+                "character `{}`: {} DoF names and {} end-effector links for a layout of {} and {}",
+                f.name,
+                f.dof_names.len(),
+                f.end_effector_links.len(),
+                layout.dof,
+                layout.end_effectors
+            ));
+        }
+        Ok(CharacterInfo {
+            name: f.name,
+            layout,
+            dof_names: f.dof_names,
+            end_effector_links: f.end_effector_links,
+        })
+    }
+}
+
 /// A trained (or training) motion prior with everything needed to use it: configuration,
 /// normalisation statistics, mask, character and bookkeeping (see the module docs for the files).
 #[derive(Debug)]
@@ -303,26 +376,13 @@ pub struct PriorCheckpoint {
     pub prior: MotionPrior,
 }
 
-/// The `layout` entry of `config.json`.
-#[derive(Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct LayoutRecord {
-    dof: usize,
-    end_effectors: usize,
-    dim: usize,
-}
-
 /// `config.json`, field order as written.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
     kind: String,
     format_version: u32,
-    character: String,
-    state_dim: usize,
-    layout: LayoutRecord,
-    dof_names: Vec<String>,
-    end_effector_links: Vec<String>,
+    character: CharacterInfo,
     step: usize,
     seed: u64,
     config: PriorConfig,
@@ -374,15 +434,7 @@ impl PriorCheckpoint {
         ConfigFile {
             kind: KIND.into(),
             format_version: FORMAT_VERSION,
-            character: c.name.clone(),
-            state_dim: c.layout.dim(),
-            layout: LayoutRecord {
-                dof: c.layout.dof,
-                end_effectors: c.layout.end_effectors,
-                dim: c.layout.dim(),
-            },
-            dof_names: c.dof_names.clone(),
-            end_effector_links: c.end_effector_links.clone(),
+            character: c.clone(),
             step: self.step,
             seed: self.config.seed,
             config: self.config.clone(),
@@ -399,22 +451,12 @@ impl PriorCheckpoint {
     /// checking it (see the module docs).
     pub fn load(dir: &Path, device: Device) -> Result<PriorCheckpoint, LearnError> {
         let config_path = dir.join(CONFIG_FILE);
-        let record = read_config(&config_path)?;
+        let record: ConfigFile = read_json(&config_path, KIND, FORMAT_VERSION, "a motion-prior checkpoint")?;
         let corrupt = |problem: String| LearnError::CorruptFile {
             path: config_path.clone(),
             problem,
         };
-        let layout = CharacterLayout {
-            dof: record.layout.dof,
-            end_effectors: record.layout.end_effectors,
-        };
-        let dim = record.state_dim;
-        if layout.dim() != record.layout.dim || dim != layout.dim() {
-            return Err(corrupt(format!(
-                "state_dim {dim} and layout (dof {}, {} end effectors, dim {}) disagree",
-                layout.dof, layout.end_effectors, record.layout.dim
-            )));
-        }
+        let dim = record.character.layout.dim();
         for (name, len) in [
             ("mean", record.mean.len()),
             ("std", record.std.len()),
@@ -427,11 +469,6 @@ impl PriorCheckpoint {
                     "`{name}` has {len} entries, the state has {dim}"
                 )));
             }
-        }
-        if record.dof_names.len() != layout.dof || record.end_effector_links.len() != layout.end_effectors {
-            return Err(corrupt(
-                "the DoF names or end-effector links disagree with the layout".into(),
-            ));
         }
         if let Some(i) = record.std.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(corrupt(format!(
@@ -460,12 +497,7 @@ impl PriorCheckpoint {
                 std: record.std,
             },
             mask: record.mask,
-            character: CharacterInfo {
-                name: record.character,
-                layout,
-                dof_names: record.dof_names,
-                end_effector_links: record.end_effector_links,
-            },
+            character: record.character,
             step: record.step,
             provenance: record.provenance,
             prior,
@@ -495,49 +527,6 @@ impl PriorCheckpoint {
             }),
         }
     }
-}
-
-/// Reads and parses `config.json`, checking kind and version before the rest.
-fn read_config(path: &Path) -> Result<ConfigFile, LearnError> {
-    let text = match fs::read_to_string(path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(LearnError::MissingFile { path: path.into() });
-        }
-        Err(e) => return Err(LearnError::io(path, e)),
-    };
-    let corrupt = |problem: String| LearnError::CorruptFile {
-        path: path.into(),
-        problem,
-    };
-    let value: Value = serde_json::from_str(&text).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
-    let format = |problem: String| LearnError::Format {
-        path: path.into(),
-        problem,
-    };
-    match value.get("kind").and_then(Value::as_str) {
-        Some(KIND) => {}
-        Some(other) => {
-            return Err(format(format!(
-                "not a motion-prior checkpoint (kind `{other}`, expected `{KIND}`)"
-            )));
-        }
-        None => {
-            return Err(format(format!(
-                "not a motion-prior checkpoint (no `kind`, expected `{KIND}`)"
-            )));
-        }
-    }
-    match value.get("format_version").and_then(Value::as_u64) {
-        Some(v) if v == u64::from(FORMAT_VERSION) => {}
-        v => {
-            return Err(format(format!(
-                "format version {} is not supported (this build reads version {FORMAT_VERSION})",
-                v.map_or("(none)".to_string(), |v| v.to_string())
-            )));
-        }
-    }
-    serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
 }
 
 #[cfg(test)]
@@ -600,8 +589,8 @@ mod tests {
         let text = fs::read_to_string(copy.join(CONFIG_FILE)).unwrap();
         let v: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["kind"], KIND);
-        assert_eq!(v["state_dim"], set.layout.dim());
-        assert_eq!(v["dof_names"][0], set.dof_names[0].as_str());
+        assert_eq!(v["character"]["state_dim"], set.layout.dim());
+        assert_eq!(v["character"]["dof_names"][0], set.dof_names[0].as_str());
         fs::remove_dir_all(&copy).unwrap();
     }
 
@@ -666,6 +655,17 @@ mod tests {
         assert!(
             e.to_string()
                 .contains("config.json: format version 99 is not supported"),
+            "{e}"
+        );
+
+        // A character whose stored width disagrees with its layout.
+        let mut v: Value = serde_json::from_str(&text).unwrap();
+        v["character"]["state_dim"] = 7.into();
+        fs::write(&config, v.to_string()).unwrap();
+        let e = PriorCheckpoint::load(&dir, Device::Cpu).unwrap_err();
+        assert!(
+            e.to_string().contains("config.json: corrupt file")
+                && e.to_string().contains("state_dim 7 disagrees with the layout"),
             "{e}"
         );
 

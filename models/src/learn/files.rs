@@ -11,7 +11,9 @@ use std::path::Path;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use safetensors::{Dtype, SafeTensors};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+use serde_json::Value;
 use tch::{Kind, Tensor, nn};
 
 use super::checkpoint::LearnError;
@@ -70,6 +72,46 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
         }
         Err(e) => Err(LearnError::io(path, e)),
     }
+}
+
+/// Reads the JSON metadata file of a checkpoint: its `kind` must be `kind` and its `format_version`
+/// `version`, checked before the rest so that another file or version gets a plain error; `what`
+/// names the expected kind in that error ("a motion-prior checkpoint").
+pub(crate) fn read_json<T: DeserializeOwned>(
+    path: &Path,
+    kind: &str,
+    version: u32,
+    what: &str,
+) -> Result<T, LearnError> {
+    let bytes = read_file(path)?;
+    let corrupt = |problem: String| LearnError::CorruptFile {
+        path: path.into(),
+        problem,
+    };
+    let value: Value = serde_json::from_slice(&bytes).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
+    let format = |problem: String| LearnError::Format {
+        path: path.into(),
+        problem,
+    };
+    match value.get("kind").and_then(Value::as_str) {
+        Some(k) if k == kind => {}
+        other => {
+            return Err(format(format!(
+                "not {what} (kind {}, expected `{kind}`)",
+                other.map_or("missing".to_string(), |k| format!("`{k}`"))
+            )));
+        }
+    }
+    match value.get("format_version").and_then(Value::as_u64) {
+        Some(v) if v == u64::from(version) => {}
+        v => {
+            return Err(format(format!(
+                "format version {} is not supported (this build reads version {version})",
+                v.map_or("(none)".to_string(), |v| v.to_string())
+            )));
+        }
+    }
+    serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
 }
 
 /// Writes `bytes` to `path` (created or truncated) and waits until they are on disk.

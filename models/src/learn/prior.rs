@@ -706,7 +706,7 @@ pub fn window_starts(episodes: &[Range<usize>], rollout: usize) -> Vec<usize> {
 }
 
 /// `n` standard normal draws (Box–Muller).
-fn normals<R: Rng + ?Sized>(rng: &mut R, n: usize) -> Vec<f32> {
+pub(crate) fn normals<R: Rng + ?Sized>(rng: &mut R, n: usize) -> Vec<f32> {
     let mut out = Vec::with_capacity(n + 1);
     while out.len() < n {
         let u1 = 1.0 - rng.random::<f64>(); // in (0, 1]

@@ -9,18 +9,24 @@
 //! integrated from the states' displacements and delta rotations
 //! ([`crate::character_state::decode_pose`]), joint positions are clamped into the URDF limits
 //! ([`KinematicTree::clamp`]), and wheel angles — which the networks do not model (the prior's state
-//! mask) — are rolled from the base motion ([`crate::controller::wheels`]). The returned states carry
-//! the clamped and rolled joint positions, so states and poses agree.
+//! mask) — are rolled from the base motion ([`crate::controller::wheels`]); then self-collisions are
+//! undone and planted feet locked to the ground ([`crate::cleanup`], on by default,
+//! [`Retargeter::set_cleanup`]). The
+//! returned states carry the resulting joint and end-effector positions, so states and poses agree.
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector2;
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
 use tch::{Device, Kind, Tensor};
 
 use super::ace::AceCheckpoint;
 use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
+use super::prior::normals;
 use super::{rows_to_tensor, tensor_to_rows};
-use crate::character_state::{CharacterLayout, character_state, decode_pose};
+use crate::character_state::{CharacterLayout, StateScratch, character_state, character_state_into, decode_pose};
+use crate::cleanup::{Cleanup, CleanupPass};
 use crate::controller::wheels;
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
@@ -48,6 +54,8 @@ pub struct Retargeter {
     human_std: Tensor,
     /// `[N, D]` normalised previous states of the batch.
     prev: Tensor,
+    /// The cleanup whole-motion rollouts pass through.
+    cleanup: Cleanup,
 }
 
 impl Retargeter {
@@ -67,10 +75,10 @@ impl Retargeter {
         mut prior: PriorCheckpoint,
         ace: AceCheckpoint,
     ) -> Result<Retargeter, LearnError> {
-        if let Some(problem) = ace_character_difference(&ace, &prior.character) {
+        if let Some(problem) = ace.record.character.difference(&prior.character) {
             return Err(LearnError::WrongCharacter {
                 path: dir.join(super::ace::ACE_FILE),
-                problem,
+                problem: format!("the generator does not match the prior beside it: {problem}"),
             });
         }
         prior.prior.freeze();
@@ -80,6 +88,7 @@ impl Retargeter {
             human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
             human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
             prev: Tensor::zeros([0, prior.prior.state_dim() as i64], (Kind::Float, device)),
+            cleanup: Cleanup::default(),
             dir: dir.to_path_buf(),
             prior,
             ace,
@@ -94,6 +103,17 @@ impl Retargeter {
     /// The ACE checkpoint (configuration, correspondence, human data record).
     pub fn ace(&self) -> &AceCheckpoint {
         &self.ace
+    }
+
+    /// Sets the cleanup of [`Retargeter::retarget_states`] and [`Retargeter::random_latent_rollout`]
+    /// ([`crate::cleanup`]; everything on unless set otherwise, [`Cleanup::NONE`] for the raw output).
+    pub fn set_cleanup(&mut self, cleanup: Cleanup) {
+        self.cleanup = cleanup;
+    }
+
+    /// The cleanup in use.
+    pub fn cleanup(&self) -> Cleanup {
+        self.cleanup
     }
 
     /// Width of x^r.
@@ -201,6 +221,44 @@ impl Retargeter {
         morph: &Morphology,
         x_h: &[HumanRow],
     ) -> Result<RetargetedMotion, LearnError> {
+        let human = rows_to_tensor(x_h, self.prior.prior.device())?;
+        let human = (human - &self.human_mean) / &self.human_std;
+        self.roll_out(tree, morph, x_h.len(), &mut |t, prev| {
+            self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev)
+        })
+    }
+
+    /// The motion prior alone, driven by latents drawn from its prior N(0, I) (seeded), for `frames`
+    /// frames from the standing pose: the reference an evaluation compares the generator's choice of
+    /// latents against.
+    pub fn random_latent_rollout(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        frames: usize,
+        seed: u64,
+    ) -> Result<RetargetedMotion, LearnError> {
+        let latent = self.prior.prior.latent_dim();
+        let device = self.prior.prior.device();
+        let mut rng = Pcg64::seed_from_u64(seed);
+        self.roll_out(tree, morph, frames, &mut |_, _| {
+            Tensor::from_slice(&normals(&mut rng, latent))
+                .view([1, latent as i64])
+                .to_device(device)
+        })
+    }
+
+    /// The rollout loop shared by [`Retargeter::retarget_states`] and
+    /// [`Retargeter::random_latent_rollout`]: `latent(t, prev)` gives ẑ_t (`[1, latent]`) from the
+    /// normalised previous state, π decodes it, and the state is turned into a pose (see the module
+    /// docs).
+    fn roll_out(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        frames: usize,
+        latent: &mut dyn FnMut(usize, &Tensor) -> Tensor,
+    ) -> Result<RetargetedMotion, LearnError> {
         let start = self.start_state(tree, morph)?;
         let layout = CharacterLayout::new(tree, morph);
         let dt = 1.0 / PROJECT_FPS;
@@ -209,10 +267,18 @@ impl Retargeter {
         let mut prev = rows_to_tensor(&[start], self.prior.prior.device())?;
         let mut root = standing.root;
         let mut wheel_q = standing.q.clone();
-        let (mut states, mut poses) = (Vec::with_capacity(x_h.len()), Vec::with_capacity(x_h.len()));
+        let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
         let joints = layout.joint_positions();
-        for x in x_h {
-            let next = self.advance(std::slice::from_ref(x), &prev);
+        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, &self.cleanup);
+        let mut cleanup_state = cleanup.start();
+        let mut prev_pose = standing.clone();
+        let mut recomputed = vec![0.0; layout.dim()];
+        let mut state_scratch = StateScratch::default();
+        for t in 0..frames {
+            let next = tch::no_grad(|| {
+                let z = latent(t, &prev);
+                self.prior.prior.decode(&z, &prev)
+            });
             let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), layout.dim())?.remove(0);
             prev = next;
             let mut pose = decode_pose(&layout, &root, &state);
@@ -223,8 +289,17 @@ impl Retargeter {
             for w in &wheels {
                 pose.q[w.dof] = wheel_q[w.dof];
             }
+            if cleanup.is_active() {
+                cleanup.apply(tree, &mut cleanup_state, &mut pose);
+                // The end-effector entries follow the cleaned-up joints.
+                character_state_into(tree, morph, &prev_pose, &pose, dt, &mut state_scratch, &mut recomputed);
+                for r in [layout.ee_positions(), layout.ee_velocities()] {
+                    state[r.clone()].copy_from_slice(&recomputed[r]);
+                }
+            }
             state[joints.clone()].copy_from_slice(&pose.q);
             root = pose.root;
+            prev_pose = pose.clone();
             states.push(state);
             poses.push(pose);
         }
@@ -234,24 +309,6 @@ impl Retargeter {
             poses,
         })
     }
-}
-
-/// How the character an `ace.json` records differs from the prior's, if it does.
-fn ace_character_difference(ace: &AceCheckpoint, prior: &CharacterInfo) -> Option<String> {
-    let c = &ace.record.character;
-    let same = c.name == prior.name
-        && c.state_dim == prior.layout.dim()
-        && c.dof_names == prior.dof_names
-        && c.end_effector_links == prior.end_effector_links;
-    (!same).then(|| {
-        format!(
-            "the generator was trained for `{}` (state dim {}), the prior beside it is for `{}` (state dim {})",
-            c.name,
-            c.state_dim,
-            prior.name,
-            prior.layout.dim()
-        )
-    })
 }
 
 #[cfg(test)]
@@ -330,6 +387,23 @@ mod tests {
     }
 
     #[test]
+    fn random_latent_rollouts_are_seeded_and_ignore_the_generator() {
+        let (tree, morph, _) = spot();
+        let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let a = r.random_latent_rollout(tree, morph, 90, 3).unwrap();
+        let b = r.random_latent_rollout(tree, morph, 90, 3).unwrap();
+        let c = r.random_latent_rollout(tree, morph, 90, 4).unwrap();
+        assert_eq!(a.poses.len(), 90);
+        assert_eq!(a, b, "same seed, same motion");
+        assert_ne!(a.states, c.states, "another seed, another motion");
+        assert!(a.states.iter().flatten().all(|v| v.is_finite()));
+        // Not what the generator chooses for a human clip of the same length.
+        let walk = &bundled_humans().clips[1].states;
+        let g = r.retarget_states(tree, morph, &walk[..90.min(walk.len())]).unwrap();
+        assert_ne!(g.states[..g.states.len()], a.states[..g.states.len()]);
+    }
+
+    #[test]
     fn a_batch_steps_each_character_on_its_own() {
         let (tree, morph, _) = spot();
         let mut r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
@@ -361,7 +435,7 @@ mod tests {
         use crate::dataset::{DatasetConfig, generate};
         use crate::features::EndEffectorMapping;
         use crate::human_set::HumanStats;
-        use crate::learn::ace::{AceConfig, AceRecord, BodyLengths, CharacterRecord, FileRecord, Generator};
+        use crate::learn::ace::{AceConfig, AceRecord, BodyLengths, FileRecord, Generator};
         use crate::learn::checkpoint::Normaliser;
         use crate::learn::prior::{PriorConfig, state_mask};
 
@@ -405,7 +479,7 @@ mod tests {
             record: AceRecord {
                 kind: String::new(),
                 format_version: 1,
-                character: CharacterRecord::of(&character),
+                character: character.clone(),
                 step: 0,
                 config: ac,
                 correspondence,

@@ -43,7 +43,7 @@ use tch::nn::OptimizerConfig;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::ace::{
-    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, CharacterRecord, Discriminator,
+    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, Discriminator,
     FORMAT_VERSION, FileRecord, Generator, KIND, discriminator_loss, generator_adv_loss,
 };
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint};
@@ -409,7 +409,7 @@ fn start_or_resume(
     let record = AceRecord {
         kind: KIND.into(),
         format_version: FORMAT_VERSION,
-        character: CharacterRecord::of(&prior.character),
+        character: prior.character.clone(),
         step: 0,
         config: cfg.clone(),
         correspondence: inputs.correspondence.clone(),

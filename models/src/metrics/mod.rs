@@ -41,7 +41,7 @@ use nalgebra::{Isometry3, Translation3};
 use serde::{Deserialize, Serialize};
 
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
-pub use ufr::{PairCount, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes};
+pub use ufr::{PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes};
 
 use crate::character_state::{CharacterLayout, decode_pose, read_quat};
 use crate::features::{FeatureLayout, FeatureWeights, mean_feature_loss};

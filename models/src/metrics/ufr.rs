@@ -166,22 +166,33 @@ pub fn ufr_episodes(
     UfrDetector::new(tree, morph, *config).evaluate(poses, episodes, fps)
 }
 
-/// The UFR detectors of one character, set up once (bodies, checked pairs) for any number of motions.
+/// The per-pose half of the UFR — self-collision and ground penetration — for one character, owning
+/// what it needs; the UFR's detector uses it, and so does the collision guard that keeps generated poses
+/// clear of both ([`crate::collision_guard`]).
 #[derive(Clone, Debug)]
-pub struct UfrDetector<'a> {
-    tree: &'a KinematicTree,
-    morph: &'a Morphology,
-    config: UfrConfig,
+pub struct PoseChecks {
     collision: SelfCollision,
     /// Per rigid body: whether it carries a foot.
     foot_body: Vec<bool>,
     /// Wheel links with every link of their subtree.
     wheels: Vec<(usize, Vec<usize>)>,
+    /// Foot links.
+    feet: Vec<usize>,
+    /// Penetration: below this height (m).
+    below: f32,
 }
 
-impl<'a> UfrDetector<'a> {
-    /// Sets up the detectors for a character.
-    pub fn new(tree: &'a KinematicTree, morph: &'a Morphology, config: UfrConfig) -> Self {
+/// Buffers of [`PoseChecks`]: the link poses and bodies of the last placed pose.
+#[derive(Clone, Debug, Default)]
+pub struct PoseScratch {
+    /// World poses of the links (wheels turned back to their zero position).
+    pub links: Vec<Isometry3<f32>>,
+    posed: PosedBodies,
+}
+
+impl PoseChecks {
+    /// The checks of a character with the thresholds of `config`.
+    pub fn new(tree: &KinematicTree, morph: &Morphology, config: &UfrConfig) -> Self {
         let collision = SelfCollision::new(tree, config.collision_tolerance);
         let mut foot_body = vec![false; collision.bodies().len()];
         for &f in &morph.feet {
@@ -193,13 +204,88 @@ impl<'a> UfrDetector<'a> {
             .filter(|&&w| tree.links[w].parent.is_some() && tree.links[w].joint.is_some())
             .map(|&w| (w, (0..tree.links.len()).filter(|&l| tree.is_descendant(l, w)).collect()))
             .collect();
+        PoseChecks {
+            collision,
+            foot_body,
+            wheels,
+            feet: morph.feet.clone(),
+            below: config.ground_z - config.penetration_depth,
+        }
+    }
+
+    /// The self-collision checker (bodies and checked pairs).
+    pub fn self_collision(&self) -> &SelfCollision {
+        &self.collision
+    }
+
+    /// Places `pose` into `scratch` for the checks below.
+    pub fn place(&self, tree: &KinematicTree, pose: &CharacterPose, scratch: &mut PoseScratch) {
+        tree.forward_kinematics_into(pose, &mut scratch.links);
+        self.unspin_wheels(tree, &mut scratch.links);
+        scratch.posed.update(self.collision.bodies(), &scratch.links);
+    }
+
+    /// Calls `hit(pair_index)` for every colliding checked pair of the placed pose; returns how many.
+    pub fn collisions(&self, scratch: &PoseScratch, hit: impl FnMut(usize)) -> usize {
+        self.collision.for_each_collision(&scratch.posed, hit)
+    }
+
+    /// Whether a foot point or any geometry of the placed pose is below the ground (mesh boxes on
+    /// foot bodies excepted).
+    pub fn penetrates(&self, morph: &Morphology, scratch: &PoseScratch) -> bool {
+        self.feet.iter().any(|&f| morph.ee_point(f, &scratch.links).z < self.below) || self.geometry_below(&scratch.posed)
+    }
+
+    /// Whether the placed pose collides with itself or the ground.
+    pub fn is_unrealistic(&self, morph: &Morphology, scratch: &PoseScratch) -> bool {
+        self.collisions(scratch, |_| {}) > 0 || self.penetrates(morph, scratch)
+    }
+
+    /// True when a primitive lies below the penetration depth (mesh boxes on foot bodies excepted).
+    fn geometry_below(&self, posed: &PosedBodies) -> bool {
+        let bodies = self.collision.bodies();
+        (0..bodies.len()).any(|k| {
+            let (c, r) = posed.spheres[k];
+            c.z - r < self.below
+                && posed.primitives[k]
+                    .iter()
+                    .zip(&bodies[k].from_mesh)
+                    .any(|(p, &mesh)| !(mesh && self.foot_body[k]) && p.lowest_z() < self.below)
+        })
+    }
+
+    /// Turns each wheel (and what hangs below it) back to its joint's zero position.
+    fn unspin_wheels(&self, tree: &KinematicTree, links: &mut [Isometry3<f32>]) {
+        for (w, sub) in &self.wheels {
+            let link = &tree.links[*w];
+            let (Some(p), Some(j)) = (link.parent, &link.joint) else {
+                continue;
+            };
+            let fix = links[p] * j.origin * links[*w].inverse();
+            for &l in sub {
+                links[l] = fix * links[l];
+            }
+        }
+    }
+}
+
+/// The UFR detectors of one character, set up once (bodies, checked pairs) for any number of motions.
+#[derive(Clone, Debug)]
+pub struct UfrDetector<'a> {
+    tree: &'a KinematicTree,
+    morph: &'a Morphology,
+    config: UfrConfig,
+    checks: PoseChecks,
+}
+
+impl<'a> UfrDetector<'a> {
+    /// Sets up the detectors for a character.
+    pub fn new(tree: &'a KinematicTree, morph: &'a Morphology, config: UfrConfig) -> Self {
         UfrDetector {
             tree,
             morph,
             config,
-            collision,
-            foot_body,
-            wheels,
+            checks: PoseChecks::new(tree, morph, &config),
         }
     }
 
@@ -210,7 +296,7 @@ impl<'a> UfrDetector<'a> {
 
     /// The self-collision checker (bodies and checked pairs).
     pub fn self_collision(&self) -> &SelfCollision {
-        &self.collision
+        self.checks.self_collision()
     }
 
     /// Flags every frame of `poses`. `episodes` are ranges of frames that are continuous in time;
@@ -230,24 +316,21 @@ impl<'a> UfrDetector<'a> {
             }
         }
         let c = &self.config;
-        let (below, band) = (c.ground_z - c.penetration_depth, c.ground_z + c.contact_height);
+        let band = c.ground_z + c.contact_height;
         let step_limit = c.sliding_speed / fps;
 
-        let mut links = Vec::with_capacity(self.tree.links.len());
-        let mut posed = PosedBodies::default();
-        let mut pair_frames = vec![0usize; self.collision.pairs().len()];
+        let mut scratch = PoseScratch::default();
+        let mut pair_frames = vec![0usize; self.self_collision().pairs().len()];
         let mut feet = vec![Point3::origin(); self.morph.feet.len()];
         let mut prev_feet = feet.clone();
         let (mut sc, mut pen, mut sl) = (vec![false; n], vec![false; n], vec![false; n]);
         for t in 0..n {
-            self.tree.forward_kinematics_into(&poses[t], &mut links);
-            self.unspin_wheels(&mut links);
-            posed.update(self.collision.bodies(), &links);
-            sc[t] = self.collision.for_each_collision(&posed, |k| pair_frames[k] += 1) > 0;
+            self.checks.place(self.tree, &poses[t], &mut scratch);
+            sc[t] = self.checks.collisions(&scratch, |k| pair_frames[k] += 1) > 0;
             for (p, &f) in feet.iter_mut().zip(&self.morph.feet) {
-                *p = self.morph.ee_point(f, &links);
+                *p = self.morph.ee_point(f, &scratch.links);
             }
-            pen[t] = feet.iter().any(|p| p.z < below) || self.geometry_below(&posed, below);
+            pen[t] = self.checks.penetrates(self.morph, &scratch);
             if continues[t] {
                 sl[t] = feet
                     .iter()
@@ -257,33 +340,6 @@ impl<'a> UfrDetector<'a> {
             std::mem::swap(&mut feet, &mut prev_feet);
         }
         self.report(sc, pen, sl, &pair_frames)
-    }
-
-    /// True when a primitive lies below `below` (mesh boxes on foot bodies excepted).
-    fn geometry_below(&self, posed: &PosedBodies, below: f32) -> bool {
-        let bodies = self.collision.bodies();
-        (0..bodies.len()).any(|k| {
-            let (c, r) = posed.spheres[k];
-            c.z - r < below
-                && posed.primitives[k]
-                    .iter()
-                    .zip(&bodies[k].from_mesh)
-                    .any(|(p, &mesh)| !(mesh && self.foot_body[k]) && p.lowest_z() < below)
-        })
-    }
-
-    /// Turns each wheel (and what hangs below it) back to its joint's zero position.
-    fn unspin_wheels(&self, links: &mut [Isometry3<f32>]) {
-        for (w, sub) in &self.wheels {
-            let link = &self.tree.links[*w];
-            let (Some(p), Some(j)) = (link.parent, &link.joint) else {
-                continue;
-            };
-            let fix = links[p] * j.origin * links[*w].inverse();
-            for &l in sub {
-                links[l] = fix * links[l];
-            }
-        }
     }
 
     fn report(&self, sc: Vec<bool>, pen: Vec<bool>, sl: Vec<bool>, pair_frames: &[usize]) -> UfrReport {
@@ -303,13 +359,13 @@ impl<'a> UfrDetector<'a> {
             .map(|(k, c)| (k, *c))
             .collect();
         pairs.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
-        let bodies = self.collision.bodies();
+        let bodies = self.self_collision().bodies();
         let name = |b: usize| self.tree.links[bodies[b].link].name.clone();
         let collision_pairs = pairs
             .into_iter()
             .take(10)
             .map(|(k, frames)| {
-                let (a, b) = self.collision.pairs()[k];
+                let (a, b) = self.self_collision().pairs()[k];
                 PairCount {
                     a: name(a),
                     b: name(b),

@@ -1,0 +1,371 @@
+//! `ace eval`: how a checkpoint does on the human clips it never saw, in the paper's metrics (§7.3).
+//!
+//! Rows (systems), each scored with the checkpoint's correspondence and body lengths ([`Scorer`]):
+//! - **Dataset**: a fresh character dataset from the prior's generator configuration with another seed
+//!   than training's, as many frames as the held-out clips: the realism and diversity reference (its
+//!   FID is the floor sampling noise gives);
+//! - **ACE**: the generator choosing latents for the prior from each held-out clip;
+//! - **ACE, no cleanup**: the same without the self-collision guard and foot locking
+//!   ([`ace::models::cleanup`]): the networks' raw output;
+//! - **Prior, random z**: the same prior driven by latents drawn from N(0, I) for as many frames, with
+//!   the cleanup: what the prior does without the generator, the reference L_fea and FID are judged
+//!   against.
+//!
+//! Columns: DIV, FID against the training dataset's Ψ fit, L_fea against the human (not for the
+//! dataset) and UFR with its detectors. Each learned system is also rolled out for `--seconds` (60 by
+//! default) on the held-out clips played back to back, and checked for non-finite values and for the
+//! root leaving a plausible height. Everything is written to `eval.md`, `eval.csv`, `eval.json` and
+//! `eval.png` in the output folder.
+
+use std::fmt::Write as _;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use ace::models::cleanup::Cleanup;
+use ace::models::dataset::{DatasetConfig, generate};
+use ace::models::human_set::{HumanRow, HumanSet, PROJECT_FPS};
+use ace::models::kinematics::{CharacterPose, KinematicTree};
+use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
+use ace::models::metrics::MetricsReport;
+use ace::models::morphology::Morphology;
+use ace::plot::{BarChart, Figure};
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+
+use crate::scoring::Scorer;
+use crate::{characters, humans, progress, retarget};
+
+/// The row of ACE's networks without the cleanup.
+pub const ACE_RAW: &str = "ACE, no cleanup";
+
+/// Options of `ace eval`.
+pub struct EvalArgs {
+    pub character: String,
+    pub checkpoint: Option<PathBuf>,
+    pub humans: Option<PathBuf>,
+    pub out: Option<PathBuf>,
+    /// Seed of the random latents and offset of the fresh dataset's seed.
+    pub seed: u64,
+    /// Length of the stability rollouts (s).
+    pub seconds: f32,
+    /// Evaluate at most this many held-out clips (all when `None`).
+    pub max_clips: Option<usize>,
+}
+
+/// One row of the table.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub system: String,
+    pub metrics: MetricsReport,
+}
+
+/// A long rollout's health.
+#[derive(Clone, Debug, Serialize)]
+pub struct Stability {
+    pub system: String,
+    pub seconds: f32,
+    /// Every state and pose value finite.
+    pub finite: bool,
+    /// Lowest and highest root height (m).
+    pub root_height: (f32, f32),
+    /// Mean horizontal root speed (m/s).
+    pub mean_speed: f32,
+    /// Within bounds: finite, and the root between −0.5 m and 3 body lengths above the ground.
+    pub stable: bool,
+}
+
+/// Everything `ace eval` measured, as `eval.json` holds it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evaluation {
+    pub character: String,
+    pub checkpoint: PathBuf,
+    pub humans: PathBuf,
+    pub held_out_clips: Vec<String>,
+    pub frames: usize,
+    pub seed: u64,
+    pub rows: Vec<Row>,
+    pub stability: Vec<Stability>,
+}
+
+/// The paper's Table 1 (Spot), for comparison: system, DIV, FID, L_fea, UFR (%).
+pub const PAPER_SPOT: [(&str, f32, f32, Option<f32>, f32); 5] = [
+    ("Dataset", 2.254, 0.000, None, 0.258),
+    ("ACE", 2.483, 0.489, Some(0.606), 2.071),
+    ("NKN", 1.718, 0.914, Some(0.912), 6.213),
+    ("ACE w/o feature", 0.445, 0.976, Some(1.975), 0.517),
+    ("ACE w/o adversarial", 3.077, 0.736, Some(0.553), 9.741),
+];
+
+/// Runs `ace eval`.
+pub fn run(args: &EvalArgs) -> Result<()> {
+    let (_, tree, morph) = characters::load(&args.character)?;
+    let dir = match &args.checkpoint {
+        Some(d) => d.clone(),
+        None => retarget::default_checkpoint(&args.character)?,
+    };
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
+    let eval = evaluate(args, &dir, &tree, &morph)?;
+    write(&eval, &out)?;
+    print!("{}", markdown(&eval));
+    println!("wrote {}/eval.md, eval.csv, eval.json and eval.png", out.display());
+    Ok(())
+}
+
+/// Scores every system on the held-out clips (see the module docs).
+pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morphology) -> Result<Evaluation> {
+    let mut retargeter = Retargeter::load(dir, ace::models::learn::default_device())?;
+    retargeter.check_character(tree, morph)?;
+    let scorer = Scorer::new(&retargeter, dir)?;
+    if !scorer.has_reference() {
+        bail!("{}: no reference.json (the dataset's Ψ fit that FID needs); run `ace train` again", dir.display());
+    }
+    let folder = humans::folder(args.humans.as_deref())?;
+    let set = humans::load(&folder)?;
+    let clips = held_out(&set, &retargeter, args.max_clips, &folder)?;
+    let frames: usize = clips.iter().map(|c| c.1.len()).sum();
+    println!(
+        "{} on {} held-out clips ({frames} frames) from {}",
+        tree.name,
+        clips.len(),
+        folder.display()
+    );
+    let bar = progress::bar((3 * clips.len() + 1) as u64, "rollouts");
+    let mut rows = vec![dataset_row(&retargeter, &scorer, tree, morph, frames, args.seed)?];
+    bar.inc(1);
+
+    // ACE and the random-latent prior on the same clips (the random rollouts as long as each clip).
+    let mut systems: Vec<(&str, Vec<RetargetedMotion>)> =
+        vec![("ACE", Vec::new()), (ACE_RAW, Vec::new()), ("Prior, random z", Vec::new())];
+    let cleanup = retargeter.cleanup();
+    for (k, (_, rows_h, _)) in clips.iter().enumerate() {
+        systems[0].1.push(retargeter.retarget_states(tree, morph, rows_h)?);
+        retargeter.set_cleanup(Cleanup::NONE);
+        systems[1].1.push(retargeter.retarget_states(tree, morph, rows_h)?);
+        retargeter.set_cleanup(cleanup);
+        systems[2].1.push(retargeter.random_latent_rollout(tree, morph, rows_h.len(), args.seed.wrapping_add(k as u64))?);
+        bar.inc(3);
+    }
+    bar.finish_and_clear();
+    let human_psi: Vec<Vec<f32>> = clips.iter().flat_map(|(_, rows_h, body)| scorer.human_psi(rows_h, *body)).collect();
+    for (name, motions) in &systems {
+        let (states, poses, episodes) = concat(motions);
+        let psi = scorer.character_psi(&states);
+        rows.push(Row {
+            system: name.to_string(),
+            metrics: scorer.report(tree, morph, &psi, Some(&human_psi), &poses, &episodes),
+        });
+    }
+
+    // Long rollouts: the held-out clips back to back.
+    let long = (args.seconds * PROJECT_FPS).round() as usize;
+    let looped: Vec<HumanRow> = clips.iter().flat_map(|c| c.1.iter().copied()).cycle().take(long).collect();
+    let body = ace::models::features::character_body_length(tree, morph);
+    let stability = vec![
+        stability("ACE", &retargeter.retarget_states(tree, morph, &looped)?, body),
+        stability("Prior, random z", &retargeter.random_latent_rollout(tree, morph, long, args.seed)?, body),
+    ];
+    Ok(Evaluation {
+        character: tree.name.clone(),
+        checkpoint: dir.to_path_buf(),
+        humans: folder,
+        held_out_clips: clips.iter().map(|c| c.0.clone()).collect(),
+        frames,
+        seed: args.seed,
+        rows,
+        stability,
+    })
+}
+
+/// The held-out clips the checkpoint recorded, found in `set`: (relative path, x^h rows, body length).
+fn held_out(
+    set: &HumanSet,
+    retargeter: &Retargeter,
+    max: Option<usize>,
+    folder: &Path,
+) -> Result<Vec<(String, Vec<HumanRow>, f32)>> {
+    let recorded = &retargeter.ace().record.human_split.held_out;
+    let mut clips: Vec<(String, Vec<HumanRow>, f32)> = set
+        .clips
+        .iter()
+        .filter(|c| recorded.contains(&c.relative))
+        .map(|c| (c.relative.clone(), c.states.clone(), c.body_length))
+        .collect();
+    if clips.is_empty() {
+        bail!(
+            "{}: none of the {} held-out clips the checkpoint records (e.g. `{}`) is there; pass the folder it was trained on with --humans",
+            folder.display(),
+            recorded.len(),
+            recorded.first().map_or("", String::as_str)
+        );
+    }
+    if clips.len() < recorded.len() {
+        eprintln!(
+            "warning: {} of the {} held-out clips the checkpoint records are not in {}",
+            recorded.len() - clips.len(),
+            recorded.len(),
+            folder.display()
+        );
+    }
+    if let Some(n) = max {
+        clips.truncate(n.max(1));
+    }
+    Ok(clips)
+}
+
+/// The Dataset row: a fresh dataset with the prior's generator settings and another seed.
+fn dataset_row(
+    retargeter: &Retargeter,
+    scorer: &Scorer,
+    tree: &KinematicTree,
+    morph: &Morphology,
+    frames: usize,
+    seed: u64,
+) -> Result<Row> {
+    let prior = retargeter.prior();
+    let mut cfg: DatasetConfig = serde_json::from_value(prior.provenance["dataset"]["config"].clone())
+        .context("the prior's provenance does not record its dataset configuration")?;
+    cfg.seed = cfg.seed.wrapping_add(1 + seed);
+    cfg.frames = frames.max(3000);
+    let set = generate(tree, morph, &cfg, &mut |_| {})?;
+    let states: Vec<&[f32]> = (0..set.len()).map(|i| set.state(i)).collect();
+    let poses: Vec<CharacterPose> = (0..set.len()).map(|i| set.pose(i)).collect();
+    let psi = scorer.character_psi(&states);
+    Ok(Row {
+        system: "Dataset".into(),
+        metrics: scorer.report(tree, morph, &psi, None, &poses, &set.episodes),
+    })
+}
+
+/// Motions back to back: states, poses and each one's frame range.
+fn concat(motions: &[RetargetedMotion]) -> (Vec<Vec<f32>>, Vec<CharacterPose>, Vec<Range<usize>>) {
+    let (mut states, mut poses, mut episodes) = (Vec::new(), Vec::new(), Vec::new());
+    for m in motions {
+        episodes.push(poses.len()..poses.len() + m.poses.len());
+        states.extend(m.states.iter().cloned());
+        poses.extend(m.poses.iter().cloned());
+    }
+    (states, poses, episodes)
+}
+
+fn stability(system: &str, m: &RetargetedMotion, body: f32) -> Stability {
+    let finite = m.states.iter().flatten().all(|v| v.is_finite())
+        && m.poses.iter().all(|p| {
+            p.q.iter().all(|v| v.is_finite()) && p.root.translation.vector.iter().all(|v| v.is_finite())
+        });
+    let heights = m.poses.iter().map(|p| p.root.translation.z);
+    let root_height = heights.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), z| (lo.min(z), hi.max(z)));
+    let distance: f32 = m
+        .poses
+        .windows(2)
+        .map(|w| (w[1].root.translation.vector - w[0].root.translation.vector).xy().norm())
+        .sum();
+    let seconds = m.poses.len() as f32 / m.fps;
+    Stability {
+        system: system.into(),
+        seconds,
+        finite,
+        root_height,
+        mean_speed: distance / seconds.max(1e-6),
+        stable: finite && root_height.0 > -0.5 && root_height.1 < 3.0 * body,
+    }
+}
+
+fn opt(v: Option<f32>) -> String {
+    v.map_or("n/a".into(), |v| format!("{v:.3}"))
+}
+
+/// The report as Markdown.
+pub fn markdown(e: &Evaluation) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|",
+        e.character,
+        e.held_out_clips.len(),
+        e.frames
+    );
+    for r in &e.rows {
+        let m = &r.metrics;
+        let u = &m.ufr.rates;
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            r.system,
+            m.div,
+            opt(m.fid),
+            opt(m.feature_loss),
+            100.0 * u.ufr,
+            100.0 * u.self_collision,
+            100.0 * u.penetration,
+            100.0 * u.sliding
+        );
+    }
+    let _ = writeln!(s, "\n| {:.0}-second rollout | finite | root height (m) | mean speed (m/s) | stable |\n|---|---|---|---:|---|", e.stability.first().map_or(0.0, |x| x.seconds));
+    for x in &e.stability {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} … {:.2} | {:.2} | {} |",
+            x.system,
+            if x.finite { "yes" } else { "NO" },
+            x.root_height.0,
+            x.root_height.1,
+            x.mean_speed,
+            if x.stable { "yes" } else { "NO" }
+        );
+    }
+    let _ = writeln!(s, "\nThe paper's Table 1 (Spot, its own data and metric implementation):\n\n| system | DIV | FID | L_fea | UFR |\n|---|---:|---:|---:|---:|");
+    for (name, div, fid, fea, ufr) in PAPER_SPOT {
+        let _ = writeln!(s, "| {name} | {div:.3} | {fid:.3} | {} | {ufr:.3} % |", opt(fea));
+    }
+    s
+}
+
+/// The table as CSV (one row per system).
+pub fn csv(e: &Evaluation) -> String {
+    let mut s = String::from("character,system,frames,div,fid,l_fea,ufr,self_collision,penetration,sliding\n");
+    for r in &e.rows {
+        let m = &r.metrics;
+        let u = &m.ufr.rates;
+        let o = |v: Option<f32>| v.map_or(String::new(), |v| v.to_string());
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{}",
+            e.character,
+            r.system,
+            m.frames,
+            m.div,
+            o(m.fid),
+            o(m.feature_loss),
+            u.ufr,
+            u.self_collision,
+            u.penetration,
+            u.sliding
+        );
+    }
+    s
+}
+
+/// Writes `eval.md`, `eval.csv`, `eval.json` and `eval.png` into `out`.
+pub fn write(e: &Evaluation, out: &Path) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let put = |name: &str, text: String| {
+        let path = out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
+    };
+    put("eval.md", markdown(e))?;
+    put("eval.csv", csv(e))?;
+    put("eval.json", serde_json::to_string_pretty(e)?)?;
+    let groups = vec!["DIV".to_string(), "FID".into(), "L_fea".into(), "UFR (%)".into()];
+    let mut chart = BarChart::new(format!("{}: held-out evaluation", e.character), "value", groups);
+    for r in &e.rows {
+        let m = &r.metrics;
+        let v = |x: Option<f32>| x.map_or(f64::NAN, f64::from);
+        chart = chart.with_series(
+            r.system.clone(),
+            vec![f64::from(m.div), v(m.fid), v(m.feature_loss), 100.0 * f64::from(m.ufr.rates.ufr)],
+        );
+    }
+    let mut fig = Figure::new(900);
+    fig.push(chart, 450);
+    fig.save(&out.join("eval.png"))
+}

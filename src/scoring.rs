@@ -1,0 +1,95 @@
+//! The paper's metrics (§7.3) of character motion under one checkpoint's conventions: its end-effector
+//! correspondence and body lengths for Ψ and L_fea, its feature weights, and the Gaussian fit of its
+//! training dataset's Ψ (`reference.json`) for FID. `ace retarget` scores one clip with it, `ace eval`
+//! whole systems over the held-out clips.
+
+use std::ops::Range;
+use std::path::Path;
+
+use ace::models::character_state::CharacterLayout;
+use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, character_features, human_features};
+use ace::models::human_set::{HumanRow, PROJECT_FPS};
+use ace::models::kinematics::{CharacterPose, KinematicTree};
+use ace::models::learn::retarget::Retargeter;
+use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
+use ace::models::morphology::Morphology;
+use anyhow::{Context, Result};
+
+use crate::train::REFERENCE_FILE;
+
+/// Scores motions of one checkpoint's character (see the module docs).
+pub struct Scorer {
+    layout: CharacterLayout,
+    mapping: EndEffectorMapping,
+    body: f32,
+    human_body_override: Option<f32>,
+    weights: FeatureWeights,
+    reference: Option<GaussianFit>,
+}
+
+impl Scorer {
+    /// The scorer of the checkpoint in `dir` (loaded as `retargeter`); FID is left out when the
+    /// directory has no `reference.json`.
+    pub fn new(retargeter: &Retargeter, dir: &Path) -> Result<Scorer> {
+        let record = &retargeter.ace().record;
+        let path = dir.join(REFERENCE_FILE);
+        let reference = if path.is_file() {
+            let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            let v: serde_json::Value =
+                serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+            Some(serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", path.display()))?)
+        } else {
+            None
+        };
+        Ok(Scorer {
+            layout: retargeter.prior().character.layout,
+            mapping: record.correspondence.mapping.clone(),
+            body: record.body_lengths.character,
+            human_body_override: record.body_lengths.human_override,
+            weights: record.config.feature_weights,
+            reference,
+        })
+    }
+
+    /// Whether FID can be computed.
+    pub fn has_reference(&self) -> bool {
+        self.reference.is_some()
+    }
+
+    /// Ψ of character states x^r.
+    pub fn character_psi<R: AsRef<[f32]>>(&self, states: &[R]) -> Vec<Vec<f32>> {
+        states.iter().map(|x| character_features(&self.layout, x.as_ref(), self.body, &self.mapping)).collect()
+    }
+
+    /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m); the checkpoint's
+    /// fixed human body length wins when it was trained with one.
+    pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
+        let body = self.human_body_override.unwrap_or(clip_body);
+        x_h.iter().map(|x| human_features(x, body, &self.mapping)).collect()
+    }
+
+    /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`) and UFR over `poses`, which hold
+    /// `episodes` back to back (at the project frame rate).
+    pub fn report(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        psi: &[Vec<f32>],
+        human_psi: Option<&[Vec<f32>]>,
+        poses: &[CharacterPose],
+        episodes: &[Range<usize>],
+    ) -> MetricsReport {
+        let ufr = ufr_episodes(tree, morph, poses, episodes, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
+        MetricsReport::compute(
+            &MetricsInput {
+                features: psi,
+                reference: self.reference.as_ref(),
+                source_features: human_psi,
+                layout: FeatureLayout::new(&self.mapping),
+                weights: self.weights,
+                div: DivConfig::default(),
+            },
+            &ufr,
+        )
+    }
+}
