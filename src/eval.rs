@@ -5,9 +5,9 @@
 //!   than training's, as many frames as the held-out clips: the realism and diversity reference (its
 //!   FID is the floor sampling noise gives);
 //! - **ACE**: the generator choosing latents for the prior from each held-out clip;
-//! - **ACE, no cleanup**: the same without the self-collision guard and foot locking
+//! - **ACE without cleanup**: the same without the self-collision guard and foot locking
 //!   ([`ace::models::cleanup`]): the networks' raw output;
-//! - **Prior, random z**: the same prior driven by latents drawn from N(0, I) for as many frames, with
+//! - **Prior with random z**: the same prior driven by latents drawn from N(0, I) for as many frames, with
 //!   the cleanup: what the prior does without the generator, the reference L_fea and FID are judged
 //!   against.
 //!
@@ -36,7 +36,7 @@ use crate::scoring::Scorer;
 use crate::{characters, humans, progress, retarget};
 
 /// The row of ACE's networks without the cleanup.
-pub const ACE_RAW: &str = "ACE, no cleanup";
+pub const ACE_RAW: &str = "ACE without cleanup";
 
 /// Options of `ace eval`.
 pub struct EvalArgs {
@@ -135,7 +135,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
 
     // ACE and the random-latent prior on the same clips (the random rollouts as long as each clip).
     let mut systems: Vec<(&str, Vec<RetargetedMotion>)> =
-        vec![("ACE", Vec::new()), (ACE_RAW, Vec::new()), ("Prior, random z", Vec::new())];
+        vec![("ACE", Vec::new()), (ACE_RAW, Vec::new()), ("Prior with random z", Vec::new())];
     let cleanup = retargeter.cleanup();
     for (k, (_, rows_h, _)) in clips.iter().enumerate() {
         systems[0].1.push(retargeter.retarget_states(tree, morph, rows_h)?);
@@ -162,7 +162,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
     let body = ace::models::features::character_body_length(tree, morph);
     let stability = vec![
         stability("ACE", &retargeter.retarget_states(tree, morph, &looped)?, body),
-        stability("Prior, random z", &retargeter.random_latent_rollout(tree, morph, long, args.seed)?, body),
+        stability("Prior with random z", &retargeter.random_latent_rollout(tree, morph, long, args.seed)?, body),
     ];
     Ok(Evaluation {
         character: tree.name.clone(),

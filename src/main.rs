@@ -134,6 +134,9 @@ enum Command {
         /// Leave the human skeleton out of the glTF.
         #[arg(long)]
         no_human: bool,
+        /// Write the networks' raw output: no foot locking, no collision guard.
+        #[arg(long)]
+        no_cleanup: bool,
     },
     /// Evaluate a checkpoint on the human clips it never saw: DIV, FID, L_fea and UFR of the dataset,
     /// ACE and the prior driven by random latents, plus long-rollout stability. Writes Markdown, CSV,
@@ -195,8 +198,8 @@ fn main() -> ExitCode {
         }),
         Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, no_human } => {
-            retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human)
+        Command::Retarget { clip, character, checkpoint, out, no_human, no_cleanup } => {
+            retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human, !no_cleanup)
         }
         Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips } => eval::run(&eval::EvalArgs {
             character,

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use ace::models::cleanup::Cleanup;
 use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
 use ace::models::export::trajectory::CommandTrajectory;
 use ace::models::features::human_body_length;
@@ -43,13 +44,16 @@ pub struct Written {
 }
 
 /// Runs `ace retarget`.
-pub fn run(clip: &Path, character: &str, checkpoint: Option<&Path>, out: &Path, with_human: bool) -> Result<()> {
+pub fn run(clip: &Path, character: &str, checkpoint: Option<&Path>, out: &Path, with_human: bool, cleanup: bool) -> Result<()> {
     let (_, tree, morph) = characters::load(character)?;
     let dir = match checkpoint {
         Some(d) => d.to_path_buf(),
         None => default_checkpoint(character)?,
     };
-    let retargeter = Retargeter::load(&dir, ace::models::learn::default_device())?;
+    let mut retargeter = Retargeter::load(&dir, ace::models::learn::default_device())?;
+    if !cleanup {
+        retargeter.set_cleanup(Cleanup::NONE);
+    }
     let clip = HumanClip::from_bvh_file(clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })?;
     let w = retarget(&retargeter, &dir, &tree, &morph, &clip, out, with_human)?;
     println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);

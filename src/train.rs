@@ -80,9 +80,17 @@ fn provenance(extra: Value) -> Value {
         .ok()
         .filter(|o| o.status.success())
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    // Uncommitted changes to tracked files mean the commit alone does not say which code ran.
+    let modified = std::process::Command::new("git")
+        .args(["status", "--porcelain", "--untracked-files=no"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| !o.stdout.is_empty());
     let mut v = json!({
         "command": std::env::args().collect::<Vec<_>>().join(" "),
         "commit": commit,
+        "uncommitted_changes": modified,
         "ace_version": env!("CARGO_PKG_VERSION"),
     });
     if let (Some(v), Value::Object(extra)) = (v.as_object_mut(), extra) {

@@ -132,21 +132,55 @@ fn inspect_rejects_bad_files_naming_them() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("notes.txt"));
 }
 
+/// Runs Khronos' glTF validator (installed by scripts/setup.sh) on `glb`: `None` when it is missing and
+/// `ACE_ALLOW_MISSING_DATA=1` allows that, else its report.
+fn validate_gltf(glb: &Path) -> Option<Value> {
+    let validator = root().join(".local/node/node_modules/gltf-validator");
+    if !validator.exists() && std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+        eprintln!("skipping validation: {} is missing", validator.display());
+        return None;
+    }
+    let out = Command::new("node").arg(root().join("scripts/validate-gltf.mjs")).arg(glb).output().expect("running node (scripts/setup.sh installs it)");
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| panic!("validator output: {}", String::from_utf8_lossy(&out.stderr)));
+    assert_eq!(report["issues"]["numErrors"], 0, "{}: {report}", glb.display());
+    assert!(out.status.success());
+    Some(report)
+}
+
 #[test]
-fn demo_writes_summary_and_picture() {
+fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
     let out_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-demo");
     let _ = std::fs::remove_dir_all(&out_dir);
-    let out = ace(&["demo", "--out", out_dir.to_str().unwrap()]);
+    let out = ace(&["--threads", "1", "demo", "--out", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let summary: Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["clip"]["kind"], "bvh");
-    assert_eq!(summary["character"]["kind"], "urdf");
-    let img = image::open(out_dir.join("scene.png")).unwrap().to_rgb8();
-    assert_eq!(img.dimensions(), (1280, 720));
-    // Something other than the background was drawn: the character's orange and the human's blue.
-    let orange = img.pixels().filter(|p| p.0 == [214, 140, 30]).count();
-    let blue = img.pixels().filter(|p| p.0[2] == 235 && p.0[0] < 200).count();
-    assert!(orange > 500 && blue > 500, "orange {orange}, blue {blue}");
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap()).unwrap();
+    let rows = report.as_array().unwrap();
+    assert_eq!(rows.len(), 9, "3 characters × 3 clips");
+    let md = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
+    for c in ["spot", "crab", "stretch"] {
+        for clip in ["reach", "walk", "wave"] {
+            let glb = out_dir.join(c).join(format!("{clip}.glb"));
+            for ext in ["json", "csv", "metrics.json"] {
+                assert!(glb.with_extension(ext).is_file(), "{}: no .{ext}", glb.display());
+            }
+            validate_gltf(&glb);
+            assert!(md.contains(&format!("| {c} | {clip} |")), "{md}");
+        }
+        let img = image::open(out_dir.join(format!("{c}.png"))).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (1280, 720));
+        // The character's orange and the human's blue were drawn.
+        let orange = img.pixels().filter(|p| p.0 == [214, 140, 30]).count();
+        let blue = img.pixels().filter(|p| p.0 == [40, 100, 235]).count();
+        assert!(orange > 300 && blue > 300, "{c}: orange {orange}, blue {blue}");
+    }
+    for r in rows {
+        let m = &r["metrics"];
+        for k in ["div", "fid", "feature_loss"] {
+            assert!(m[k].as_f64().is_some_and(f64::is_finite), "{r}");
+        }
+        // The shipped checkpoints with the cleanup: realistic motion on the bundled clips.
+        assert!(m["ufr"]["rates"]["ufr"].as_f64().unwrap() <= 0.10, "{r}");
+    }
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -298,15 +332,29 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
         assert!(m[k].as_f64().is_some_and(f64::is_finite), "{k} = {}", m[k]);
     }
     // Khronos' validator (installed by scripts/setup.sh) finds no errors.
-    let validator = root().join(".local/node/node_modules/gltf-validator");
-    if !validator.exists() && std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping validation: {} is missing", validator.display());
-        return;
+    validate_gltf(&glb);
+
+    // The held-out evaluation writes a complete table with finite values.
+    let eval_dir = dir.join("eval");
+    let stdout = run(&["--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--humans", "assets/motions", "--seconds", "4", "--out", &s(&eval_dir)]);
+    assert!(stdout.contains("| ACE |"), "{stdout}");
+    let csv = std::fs::read_to_string(eval_dir.join("eval.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
+        let cells: Vec<&str> = row.split(',').collect();
+        assert!(row.starts_with(&format!("stretch,{system},")), "{csv}");
+        // div, fid, l_fea (empty for the dataset), ufr.
+        for (k, c) in cells[3..7].iter().enumerate() {
+            assert!(c.is_empty() && system == "Dataset" && k == 2 || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
+        }
     }
-    let out = Command::new("node").arg(root().join("scripts/validate-gltf.mjs")).arg(&glb).output().expect("running node (scripts/setup.sh installs it)");
-    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| panic!("validator output: {}", String::from_utf8_lossy(&out.stderr)));
-    assert_eq!(report["issues"]["numErrors"], 0, "{report}");
-    assert!(out.status.success());
+    let e: Value = serde_json::from_str(&std::fs::read_to_string(eval_dir.join("eval.json")).unwrap()).unwrap();
+    for st in e["stability"].as_array().unwrap() {
+        assert_eq!(st["finite"], true, "{st}");
+        assert!((st["seconds"].as_f64().unwrap() - 4.0).abs() < 0.1, "{st}");
+    }
+    assert!(image::open(eval_dir.join("eval.png")).is_ok());
 
     // A checkpoint of another character is refused with the directory named.
     let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "crab", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))]);
