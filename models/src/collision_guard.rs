@@ -8,8 +8,9 @@
 //! ([`PoseChecks`]) — its joint positions are moved back along the straight line towards the previous
 //! frame's output (collision-free by induction) to the last collision-free point, found by bisection.
 //! The joints of the legs are left alone when moving the others suffices (the legs have just been
-//! planted by foot locking); wheels keep their angles and the root is never moved. The guard is causal,
-//! so a live stream and an offline clip agree frame for frame.
+//! planted by foot locking); wheels keep their angles. When the root itself came down into the ground,
+//! it is lifted out — the only case the guard moves the root. The guard is causal, so a live stream and
+//! an offline clip agree frame for frame.
 
 use crate::controller::chain::Chain;
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -65,45 +66,80 @@ impl CollisionGuard {
         self.checks.is_unrealistic(&self.morph, scratch)
     }
 
-    /// Guards one frame in place, advancing `state`. A pose that collides while the previous output
-    /// also did (the first frame, say) is left as it is.
+    fn self_collides(&self, tree: &KinematicTree, pose: &CharacterPose, scratch: &mut PoseScratch) -> bool {
+        self.checks.place(tree, pose, scratch);
+        self.checks.collisions(scratch, |_| {}) > 0
+    }
+
+    /// Guards one frame in place, advancing `state`:
+    /// 1. a self-collision is undone by moving joints back towards the last output (legs only when the
+    ///    others do not suffice; self-collision does not depend on the root, so this always succeeds
+    ///    once there is a last output);
+    /// 2. a ground penetration is undone the same way with the arms and other non-leg joints, and when
+    ///    that is not enough (the root itself came down) by lifting the root out of the ground.
     pub fn apply(&self, tree: &KinematicTree, state: &mut GuardState, pose: &mut CharacterPose) {
         let scratch = &mut state.scratch;
-        if self.collides(tree, pose, scratch) {
-            if let Some(prev) = &state.last_free {
-                let target = pose.q.clone();
-                let mut probe = pose.clone();
+        if !self.collides(tree, pose, scratch) {
+            state.last_free = Some(pose.q.clone());
+            return;
+        }
+        state.corrected += 1;
+        if let Some(prev) = &state.last_free {
+            if self.self_collides(tree, pose, scratch) {
                 for dofs in [&self.upper, &self.all] {
-                    let at = |a: f32, q: &mut Vec<f32>| {
-                        q.copy_from_slice(&target);
-                        for &d in dofs {
-                            q[d] = prev[d] + a * (target[d] - prev[d]);
-                        }
-                    };
-                    at(0.0, &mut probe.q);
-                    if self.collides(tree, &probe, scratch) {
-                        continue; // moving these DoFs back is not enough
+                    if self.move_back(tree, pose, prev, dofs, scratch, &|g: &Self, t, p, s| g.self_collides(t, p, s)) {
+                        break;
                     }
-                    // The largest a in [0, 1) with a free pose.
-                    let (mut lo, mut hi) = (0.0f32, 1.0f32);
-                    for _ in 0..BISECTION_STEPS {
-                        let mid = 0.5 * (lo + hi);
-                        at(mid, &mut probe.q);
-                        if self.collides(tree, &probe, scratch) {
-                            hi = mid;
-                        } else {
-                            lo = mid;
-                        }
-                    }
-                    at(lo, &mut pose.q);
-                    state.corrected += 1;
-                    break;
                 }
             }
+            if self.collides(tree, pose, scratch) {
+                self.move_back(tree, pose, prev, &self.upper, scratch, &|g: &Self, t, p, s| g.collides(t, p, s));
+            }
+        }
+        self.checks.place(tree, pose, scratch);
+        let depth = self.checks.depth_below_ground(&self.morph, scratch);
+        if self.checks.penetrates(&self.morph, scratch) {
+            pose.root.translation.z += depth;
         }
         if !self.collides(tree, pose, scratch) {
             state.last_free = Some(pose.q.clone());
         }
+    }
+
+    /// Moves `dofs` of `pose` back along the line towards `prev` to the last point where `bad` is
+    /// false (bisection); false, leaving `pose` alone, when even `prev`'s values are bad.
+    fn move_back(
+        &self,
+        tree: &KinematicTree,
+        pose: &mut CharacterPose,
+        prev: &[f32],
+        dofs: &[usize],
+        scratch: &mut PoseScratch,
+        bad: &dyn Fn(&Self, &KinematicTree, &CharacterPose, &mut PoseScratch) -> bool,
+    ) -> bool {
+        let target = pose.q.clone();
+        let mut probe = pose.clone();
+        let at = |a: f32, q: &mut [f32]| {
+            for &d in dofs {
+                q[d] = prev[d] + a * (target[d] - prev[d]);
+            }
+        };
+        at(0.0, &mut probe.q);
+        if bad(self, tree, &probe, scratch) {
+            return false;
+        }
+        let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        for _ in 0..BISECTION_STEPS {
+            let mid = 0.5 * (lo + hi);
+            at(mid, &mut probe.q);
+            if bad(self, tree, &probe, scratch) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        at(lo, &mut pose.q);
+        true
     }
 }
 
@@ -143,7 +179,7 @@ mod tests {
         let after = ufr(&tree, &morph, &out, 30.0, &cfg).summary().rates.self_collision;
         assert_eq!(after, 0.0);
         assert!(state.corrected > 0);
-        // Frames that were free are untouched, roots are never moved.
+        // Frames that were free are untouched; roots are not moved for a self-collision.
         let mut scratch = PoseScratch::default();
         for (a, b) in raw.iter().zip(&out) {
             assert_eq!(a.root, b.root);
@@ -155,5 +191,25 @@ mod tests {
             assert_eq!(a.q[..12], b.q[..12]);
         }
         assert_eq!(raw[0], out[0]);
+    }
+
+    #[test]
+    fn a_root_sunk_into_the_ground_is_lifted_out() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
+        let (tree, morph) = load_character(&path).unwrap();
+        let guard = CollisionGuard::new(&tree, &morph);
+        let mut state = GuardState::default();
+        let standing = tree.standing_pose();
+        let mut first = standing.clone();
+        guard.apply(&tree, &mut state, &mut first);
+        assert_eq!(first, standing, "a free pose is left alone");
+        // The whole body 5 cm down: no joint motion can fix that, the root is lifted back.
+        let mut sunk = standing.clone();
+        sunk.root.translation.z -= 0.05;
+        guard.apply(&tree, &mut state, &mut sunk);
+        let mut scratch = PoseScratch::default();
+        assert!(!guard.collides(&tree, &sunk, &mut scratch));
+        assert!((sunk.root.translation.z - standing.root.translation.z).abs() < 0.01, "{}", sunk.root.translation.z);
+        assert_eq!(state.corrected, 1);
     }
 }

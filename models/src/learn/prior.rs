@@ -153,6 +153,12 @@ pub struct PriorConfig {
     /// carries the transition, which ACE's generator needs to steer the character: on Spot, decoding
     /// with the encoder's z had 1.4 times less error than with z = 0 at β = 0.5, six times less at 0.05.
     pub kl_weight: f64,
+    /// Free bits λ (nats per latent entry, 0 = off): each latent entry's batch-mean KL counts as at
+    /// least λ in the loss, so entries below it cost nothing and the latent is not driven to collapse.
+    /// A character whose next state follows almost entirely from the previous one (a wheeled base
+    /// whose commands change rarely) otherwise ends with a decoder that ignores z, which leaves ACE's
+    /// generator nothing to steer.
+    pub free_bits: f64,
     /// Adam's learning rate.
     pub learning_rate: f64,
     /// Windows per optimiser step.
@@ -182,6 +188,7 @@ impl Default for PriorConfig {
             experts: 8,
             gating_hidden: vec![64, 64],
             kl_weight: 0.05,
+            free_bits: 0.0,
             learning_rate: 3e-4,
             batch_size: 64,
             steps: 16_000,
@@ -239,6 +246,9 @@ impl PriorConfig {
                 self.bound_margin
             ));
         }
+        if !(self.free_bits.is_finite() && self.free_bits >= 0.0) {
+            return bad(format!("free_bits must be non-negative, not {}", self.free_bits));
+        }
         if !(self.kl_weight.is_finite() && self.kl_weight >= 0.0) {
             return bad(format!("kl_weight must be non-negative, not {}", self.kl_weight));
         }
@@ -282,12 +292,14 @@ pub fn state_mask(tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
 /// The losses of one transition, as tensors (scalars but for `prediction`).
 #[derive(Debug)]
 pub struct PriorLoss {
-    /// `recon + β·kl`.
+    /// `recon + β·kl_loss`.
     pub total: Tensor,
     /// Mean squared error over the modelled entries.
     pub recon: Tensor,
     /// KL divergence of the posterior to N(0, I), averaged over batch and latent entries.
     pub kl: Tensor,
+    /// The KL term as the loss counts it: `kl` with free bits ([`PriorConfig::free_bits`]).
+    pub kl_loss: Tensor,
     /// The decoder's output `[B, D]` (normalised, masked entries 0).
     pub prediction: Tensor,
 }
@@ -470,11 +482,21 @@ impl MotionPrior {
         let err = (&prediction - cur * &self.mask).square() * &self.mask;
         let modelled = self.mask.sum(Kind::Float) * cur.size()[0] as f64;
         let recon = err.sum(Kind::Float) / modelled;
-        let kl = ((&logvar + 1.0 - mu.square() - logvar.exp()) * -0.5).mean(Kind::Float);
+        let kl_entries = (&logvar + 1.0 - mu.square() - logvar.exp()) * -0.5;
+        let kl = kl_entries.mean(Kind::Float);
+        let kl_loss = if self.config.free_bits > 0.0 {
+            kl_entries
+                .mean_dim(0, false, Kind::Float)
+                .clamp_min(self.config.free_bits)
+                .mean(Kind::Float)
+        } else {
+            kl.shallow_clone()
+        };
         PriorLoss {
-            total: &recon + &kl * self.config.kl_weight,
+            total: &recon + &kl_loss * self.config.kl_weight,
             recon,
             kl,
+            kl_loss,
             prediction,
         }
     }
@@ -602,6 +624,7 @@ pub fn train_prior_with(
         let mut prev = data.index_select(0, &first);
         let mut recon = Tensor::zeros([], (Kind::Float, device));
         let mut kl = Tensor::zeros([], (Kind::Float, device));
+        let mut kl_loss = Tensor::zeros([], (Kind::Float, device));
         for t in 1..=cfg.rollout {
             let cur = data.index_select(0, &(&first + t as i64));
             let noise = Tensor::from_slice(&normals(&mut rng, b * latent))
@@ -610,13 +633,14 @@ pub fn train_prior_with(
             let l = ckpt.prior.loss(&prev, &cur, &noise);
             recon += l.recon;
             kl += l.kl;
+            kl_loss += l.kl_loss;
             let fed: Vec<f32> = (0..b).map(|_| f32::from(rng.random::<f64>() < p)).collect();
             let fed = Tensor::from_slice(&fed).view([b as i64, 1]).to_device(device);
             prev = l.prediction.detach() * &fed + cur * (1.0 - &fed);
         }
         let recon = recon / cfg.rollout as f64;
         let kl = kl / cfg.rollout as f64;
-        let total = &recon + &kl * cfg.kl_weight;
+        let total = &recon + kl_loss / cfg.rollout as f64 * cfg.kl_weight;
         opt.backward_step(&total);
 
         let report = PriorProgress {
@@ -917,6 +941,28 @@ mod tests {
         assert!(prior.at_bounds(&y) > 0.5, "extreme z should hit the bounds");
         y.sum(Kind::Float).backward();
         assert!(z.grad().abs().sum(Kind::Float).double_value(&[]) > 0.0);
+    }
+
+    #[test]
+    fn free_bits_floor_each_latent_entry_of_the_kl_term() {
+        let set = spot_set();
+        let d = set.layout.dim();
+        let prev = batch(set, &[10, 200, 1500, 2500]);
+        let cur = batch(set, &[11, 201, 1501, 2501]);
+        let noise = Tensor::zeros([4, 32], (Kind::Float, Device::Cpu));
+        let mut cfg = tiny_config();
+        let plain = MotionPrior::new(&cfg, d, Device::Cpu).loss(&prev, &cur, &noise);
+        assert!(plain.kl_loss.equal(&plain.kl));
+        cfg.free_bits = 10.0; // above any entry's KL at initialisation
+        let floored = MotionPrior::new(&cfg, d, Device::Cpu).loss(&prev, &cur, &noise);
+        // Same weights (same seed): the raw KL is unchanged, the loss counts every entry at λ.
+        assert!(floored.kl.equal(&plain.kl));
+        assert!((floored.kl_loss.double_value(&[]) - 10.0).abs() < 1e-9);
+        let beta = cfg.kl_weight;
+        let expected = floored.recon.double_value(&[]) + beta * 10.0;
+        assert!((floored.total.double_value(&[]) - expected).abs() < 1e-6);
+        cfg.free_bits = -1.0;
+        assert!(cfg.check().is_err());
     }
 
     #[test]

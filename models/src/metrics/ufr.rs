@@ -178,6 +178,8 @@ pub struct PoseChecks {
     wheels: Vec<(usize, Vec<usize>)>,
     /// Foot links.
     feet: Vec<usize>,
+    /// The ground's height (m).
+    ground: f32,
     /// Penetration: below this height (m).
     below: f32,
 }
@@ -209,6 +211,7 @@ impl PoseChecks {
             foot_body,
             wheels,
             feet: morph.feet.clone(),
+            ground: config.ground_z,
             below: config.ground_z - config.penetration_depth,
         }
     }
@@ -239,6 +242,22 @@ impl PoseChecks {
     /// Whether the placed pose collides with itself or the ground.
     pub fn is_unrealistic(&self, morph: &Morphology, scratch: &PoseScratch) -> bool {
         self.collisions(scratch, |_| {}) > 0 || self.penetrates(morph, scratch)
+    }
+
+    /// How far the placed pose reaches below the ground (m, 0 when it does not): the lowest foot point
+    /// or geometry that [`PoseChecks::penetrates`] looks at.
+    pub fn depth_below_ground(&self, morph: &Morphology, scratch: &PoseScratch) -> f32 {
+        let bodies = self.collision.bodies();
+        let feet = self.feet.iter().map(|&f| morph.ee_point(f, &scratch.links).z);
+        let geometry = (0..bodies.len()).flat_map(|k| {
+            scratch.posed.primitives[k]
+                .iter()
+                .zip(&bodies[k].from_mesh)
+                .filter(move |(_, mesh)| !(**mesh && self.foot_body[k]))
+                .map(|(p, _)| p.lowest_z())
+        });
+        let lowest = feet.chain(geometry).fold(f32::INFINITY, f32::min);
+        (self.ground - lowest).max(0.0)
     }
 
     /// True when a primitive lies below the penetration depth (mesh boxes on foot bodies excepted).
