@@ -211,15 +211,18 @@ pub fn read_quat(s: &[f32]) -> UnitQuaternion<f32> {
 }
 
 /// The root pose of a frame from the previous root pose and that frame's state: position from the
-/// displacement and height, orientation from the delta rotation (the inverse of [`write_state`] for
-/// the root).
+/// displacement and height; heading (yaw) from the delta rotation, integrated; pitch and roll from the
+/// state's root orientation relative to that heading, which is absolute, so that no tilt accumulates
+/// over a long rollout (the inverse of [`write_state`] for the root).
 pub fn integrate_root(layout: &CharacterLayout, prev_root: &Isometry3<f32>, state: &[f32]) -> Isometry3<f32> {
     let hp = root_heading(prev_root);
     let d = &state[layout.root_displacement()];
     let step = hp.rotation * Vector3::new(d[0], d[1], 0.0);
     let p = prev_root.translation.vector + step;
     let delta = read_quat(&state[layout.root_delta_rotation()]);
-    let rot = hp.rotation * delta * hp.rotation.inverse() * prev_root.rotation;
+    let integrated = hp.rotation * delta * hp.rotation.inverse() * prev_root.rotation;
+    let heading = root_heading(&Isometry3::from_parts(Translation3::identity(), integrated)).rotation;
+    let rot = heading * read_quat(&state[layout.root_orientation()]);
     Isometry3::from_parts(Translation3::new(p.x, p.y, state[layout.root_height()][0]), rot)
 }
 

@@ -1,6 +1,6 @@
 //! The cleanup every generated pose passes through before anyone sees it: foot locking
-//! ([`crate::foot_lock`]) first, then the collision guard ([`crate::collision_guard`]), which has the
-//! last word so that no output pose collides with itself or the ground. Both are causal, so the
+//! ([`crate::foot_lock`]), then the collision guard ([`crate::collision_guard`]), which has the last
+//! word so that no output pose collides with itself or the ground. Both are causal, so the
 //! offline retargeter and a live stream give the same poses; both can be switched off to see the
 //! networks' raw output.
 

@@ -29,6 +29,9 @@ pub struct CollisionGuard {
     upper: Vec<usize>,
     /// DoFs tried when those do not suffice: all but wheels.
     all: Vec<usize>,
+    /// Joint positions of the standing pose, where arms go when the last output's cannot clear the
+    /// ground.
+    standing: Vec<f32>,
 }
 
 /// The guard's memory for one character being driven: its last output's joint positions.
@@ -57,6 +60,7 @@ impl CollisionGuard {
             morph: morph.clone(),
             upper: all.iter().copied().filter(|d| !legs.contains(d)).collect(),
             all,
+            standing: tree.standing_pose().q,
         }
     }
 
@@ -75,8 +79,10 @@ impl CollisionGuard {
     /// 1. a self-collision is undone by moving joints back towards the last output (legs only when the
     ///    others do not suffice; self-collision does not depend on the root, so this always succeeds
     ///    once there is a last output);
-    /// 2. a ground penetration is undone the same way with the arms and other non-leg joints, and when
-    ///    that is not enough (the root itself came down) by lifting the root out of the ground.
+    /// 2. a ground penetration is undone the same way, towards the last output, else towards the
+    ///    standing pose — with the arms and other non-leg joints first, with the legs too when that is
+    ///    not enough — and when nothing is (the root itself came down) by lifting the root out of the
+    ///    ground.
     pub fn apply(&self, tree: &KinematicTree, state: &mut GuardState, pose: &mut CharacterPose) {
         let scratch = &mut state.scratch;
         if !self.collides(tree, pose, scratch) {
@@ -92,8 +98,18 @@ impl CollisionGuard {
                     }
                 }
             }
+            // Towards the last output, else towards the standing pose: an arm reaching into the ground
+            // of a body that came down is pulled up rather than the whole body lifted.
+            // Legs only when the rest cannot do it (a leg the network pushed through the floor).
+            let collides = |g: &Self, t: &KinematicTree, p: &CharacterPose, s: &mut PoseScratch| g.collides(t, p, s);
             if self.collides(tree, pose, scratch) {
-                self.move_back(tree, pose, prev, &self.upper, scratch, &|g: &Self, t, p, s| g.collides(t, p, s));
+                for dofs in [&self.upper, &self.all] {
+                    if self.move_back(tree, pose, prev, dofs, scratch, &collides)
+                        || self.move_back(tree, pose, &self.standing, dofs, scratch, &collides)
+                    {
+                        break;
+                    }
+                }
             }
         }
         self.checks.place(tree, pose, scratch);

@@ -9,9 +9,9 @@
 //! integrated from the states' displacements and delta rotations
 //! ([`crate::character_state::decode_pose`]), joint positions are clamped into the URDF limits
 //! ([`KinematicTree::clamp`]), and wheel angles — which the networks do not model (the prior's state
-//! mask) — are rolled from the base motion ([`crate::controller::wheels`]); then self-collisions are
-//! undone and planted feet locked to the ground ([`crate::cleanup`], on by default,
-//! [`Retargeter::set_cleanup`]). The
+//! mask) — are rolled from the base motion ([`crate::controller::wheels`]); with the cleanup on
+//! ([`crate::cleanup`], by default, [`Retargeter::set_cleanup`]) the root height is kept within the
+//! dataset's range, collisions are undone and planted feet locked to the ground. The
 //! returned states carry the resulting joint and end-effector positions, so states and poses agree.
 
 use std::path::{Path, PathBuf};
@@ -56,6 +56,8 @@ pub struct Retargeter {
     prev: Tensor,
     /// The cleanup whole-motion rollouts pass through.
     cleanup: Cleanup,
+    /// The root heights the character's dataset spans (m), when the prior's bounds say.
+    root_height_range: Option<(f32, f32)>,
 }
 
 impl Retargeter {
@@ -83,12 +85,14 @@ impl Retargeter {
         }
         prior.prior.freeze();
         let device = prior.prior.device();
+        let root_height_range = data_range(&prior, prior.character.layout.root_height().start);
         let stats = &ace.record.human_stats;
         Ok(Retargeter {
             human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
             human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
             prev: Tensor::zeros([0, prior.prior.state_dim() as i64], (Kind::Float, device)),
             cleanup: Cleanup::default(),
+            root_height_range,
             dir: dir.to_path_buf(),
             prior,
             ace,
@@ -281,6 +285,12 @@ impl Retargeter {
             });
             let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), layout.dim())?.remove(0);
             prev = next;
+            if let Some((lo, hi)) = self.root_height_range.filter(|_| cleanup.is_active()) {
+                // The prior's clamp leaves a margin beyond the data; a low body can sink into the
+                // ground inside it.
+                let h = &mut state[layout.root_height()][0];
+                *h = h.clamp(lo, hi);
+            }
             let mut pose = decode_pose(&layout, &root, &state);
             tree.clamp(&mut pose.q);
             let v = &state[layout.root_linear_velocity()];
@@ -309,6 +319,18 @@ impl Retargeter {
             poses,
         })
     }
+}
+
+/// The range entry `j` of the states spans in the prior's dataset (denormalised): its bounds without
+/// their margin (`None` for a prior without finite bounds).
+fn data_range(prior: &PriorCheckpoint, j: usize) -> Option<(f32, f32)> {
+    let b = prior.prior.state_bounds();
+    let m = prior.config.bound_margin as f32;
+    let pad = (b.hi[j] - b.lo[j]) * m / (1.0 + 2.0 * m);
+    let (lo, hi) = (b.lo[j] + pad, b.hi[j] - pad);
+    let (mean, std) = (prior.stats.mean[j], prior.stats.std[j]);
+    let (lo, hi) = (lo * std + mean, hi * std + mean);
+    (lo.is_finite() && hi.is_finite() && lo <= hi).then_some((lo, hi))
 }
 
 #[cfg(test)]
@@ -410,6 +432,8 @@ mod tests {
         let start = r.start_state(tree, morph).unwrap();
         let clips = &bundled_humans().clips;
         let (walk, wave) = (&clips[1].states, &clips[2].states);
+        // `step` returns the networks' raw states: compare with the raw whole-clip rollout.
+        r.set_cleanup(Cleanup::NONE);
         let single = r.retarget_states(tree, morph, &walk[..20]).unwrap();
         r.reset(&vec![start; 3]).unwrap();
         assert_eq!(r.batch_size(), 3);
