@@ -57,6 +57,8 @@ pub struct EvalArgs {
 pub struct Row {
     pub system: String,
     pub metrics: MetricsReport,
+    /// L_fea split by feature block (empty for the dataset).
+    pub feature_loss_by_block: Vec<(&'static str, f32)>,
 }
 
 /// A long rollout's health.
@@ -153,6 +155,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
         rows.push(Row {
             system: name.to_string(),
             metrics: scorer.report(tree, morph, &psi, Some(&human_psi), &poses, &episodes),
+            feature_loss_by_block: scorer.feature_loss_by_block(&psi, &human_psi),
         });
     }
 
@@ -233,6 +236,7 @@ fn dataset_row(
     Ok(Row {
         system: "Dataset".into(),
         metrics: scorer.report(tree, morph, &psi, None, &poses, &set.episodes),
+        feature_loss_by_block: Vec::new(),
     })
 }
 
@@ -299,6 +303,14 @@ pub fn markdown(e: &Evaluation) -> String {
             100.0 * u.penetration,
             100.0 * u.sliding
         );
+    }
+    if let Some(first) = e.rows.iter().find(|r| !r.feature_loss_by_block.is_empty()) {
+        let names: Vec<&str> = first.feature_loss_by_block.iter().map(|b| b.0).collect();
+        let _ = writeln!(s, "\nL_fea by feature block:\n\n| system | {} |\n|---|{}", names.join(" | "), "---:|".repeat(names.len()));
+        for r in e.rows.iter().filter(|r| !r.feature_loss_by_block.is_empty()) {
+            let v: Vec<String> = r.feature_loss_by_block.iter().map(|b| format!("{:.3}", b.1)).collect();
+            let _ = writeln!(s, "| {} | {} |", r.system, v.join(" | "));
+        }
     }
     let _ = writeln!(s, "\n| {:.0}-second rollout | finite | root height (m) | mean speed (m/s) | stable |\n|---|---|---|---:|---|", e.stability.first().map_or(0.0, |x| x.seconds));
     for x in &e.stability {

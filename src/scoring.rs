@@ -7,7 +7,9 @@ use std::ops::Range;
 use std::path::Path;
 
 use ace::models::character_state::CharacterLayout;
-use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, character_features, human_features};
+use ace::models::features::{
+    EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, character_features, human_features, mean_feature_loss,
+};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
@@ -66,6 +68,32 @@ impl Scorer {
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body_override.unwrap_or(clip_body);
         x_h.iter().map(|x| human_features(x, body, &self.mapping)).collect()
+    }
+
+    /// L_fea split by feature block (each block's weighted share; they add up to L_fea).
+    pub fn feature_loss_by_block(&self, psi: &[Vec<f32>], human_psi: &[Vec<f32>]) -> Vec<(&'static str, f32)> {
+        let layout = FeatureLayout::new(&self.mapping);
+        FeatureBlock::ALL
+            .iter()
+            .map(|&block| {
+                let mut only = FeatureWeights {
+                    root_height: 0.0,
+                    root_orientation: 0.0,
+                    root_linear_velocity: 0.0,
+                    root_angular_velocity: 0.0,
+                    ee_positions: 0.0,
+                };
+                let w = self.weights.weight(block);
+                match block {
+                    FeatureBlock::RootHeight => only.root_height = w,
+                    FeatureBlock::RootOrientation => only.root_orientation = w,
+                    FeatureBlock::RootLinearVelocity => only.root_linear_velocity = w,
+                    FeatureBlock::RootAngularVelocity => only.root_angular_velocity = w,
+                    FeatureBlock::EePositions => only.ee_positions = w,
+                }
+                (block.name(), mean_feature_loss(&layout, psi, human_psi, &only))
+            })
+            .collect()
     }
 
     /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`) and UFR over `poses`, which hold
