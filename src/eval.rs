@@ -367,17 +367,22 @@ pub fn write(e: &Evaluation, out: &Path) -> Result<()> {
     put("eval.md", markdown(e))?;
     put("eval.csv", csv(e))?;
     put("eval.json", serde_json::to_string_pretty(e)?)?;
-    let groups = vec!["DIV".to_string(), "FID".into(), "L_fea".into(), "UFR (%)".into()];
-    let mut chart = BarChart::new(format!("{}: held-out evaluation", e.character), "value", groups);
-    for r in &e.rows {
-        let m = &r.metrics;
-        let v = |x: Option<f32>| x.map_or(f64::NAN, f64::from);
-        chart = chart.with_series(
-            r.system.clone(),
-            vec![f64::from(m.div), v(m.fid), v(m.feature_loss), 100.0 * f64::from(m.ufr.rates.ufr)],
-        );
-    }
+    // One panel per metric: their scales differ by orders of magnitude.
+    let v = |x: Option<f32>| x.map_or(f64::NAN, f64::from);
+    let metrics: [(&str, fn(&MetricsReport) -> Option<f32>); 4] = [
+        ("DIV (closest to the dataset's is best)", |m| Some(m.div)),
+        ("FID (lower is better)", |m| m.fid),
+        ("L_fea (lower is better)", |m| m.feature_loss),
+        ("UFR % (lower is better)", |m| Some(100.0 * m.ufr.rates.ufr)),
+    ];
     let mut fig = Figure::new(900);
-    fig.push(chart, 450);
+    for (k, (title, get)) in metrics.iter().enumerate() {
+        let heading = if k == 0 { format!("{}: held-out evaluation — {title}", e.character) } else { title.to_string() };
+        let mut chart = BarChart::new(heading, "", vec![String::new()]);
+        for r in &e.rows {
+            chart = chart.with_series(r.system.clone(), vec![v(get(&r.metrics))]);
+        }
+        fig.push(chart, 230);
+    }
     fig.save(&out.join("eval.png"))
 }
