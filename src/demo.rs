@@ -16,6 +16,7 @@ use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 use serde_json::json;
 
+use crate::scoring::Scorer;
 use crate::{characters, picture, retarget};
 
 /// The bundled clips, sorted by name.
@@ -49,9 +50,10 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path) -> Result<(
         let dir = retarget::default_checkpoint(name)?;
         let retargeter = Retargeter::load(&dir, ace::models::learn::default_device())
             .with_context(|| format!("the shipped checkpoint of `{name}`"))?;
+        let scorer = Scorer::new(&retargeter, &dir)?;
         for (k, clip) in humans.iter().enumerate() {
             let glb = out.join(&tree.name).join(format!("{}.glb", clip.name));
-            let w = retarget::retarget(&retargeter, &dir, &tree, &morph, clip, &glb, true)?;
+            let w = retarget::retarget(&retargeter, &scorer, &tree, &morph, clip, &glb, true)?;
             println!(
                 "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  UFR {:5.2} %  → {}",
                 tree.name,
@@ -62,8 +64,7 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path) -> Result<(
                 glb.display()
             );
             if k == 0 {
-                let motion = retargeter.retarget_clip(&tree, &morph, clip)?;
-                picture_of(&tree, &motion.poses, clip, &out.join(format!("{}.png", tree.name)))?;
+                picture_of(&tree, &w.poses, clip, &out.join(format!("{}.png", tree.name)))?;
             }
             rows.push((tree.name.clone(), clip.name.clone(), w.report, glb));
         }

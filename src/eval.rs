@@ -22,8 +22,8 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use ace::models::cleanup::Cleanup;
-use ace::models::dataset::{DatasetConfig, generate};
-use ace::models::human_set::{HumanRow, HumanSet, PROJECT_FPS};
+use ace::models::dataset::generate;
+use ace::models::human_set::{HumanRow, HumanSet, HumanSetClip, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
 use ace::models::metrics::MetricsReport;
@@ -33,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
 use crate::scoring::Scorer;
-use crate::{characters, humans, progress, retarget};
+use crate::{characters, humans, progress, retarget, train};
 
 /// The row of ACE's networks without the cleanup.
 pub const ACE_RAW: &str = "ACE without cleanup";
@@ -124,7 +124,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
     let folder = humans::folder(args.humans.as_deref())?;
     let set = humans::load(&folder)?;
     let clips = held_out(&set, &retargeter, args.max_clips, &folder)?;
-    let frames: usize = clips.iter().map(|c| c.1.len()).sum();
+    let frames: usize = clips.iter().map(|c| c.states.len()).sum();
     println!(
         "{} on {} held-out clips ({frames} frames) from {}",
         tree.name,
@@ -139,16 +139,16 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
     let mut systems: Vec<(&str, Vec<RetargetedMotion>)> =
         vec![("ACE", Vec::new()), (ACE_RAW, Vec::new()), ("Prior with random z", Vec::new())];
     let cleanup = retargeter.cleanup();
-    for (k, (_, rows_h, _)) in clips.iter().enumerate() {
-        systems[0].1.push(retargeter.retarget_states(tree, morph, rows_h)?);
+    for (k, clip) in clips.iter().enumerate() {
+        systems[0].1.push(retargeter.retarget_states(tree, morph, &clip.states)?);
         retargeter.set_cleanup(Cleanup::NONE);
-        systems[1].1.push(retargeter.retarget_states(tree, morph, rows_h)?);
+        systems[1].1.push(retargeter.retarget_states(tree, morph, &clip.states)?);
         retargeter.set_cleanup(cleanup);
-        systems[2].1.push(retargeter.random_latent_rollout(tree, morph, rows_h.len(), args.seed.wrapping_add(k as u64))?);
+        systems[2].1.push(retargeter.random_latent_rollout(tree, morph, clip.states.len(), args.seed.wrapping_add(k as u64))?);
         bar.inc(3);
     }
     bar.finish_and_clear();
-    let human_psi: Vec<Vec<f32>> = clips.iter().flat_map(|(_, rows_h, body)| scorer.human_psi(rows_h, *body)).collect();
+    let human_psi: Vec<Vec<f32>> = clips.iter().flat_map(|c| scorer.human_psi(&c.states, c.body_length)).collect();
     for (name, motions) in &systems {
         let (states, poses, episodes) = concat(motions);
         let psi = scorer.character_psi(&states);
@@ -161,7 +161,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
 
     // Long rollouts: the held-out clips back to back.
     let long = (args.seconds * PROJECT_FPS).round() as usize;
-    let looped: Vec<HumanRow> = clips.iter().flat_map(|c| c.1.iter().copied()).cycle().take(long).collect();
+    let looped: Vec<HumanRow> = clips.iter().flat_map(|c| c.states.iter().copied()).cycle().take(long).collect();
     let body = ace::models::features::character_body_length(tree, morph);
     let stability = vec![
         stability("ACE", &retargeter.retarget_states(tree, morph, &looped)?, body),
@@ -171,7 +171,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
         character: tree.name.clone(),
         checkpoint: dir.to_path_buf(),
         humans: folder,
-        held_out_clips: clips.iter().map(|c| c.0.clone()).collect(),
+        held_out_clips: clips.iter().map(|c| c.relative.clone()).collect(),
         frames,
         seed: args.seed,
         rows,
@@ -179,20 +179,15 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
     })
 }
 
-/// The held-out clips the checkpoint recorded, found in `set`: (relative path, x^h rows, body length).
-fn held_out(
-    set: &HumanSet,
+/// The held-out clips the checkpoint recorded, found in `set`.
+fn held_out<'s>(
+    set: &'s HumanSet,
     retargeter: &Retargeter,
     max: Option<usize>,
     folder: &Path,
-) -> Result<Vec<(String, Vec<HumanRow>, f32)>> {
+) -> Result<Vec<&'s HumanSetClip>> {
     let recorded = &retargeter.ace().record.human_split.held_out;
-    let mut clips: Vec<(String, Vec<HumanRow>, f32)> = set
-        .clips
-        .iter()
-        .filter(|c| recorded.contains(&c.relative))
-        .map(|c| (c.relative.clone(), c.states.clone(), c.body_length))
-        .collect();
+    let mut clips: Vec<&HumanSetClip> = set.clips.iter().filter(|c| recorded.contains(&c.relative)).collect();
     if clips.is_empty() {
         bail!(
             "{}: none of the {} held-out clips the checkpoint records (e.g. `{}`) is there; pass the folder it was trained on with --humans",
@@ -224,9 +219,7 @@ fn dataset_row(
     frames: usize,
     seed: u64,
 ) -> Result<Row> {
-    let prior = retargeter.prior();
-    let mut cfg: DatasetConfig = serde_json::from_value(prior.provenance["dataset"]["config"].clone())
-        .context("the prior's provenance does not record its dataset configuration")?;
+    let mut cfg = train::prior_dataset_config(retargeter.prior())?;
     cfg.seed = cfg.seed.wrapping_add(1 + seed);
     cfg.frames = frames.max(3000);
     let set = generate(tree, morph, &cfg, &mut |_| {})?;

@@ -10,7 +10,7 @@ use ace::models::export::trajectory::CommandTrajectory;
 use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions, Joint};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
-use ace::models::kinematics::KinematicTree;
+use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
@@ -34,13 +34,14 @@ pub fn default_checkpoint(character_arg: &str) -> Result<PathBuf> {
     }
 }
 
-/// The files one retargeted clip produced.
+/// The files one retargeted clip produced, with its metrics and the character's poses.
 pub struct Written {
     pub glb: PathBuf,
     pub json: PathBuf,
     pub csv: PathBuf,
     pub metrics: PathBuf,
     pub report: MetricsReport,
+    pub poses: Vec<CharacterPose>,
 }
 
 /// Runs `ace retarget`.
@@ -55,17 +56,18 @@ pub fn run(clip: &Path, character: &str, checkpoint: Option<&Path>, out: &Path, 
         retargeter.set_cleanup(Cleanup::NONE);
     }
     let clip = HumanClip::from_bvh_file(clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })?;
-    let w = retarget(&retargeter, &dir, &tree, &morph, &clip, out, with_human)?;
+    let scorer = Scorer::new(&retargeter, &dir)?;
+    let w = retarget(&retargeter, &scorer, &tree, &morph, &clip, out, with_human)?;
     println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);
     println!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display());
     Ok(())
 }
 
 /// Retargets one clip (already at the project frame rate) and writes `out` (.glb) with the trajectory
-/// (`.json`, `.csv`) and metrics (`.metrics.json`) beside it.
+/// (`.json`, `.csv`) and metrics (`.metrics.json`, by `scorer`, the checkpoint's) beside it.
 pub fn retarget(
     retargeter: &Retargeter,
-    dir: &Path,
+    scorer: &Scorer,
     tree: &KinematicTree,
     morph: &Morphology,
     clip: &HumanClip,
@@ -99,11 +101,10 @@ pub fn retarget(
     trajectory.write_json(&json)?;
     trajectory.write_csv(&csv)?;
 
-    let scorer = Scorer::new(retargeter, dir)?;
     let psi = scorer.character_psi(&motion.states);
     let human_psi = scorer.human_psi(&human, human_body_length(clip));
     let report = scorer.report(tree, morph, &psi, Some(&human_psi), &motion.poses, &[0..motion.poses.len()]);
     let metrics = out.with_extension("metrics.json");
     std::fs::write(&metrics, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", metrics.display()))?;
-    Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report })
+    Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report, poses: motion.poses })
 }

@@ -74,19 +74,9 @@ fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&
 
 /// What the command line, data and code version were, for the checkpoint's provenance.
 fn provenance(extra: Value) -> Value {
-    let commit = std::process::Command::new("git")
-        .args(["rev-parse", "--short", "HEAD"])
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let commit = git(&["rev-parse", "--short", "HEAD"]).map(|out| out.trim().to_string());
     // Uncommitted changes to tracked files mean the commit alone does not say which code ran.
-    let modified = std::process::Command::new("git")
-        .args(["status", "--porcelain", "--untracked-files=no"])
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| !o.stdout.is_empty());
+    let modified = git(&["status", "--porcelain", "--untracked-files=no"]).map(|out| !out.is_empty());
     let mut v = json!({
         "command": std::env::args().collect::<Vec<_>>().join(" "),
         "commit": commit,
@@ -97,6 +87,23 @@ fn provenance(extra: Value) -> Value {
         v.extend(extra);
     }
     v
+}
+
+/// The standard output of a successful `git` command in the current directory.
+fn git(args: &[&str]) -> Option<String> {
+    std::process::Command::new("git")
+        .args(args)
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+/// The generator configuration of the dataset a prior was trained on, as its provenance records it
+/// (`ace train` regenerates the dataset from it, `ace eval` a fresh one with another seed).
+pub fn prior_dataset_config(prior: &PriorCheckpoint) -> Result<DatasetConfig> {
+    serde_json::from_value(prior.provenance["dataset"]["config"].clone())
+        .context("the prior's provenance does not record its dataset configuration")
 }
 
 /// Runs `ace train-prior`.
@@ -137,8 +144,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let device = ace::models::learn::default_device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
-    let data_cfg: DatasetConfig = serde_json::from_value(prior.provenance["dataset"]["config"].clone())
-        .context("the prior's provenance does not record its dataset configuration; pass --dataset")?;
+    let data_cfg = prior_dataset_config(&prior).map_err(|e| anyhow::anyhow!("{e}; pass --dataset"))?;
     let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;
     if set.mean != prior.stats.mean || set.std != prior.stats.std {
         bail!("the dataset is not the one the prior in {} was trained on (its statistics differ)", dir.display());

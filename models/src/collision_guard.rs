@@ -93,7 +93,7 @@ impl CollisionGuard {
         if let Some(prev) = &state.last_free {
             if self.self_collides(tree, pose, scratch) {
                 for dofs in [&self.upper, &self.all] {
-                    if self.move_back(tree, pose, prev, dofs, scratch, &|g: &Self, t, p, s| g.self_collides(t, p, s)) {
+                    if self.move_back(tree, pose, prev, dofs, scratch, &Self::self_collides) {
                         break;
                     }
                 }
@@ -101,11 +101,10 @@ impl CollisionGuard {
             // Towards the last output, else towards the standing pose: an arm reaching into the ground
             // of a body that came down is pulled up rather than the whole body lifted.
             // Legs only when the rest cannot do it (a leg the network pushed through the floor).
-            let collides = |g: &Self, t: &KinematicTree, p: &CharacterPose, s: &mut PoseScratch| g.collides(t, p, s);
             if self.collides(tree, pose, scratch) {
                 for dofs in [&self.upper, &self.all] {
-                    if self.move_back(tree, pose, prev, dofs, scratch, &collides)
-                        || self.move_back(tree, pose, &self.standing, dofs, scratch, &collides)
+                    if self.move_back(tree, pose, prev, dofs, scratch, &Self::collides)
+                        || self.move_back(tree, pose, &self.standing, dofs, scratch, &Self::collides)
                     {
                         break;
                     }
@@ -113,9 +112,8 @@ impl CollisionGuard {
             }
         }
         self.checks.place(tree, pose, scratch);
-        let depth = self.checks.depth_below_ground(&self.morph, scratch);
         if self.checks.penetrates(&self.morph, scratch) {
-            pose.root.translation.z += depth;
+            pose.root.translation.z += self.checks.depth_below_ground(&self.morph, scratch);
         }
         if !self.collides(tree, pose, scratch) {
             state.last_free = Some(pose.q.clone());

@@ -176,8 +176,6 @@ pub struct PoseChecks {
     foot_body: Vec<bool>,
     /// Wheel links with every link of their subtree.
     wheels: Vec<(usize, Vec<usize>)>,
-    /// Foot links.
-    feet: Vec<usize>,
     /// The ground's height (m).
     ground: f32,
     /// Penetration: below this height (m).
@@ -210,7 +208,6 @@ impl PoseChecks {
             collision,
             foot_body,
             wheels,
-            feet: morph.feet.clone(),
             ground: config.ground_z,
             below: config.ground_z - config.penetration_depth,
         }
@@ -236,7 +233,7 @@ impl PoseChecks {
     /// Whether a foot point or any geometry of the placed pose is below the ground (mesh boxes on
     /// foot bodies excepted).
     pub fn penetrates(&self, morph: &Morphology, scratch: &PoseScratch) -> bool {
-        self.feet.iter().any(|&f| morph.ee_point(f, &scratch.links).z < self.below) || self.geometry_below(&scratch.posed)
+        morph.feet.iter().any(|&f| morph.ee_point(f, &scratch.links).z < self.below) || self.geometry_penetrates(scratch)
     }
 
     /// Whether the placed pose collides with itself or the ground.
@@ -248,7 +245,7 @@ impl PoseChecks {
     /// or geometry that [`PoseChecks::penetrates`] looks at.
     pub fn depth_below_ground(&self, morph: &Morphology, scratch: &PoseScratch) -> f32 {
         let bodies = self.collision.bodies();
-        let feet = self.feet.iter().map(|&f| morph.ee_point(f, &scratch.links).z);
+        let feet = morph.feet.iter().map(|&f| morph.ee_point(f, &scratch.links).z);
         let geometry = (0..bodies.len()).flat_map(|k| {
             scratch.posed.primitives[k]
                 .iter()
@@ -260,8 +257,10 @@ impl PoseChecks {
         (self.ground - lowest).max(0.0)
     }
 
-    /// True when a primitive lies below the penetration depth (mesh boxes on foot bodies excepted).
-    fn geometry_below(&self, posed: &PosedBodies) -> bool {
+    /// Whether any geometry of the placed pose lies below the penetration depth (mesh boxes on foot
+    /// bodies excepted): [`PoseChecks::penetrates`] without the foot points.
+    pub fn geometry_penetrates(&self, scratch: &PoseScratch) -> bool {
+        let posed = &scratch.posed;
         let bodies = self.collision.bodies();
         (0..bodies.len()).any(|k| {
             let (c, r) = posed.spheres[k];
@@ -335,7 +334,7 @@ impl<'a> UfrDetector<'a> {
             }
         }
         let c = &self.config;
-        let band = c.ground_z + c.contact_height;
+        let (below, band) = (c.ground_z - c.penetration_depth, c.ground_z + c.contact_height);
         let step_limit = c.sliding_speed / fps;
 
         let mut scratch = PoseScratch::default();
@@ -349,7 +348,8 @@ impl<'a> UfrDetector<'a> {
             for (p, &f) in feet.iter_mut().zip(&self.morph.feet) {
                 *p = self.morph.ee_point(f, &scratch.links);
             }
-            pen[t] = self.checks.penetrates(self.morph, &scratch);
+            // The foot points are at hand: `penetrates` without computing them again.
+            pen[t] = feet.iter().any(|p| p.z < below) || self.checks.geometry_penetrates(&scratch);
             if continues[t] {
                 sl[t] = feet
                     .iter()
