@@ -36,7 +36,7 @@ use tch::{Device, Kind, Tensor, nn};
 
 use super::checkpoint::{CharacterInfo, LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
 pub use super::files::FileRecord;
-use super::files::{load_weights, read_file, read_json, write_synced};
+use super::files::{CheckpointFiles, load_weights, read_file, read_json, write_synced};
 use super::nets::{Activation, Mlp};
 use super::prior::DeviceChoice;
 use crate::correspondence::Correspondence;
@@ -498,8 +498,21 @@ impl AceCheckpoint {
         device: Device,
         with_discriminator: bool,
     ) -> Result<AceCheckpoint, LearnError> {
-        let path = dir.join(ACE_FILE);
-        let record = read_record(&path)?;
+        let files = CheckpointFiles::on_disk(dir);
+        AceCheckpoint::load_files(&files, prior_latent, prior_mask, device, with_discriminator)
+    }
+
+    /// [`AceCheckpoint::load`] from files on disk or in memory.
+    pub fn load_files(
+        files: &CheckpointFiles,
+        prior_latent: usize,
+        prior_mask: &[f32],
+        device: Device,
+        with_discriminator: bool,
+    ) -> Result<AceCheckpoint, LearnError> {
+        let dir = files.dir();
+        let path = files.path(ACE_FILE);
+        let record: AceRecord = read_json(files, ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")?;
         let corrupt = |problem: String| LearnError::CorruptFile {
             path: path.clone(),
             problem,
@@ -536,24 +549,15 @@ impl AceCheckpoint {
         {
             return Err(corrupt(format!("`human_stats.std` entry {i} is not positive")));
         }
-        let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
         record
             .prior
-            .verify(&prior_path, &read_file(&prior_path)?, ACE_FILE)?;
+            .verify(&files.path(PRIOR_WEIGHTS_FILE), &files.read(PRIOR_WEIGHTS_FILE)?, ACE_FILE)?;
 
         let generator = Generator::new(&record.config, dim, prior_latent, prior_mask, device);
-        let path = dir.join(GENERATOR_FILE);
-        load_weights(
-            &path,
-            &record.generator,
-            generator.var_store(),
-            "network",
-            ACE_FILE,
-        )?;
+        load_weights(files, GENERATOR_FILE, &record.generator, generator.var_store(), "network", ACE_FILE)?;
         let discriminator = if with_discriminator {
             let d = Discriminator::new(&record.config, dim, prior_mask, device);
-            let path = dir.join(DISCRIMINATOR_FILE);
-            load_weights(&path, &record.discriminator, d.var_store(), "network", ACE_FILE)?;
+            load_weights(files, DISCRIMINATOR_FILE, &record.discriminator, d.var_store(), "network", ACE_FILE)?;
             Some(d)
         } else {
             None
@@ -566,9 +570,9 @@ impl AceCheckpoint {
     }
 }
 
-/// Reads `ace.json`, checking kind and version before the rest.
-pub fn read_record(path: &Path) -> Result<AceRecord, LearnError> {
-    read_json(path, KIND, FORMAT_VERSION, "an ACE checkpoint")
+/// Reads the `ace.json` in `dir`, checking kind and version before the rest.
+pub fn read_record(dir: &Path) -> Result<AceRecord, LearnError> {
+    read_json(&CheckpointFiles::on_disk(dir), ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")
 }
 
 #[cfg(test)]

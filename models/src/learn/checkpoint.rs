@@ -27,7 +27,7 @@ use tch::{Device, TchError, Tensor};
 use thiserror::Error;
 
 use super::ShapeError;
-use super::files::{FileRecord, load_weights, read_json, write_synced};
+use super::files::{CheckpointFiles, FileRecord, load_weights, read_json, write_synced};
 use super::prior::{MotionPrior, PriorConfig};
 use crate::character_state::CharacterLayout;
 use crate::dataset::MotionSet;
@@ -450,8 +450,13 @@ impl PriorCheckpoint {
     /// Reads the checkpoint in `dir` onto `device` (the configuration's device choice is not used),
     /// checking it (see the module docs).
     pub fn load(dir: &Path, device: Device) -> Result<PriorCheckpoint, LearnError> {
-        let config_path = dir.join(CONFIG_FILE);
-        let record: ConfigFile = read_json(&config_path, KIND, FORMAT_VERSION, "a motion-prior checkpoint")?;
+        PriorCheckpoint::load_files(&CheckpointFiles::on_disk(dir), device)
+    }
+
+    /// [`PriorCheckpoint::load`] from files on disk or in memory.
+    pub fn load_files(files: &CheckpointFiles, device: Device) -> Result<PriorCheckpoint, LearnError> {
+        let config_path = files.path(CONFIG_FILE);
+        let record: ConfigFile = read_json(files, CONFIG_FILE, KIND, FORMAT_VERSION, "a motion-prior checkpoint")?;
         let corrupt = |problem: String| LearnError::CorruptFile {
             path: config_path.clone(),
             problem,
@@ -483,13 +488,7 @@ impl PriorCheckpoint {
         prior
             .set_bounds(&record.bounds)
             .map_err(|e| corrupt(e.to_string()))?;
-        load_weights(
-            &dir.join(WEIGHTS_FILE),
-            &record.weights,
-            prior.var_store(),
-            "prior",
-            CONFIG_FILE,
-        )?;
+        load_weights(files, WEIGHTS_FILE, &record.weights, prior.var_store(), "prior", CONFIG_FILE)?;
         Ok(PriorCheckpoint {
             config: record.config,
             stats: Normaliser {

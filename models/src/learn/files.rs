@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::fs;
 use std::io::{BufRead, BufReader, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -74,16 +74,66 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
     }
 }
 
-/// Reads the JSON metadata file of a checkpoint: its `kind` must be `kind` and its `format_version`
-/// `version`, checked before the rest so that another file or version gets a plain error; `what`
-/// names the expected kind in that error ("a motion-prior checkpoint").
+/// The files of a checkpoint directory, read from disk or handed over in memory (by an asset reader,
+/// say). Either way errors name `dir/<file>`.
+#[derive(Clone, Debug)]
+pub struct CheckpointFiles {
+    dir: PathBuf,
+    memory: Option<BTreeMap<String, Vec<u8>>>,
+}
+
+impl CheckpointFiles {
+    /// The files in directory `dir`.
+    pub fn on_disk(dir: &Path) -> CheckpointFiles {
+        CheckpointFiles {
+            dir: dir.to_path_buf(),
+            memory: None,
+        }
+    }
+
+    /// Files already read, by file name; `dir` is where they came from, for messages.
+    pub fn in_memory(dir: &Path, files: BTreeMap<String, Vec<u8>>) -> CheckpointFiles {
+        CheckpointFiles {
+            dir: dir.to_path_buf(),
+            memory: Some(files),
+        }
+    }
+
+    /// The directory (the source, for files in memory).
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The path of file `name`, as messages name it.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+
+    /// The content of file `name`; a missing one is [`LearnError::MissingFile`].
+    pub fn read(&self, name: &str) -> Result<Vec<u8>, LearnError> {
+        match &self.memory {
+            None => read_file(&self.path(name)),
+            Some(files) => files
+                .get(name)
+                .cloned()
+                .ok_or_else(|| LearnError::MissingFile { path: self.path(name) }),
+        }
+    }
+}
+
+/// Reads the JSON metadata file `name` of a checkpoint: its `kind` must be `kind` and its
+/// `format_version` `version`, checked before the rest so that another file or version gets a plain
+/// error; `what` names the expected kind in that error ("a motion-prior checkpoint").
 pub(crate) fn read_json<T: DeserializeOwned>(
-    path: &Path,
+    files: &CheckpointFiles,
+    name: &str,
     kind: &str,
     version: u32,
     what: &str,
 ) -> Result<T, LearnError> {
-    let bytes = read_file(path)?;
+    let bytes = files.read(name)?;
+    let path = files.path(name);
+    let path = path.as_path();
     let corrupt = |problem: String| LearnError::CorruptFile {
         path: path.into(),
         problem,
@@ -124,18 +174,21 @@ pub(crate) fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> 
     .map_err(|e| LearnError::io(path, e))
 }
 
-/// Checks the safetensors file `path` against the variables of `vs` and against `record`, then copies
+/// Checks the safetensors file `name` against the variables of `vs` and against `record`, then copies
 /// it into them: no tensor that is not a variable, every variable present with its shape and as F32,
 /// the content the one recorded. Messages call the network `network` (e.g. "prior") and name
 /// `described_in`, the metadata file that describes it and records the weights.
 pub(crate) fn load_weights(
-    path: &Path,
+    files: &CheckpointFiles,
+    name: &str,
     record: &FileRecord,
     vs: &nn::VarStore,
     network: &str,
     described_in: &str,
 ) -> Result<(), LearnError> {
-    let bytes = read_file(path)?;
+    let bytes = files.read(name)?;
+    let path = files.path(name);
+    let path = path.as_path();
     let corrupt = |problem: String| LearnError::CorruptFile {
         path: path.into(),
         problem,

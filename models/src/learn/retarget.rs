@@ -23,6 +23,7 @@ use tch::{Device, Kind, Tensor};
 
 use super::ace::AceCheckpoint;
 use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
+use super::files::CheckpointFiles;
 use super::prior::normals;
 use super::{rows_to_tensor, tensor_to_rows};
 use crate::character_state::{CharacterLayout, StateScratch, character_state, character_state_into, decode_pose};
@@ -65,9 +66,15 @@ impl Retargeter {
     /// files belong together (see [`PriorCheckpoint::load`] and [`AceCheckpoint::load`]); every error
     /// names the file and the problem.
     pub fn load(dir: &Path, device: Device) -> Result<Retargeter, LearnError> {
-        let prior = PriorCheckpoint::load(dir, device)?;
-        let ace = AceCheckpoint::load(dir, prior.prior.latent_dim(), &prior.mask, device, false)?;
-        Retargeter::from_checkpoints(dir, prior, ace)
+        Retargeter::load_files(&CheckpointFiles::on_disk(dir), device)
+    }
+
+    /// [`Retargeter::load`] from a checkpoint's files on disk or in memory (e.g. read by an asset
+    /// loader).
+    pub fn load_files(files: &CheckpointFiles, device: Device) -> Result<Retargeter, LearnError> {
+        let prior = PriorCheckpoint::load_files(files, device)?;
+        let ace = AceCheckpoint::load_files(files, prior.prior.latent_dim(), &prior.mask, device, false)?;
+        Retargeter::from_checkpoints(files.dir(), prior, ace)
     }
 
     /// A retargeter from checkpoints already in memory (e.g. right after training; `dir` names them
@@ -406,6 +413,30 @@ mod tests {
             assert_eq!(&s[layout.joint_positions()], &p.q[..], "frame {t}");
             assert!((-1.0..3.0).contains(&root.z), "frame {t}: root height {}", root.z);
         }
+    }
+
+    #[test]
+    fn files_in_memory_load_like_the_directory_and_missing_ones_are_named() {
+        let (tree, morph, _) = spot();
+        let dir = trained_ace_dir();
+        let files: std::collections::BTreeMap<String, Vec<u8>> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file())
+            .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), fs::read(&p).unwrap()))
+            .collect();
+        let walk = &bundled_humans().clips[1].states;
+        let from_disk = Retargeter::load(dir, Device::Cpu).unwrap();
+        let in_memory = Retargeter::load_files(&CheckpointFiles::in_memory(dir, files.clone()), Device::Cpu).unwrap();
+        assert_eq!(
+            from_disk.retarget_states(tree, morph, walk).unwrap(),
+            in_memory.retarget_states(tree, morph, walk).unwrap()
+        );
+        let mut partial = files;
+        partial.remove(GENERATOR_FILE);
+        let e = Retargeter::load_files(&CheckpointFiles::in_memory(dir, partial), Device::Cpu).unwrap_err();
+        assert!(e.to_string().ends_with(&format!("{GENERATOR_FILE}: missing file")), "{e}");
+        assert!(e.to_string().contains(&dir.display().to_string()), "{e}");
     }
 
     #[test]

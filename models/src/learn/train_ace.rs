@@ -598,7 +598,7 @@ mod tests {
         ] {
             assert!(dir.join(f).is_file(), "{f} missing");
         }
-        let record = super::super::ace::read_record(&dir.join(ACE_FILE)).unwrap();
+        let record = super::super::ace::read_record(&dir).unwrap();
         assert_eq!(record.step, 100);
         assert_eq!(record.config, tiny_config(100));
         assert_eq!(record.human_split.train.len(), 3);
