@@ -52,7 +52,8 @@ if [ "$have" != "$torch_version" ]; then
 else
   log "torch $torch_version present"
 fi
-torch_dir="$("$venv/bin/python" -c 'import os, torch; print(os.path.dirname(torch.__file__))')"
+# A relative link: it stays valid when .local is reached through another path (a linked copy).
+torch_dir="$("$venv/bin/python" -c 'import os, sys, torch; print(os.path.relpath(os.path.dirname(torch.__file__), sys.argv[1]))' "$local_dir")"
 ln -sfn "$torch_dir" "$local_dir/libtorch"
 test -f "$local_dir/libtorch/lib/libtorch_cpu.so" || { echo "setup: $local_dir/libtorch/lib/libtorch_cpu.so missing" >&2; exit 1; }
 log "libtorch at $local_dir/libtorch -> $torch_dir"

@@ -6,9 +6,9 @@
 //! cargo bench -p ace_models --bench inference
 //! ```
 //! Rows:
-//! - `step ×N`: [`Retargeter::step`] for a batch of N characters driven by N human frames: x^h
-//!   normalisation, G, π and the denormalised states back in Rust vectors — the networks' share of a
-//!   frame;
+//! - `step ×N`: [`Retargeter::step`] for N characters driven by N human frames in one batch: x^h
+//!   normalisation, G, π, and each character's pose with its cleanup — what the Bevy plugin's worker
+//!   pays per frame;
 //! - `whole frame ×1`: [`Retargeter::retarget_states`] per frame on a held clip: the networks plus the
 //!   pose (root integration, joint limits, wheels) and foot locking — what `ace retarget` pays.
 //!
@@ -49,21 +49,20 @@ fn main() {
     for name in ["spot", "crab", "stretch"] {
         let dir = root.join("assets/checkpoints").join(name);
         let (tree, morph) = load_character(&root.join(format!("assets/characters/{name}.urdf"))).expect("bundled character");
-        let mut r = match Retargeter::load(&dir, Device::Cpu) {
+        let r = match Retargeter::load(&dir, Device::Cpu) {
             Ok(r) => r,
             Err(e) => {
                 println!("| {name} | no checkpoint: {e} | | | | |");
                 continue;
             }
         };
-        let start = r.start_state(&tree, &morph).expect("start state");
         for batch in [1usize, 16, 64] {
-            r.reset(&vec![start.clone(); batch]).expect("reset");
+            let mut streams: Vec<_> = (0..batch).map(|_| r.stream(&tree, &morph).expect("stream")).collect();
             let mut times = Vec::new();
             for (t, x) in looped.iter().enumerate() {
                 let inputs = vec![*x; batch];
                 let t0 = Instant::now();
-                let out = r.step(&inputs);
+                let out = r.step(&tree, &morph, &mut streams.iter_mut().collect::<Vec<_>>(), &inputs).expect("step");
                 let dt = t0.elapsed().as_secs_f64() * 1e3;
                 assert_eq!(out.len(), batch);
                 if t >= 30 {

@@ -16,10 +16,10 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::Vector2;
+use nalgebra::{Isometry3, Vector2};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use tch::{Device, Kind, Tensor};
+use tch::{Device, Tensor};
 
 use super::ace::AceCheckpoint;
 use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
@@ -27,7 +27,7 @@ use super::files::CheckpointFiles;
 use super::prior::normals;
 use super::{rows_to_tensor, tensor_to_rows};
 use crate::character_state::{CharacterLayout, StateScratch, character_state, character_state_into, decode_pose};
-use crate::cleanup::{Cleanup, CleanupPass};
+use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
 use crate::controller::wheels;
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
@@ -53,8 +53,6 @@ pub struct Retargeter {
     ace: AceCheckpoint,
     human_mean: Tensor,
     human_std: Tensor,
-    /// `[N, D]` normalised previous states of the batch.
-    prev: Tensor,
     /// The cleanup whole-motion rollouts pass through.
     cleanup: Cleanup,
     /// The root heights the character's dataset spans (m), when the prior's bounds say.
@@ -97,7 +95,6 @@ impl Retargeter {
         Ok(Retargeter {
             human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
             human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
-            prev: Tensor::zeros([0, prior.prior.state_dim() as i64], (Kind::Float, device)),
             cleanup: Cleanup::default(),
             root_height_range,
             dir: dir.to_path_buf(),
@@ -153,47 +150,50 @@ impl Retargeter {
             .collect())
     }
 
-    /// Starts a batch: one normalised start state per character (e.g. [`Retargeter::start_state`]).
-    pub fn reset(&mut self, starts: &[Vec<f32>]) -> Result<(), LearnError> {
-        let t = rows_to_tensor(starts, self.prior.prior.device())?;
-        if starts.is_empty() {
-            self.prev = t.view([0, self.state_dim() as i64]);
-            return Ok(());
-        }
-        if t.size()[1] != self.state_dim() as i64 {
+    /// Starts driving one character (the checkpoint's): standing at rest at the origin facing +x,
+    /// with this retargeter's cleanup. Advance it with [`Retargeter::step`].
+    pub fn stream(&self, tree: &KinematicTree, morph: &Morphology) -> Result<CharacterStream, LearnError> {
+        let start = self.start_state(tree, morph)?;
+        Ok(CharacterStream {
+            prev: rows_to_tensor(&[start], self.prior.prior.device())?,
+            decoder: StateDecoder::new(tree, morph, &self.cleanup, self.root_height_range),
+        })
+    }
+
+    /// One frame for several characters at once (one batched pass of G and π): `x_h[i]` drives
+    /// `streams[i]`, all of them the checkpoint's character `tree`/`morph`. Returns each character's
+    /// new state and pose, exactly as a whole-motion rollout ([`Retargeter::retarget_states`]) makes
+    /// them frame by frame.
+    pub fn step(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        streams: &mut [&mut CharacterStream],
+        x_h: &[HumanRow],
+    ) -> Result<Vec<RetargetedFrame>, LearnError> {
+        if streams.len() != x_h.len() {
             return Err(LearnError::Data(format!(
-                "start states have {} values, the character's states have {}",
-                t.size()[1],
-                self.state_dim()
+                "{} human states for {} characters: one per character",
+                x_h.len(),
+                streams.len()
             )));
         }
-        self.prev = t;
-        Ok(())
-    }
-
-    /// Characters in the current batch.
-    pub fn batch_size(&self) -> usize {
-        self.prev.size()[0] as usize
-    }
-
-    /// One frame for the whole batch: `x_h[i]` drives character `i`. Returns each character's new
-    /// denormalised x^r (wheel-angle entries hold the dataset mean: the networks do not model them).
-    ///
-    /// # Panics
-    /// If `x_h.len()` is not [`Retargeter::batch_size`] (call [`Retargeter::reset`] first).
-    pub fn step(&mut self, x_h: &[HumanRow]) -> Vec<Vec<f32>> {
-        assert_eq!(
-            x_h.len(),
-            self.batch_size(),
-            "one human state per character of the batch (call reset first)"
-        );
-        if x_h.is_empty() {
-            return Vec::new();
+        if streams.is_empty() {
+            return Ok(Vec::new());
         }
-        let next = self.advance(x_h, &self.prev);
-        let rows = self.prior.stats.denormalise(&next);
-        self.prev = next;
-        tensor_to_rows(&rows, self.state_dim()).expect("the prior's output has the state width")
+        let prev = Tensor::cat(&streams.iter().map(|s| &s.prev).collect::<Vec<_>>(), 0);
+        let next = self.advance(x_h, &prev);
+        let rows = tensor_to_rows(&self.prior.stats.denormalise(&next), self.state_dim())?;
+        Ok(streams
+            .iter_mut()
+            .zip(rows)
+            .enumerate()
+            .map(|(i, (stream, mut state))| {
+                stream.prev = next.narrow(0, i as i64, 1).copy();
+                let pose = stream.decoder.decode(tree, morph, &mut state);
+                RetargetedFrame { state, pose }
+            })
+            .collect())
     }
 
     /// `π(G(x^h, prev), prev)` without gradients, normalised.
@@ -270,61 +270,109 @@ impl Retargeter {
         frames: usize,
         latent: &mut dyn FnMut(usize, &Tensor) -> Tensor,
     ) -> Result<RetargetedMotion, LearnError> {
-        let start = self.start_state(tree, morph)?;
-        let layout = CharacterLayout::new(tree, morph);
-        let dt = 1.0 / PROJECT_FPS;
-        let standing = tree.standing_pose();
-        let wheels = wheels::find(tree, morph, &standing);
-        let mut prev = rows_to_tensor(&[start], self.prior.prior.device())?;
-        let mut root = standing.root;
-        let mut wheel_q = standing.q.clone();
+        let mut stream = self.stream(tree, morph)?;
         let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
-        let joints = layout.joint_positions();
-        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, &self.cleanup);
-        let mut cleanup_state = cleanup.start();
-        let mut prev_pose = standing.clone();
-        let mut recomputed = vec![0.0; layout.dim()];
-        let mut state_scratch = StateScratch::default();
         for t in 0..frames {
             let next = tch::no_grad(|| {
-                let z = latent(t, &prev);
-                self.prior.prior.decode(&z, &prev)
+                let z = latent(t, &stream.prev);
+                self.prior.prior.decode(&z, &stream.prev)
             });
-            let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), layout.dim())?.remove(0);
-            prev = next;
-            if let Some((lo, hi)) = self.root_height_range.filter(|_| cleanup.is_active()) {
-                // The prior's clamp leaves a margin beyond the data; a low body can sink into the
-                // ground inside it.
-                let h = &mut state[layout.root_height()][0];
-                *h = h.clamp(lo, hi);
-            }
-            let mut pose = decode_pose(&layout, &root, &state);
-            tree.clamp(&mut pose.q);
-            let v = &state[layout.root_linear_velocity()];
-            let wz = state[layout.root_angular_velocity()][2];
-            wheels::roll(&wheels, &mut wheel_q, Vector2::new(v[0], v[1]), wz, dt);
-            for w in &wheels {
-                pose.q[w.dof] = wheel_q[w.dof];
-            }
-            if cleanup.is_active() {
-                cleanup.apply(tree, &mut cleanup_state, &mut pose);
-                // The end-effector entries follow the cleaned-up joints.
-                character_state_into(tree, morph, &prev_pose, &pose, dt, &mut state_scratch, &mut recomputed);
-                for r in [layout.ee_positions(), layout.ee_velocities()] {
-                    state[r.clone()].copy_from_slice(&recomputed[r]);
-                }
-            }
-            state[joints.clone()].copy_from_slice(&pose.q);
-            root = pose.root;
-            prev_pose = pose.clone();
+            let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), self.state_dim())?.remove(0);
+            stream.prev = next;
+            poses.push(stream.decoder.decode(tree, morph, &mut state));
             states.push(state);
-            poses.push(pose);
         }
         Ok(RetargetedMotion {
             fps: PROJECT_FPS,
             states,
             poses,
         })
+    }
+}
+
+/// One character being retargeted frame by frame ([`Retargeter::stream`], [`Retargeter::step`]).
+#[derive(Debug)]
+pub struct CharacterStream {
+    /// `[1, D]` normalised previous state, the networks' input.
+    prev: Tensor,
+    decoder: StateDecoder,
+}
+
+/// One frame of a [`CharacterStream`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RetargetedFrame {
+    /// Denormalised x^r (joint and end-effector entries as in `pose`).
+    pub state: Vec<f32>,
+    /// The character's pose.
+    pub pose: CharacterPose,
+}
+
+/// Turns a character's successive denormalised states into poses (see the module docs): the
+/// integrated root, joint limits, rolled wheels, the cleanup and its memory.
+#[derive(Debug)]
+struct StateDecoder {
+    layout: CharacterLayout,
+    wheels: Vec<crate::controller::Wheel>,
+    root: Isometry3<f32>,
+    wheel_q: Vec<f32>,
+    cleanup: CleanupPass,
+    cleanup_state: CleanupState,
+    root_height_range: Option<(f32, f32)>,
+    prev_pose: CharacterPose,
+    recomputed: Vec<f32>,
+    scratch: StateScratch,
+}
+
+impl StateDecoder {
+    fn new(tree: &KinematicTree, morph: &Morphology, cleanup: &Cleanup, root_height_range: Option<(f32, f32)>) -> StateDecoder {
+        let layout = CharacterLayout::new(tree, morph);
+        let standing = tree.standing_pose();
+        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup);
+        StateDecoder {
+            wheels: wheels::find(tree, morph, &standing),
+            root: standing.root,
+            wheel_q: standing.q.clone(),
+            cleanup_state: cleanup.start(),
+            cleanup,
+            root_height_range,
+            recomputed: vec![0.0; layout.dim()],
+            layout,
+            prev_pose: standing,
+            scratch: StateScratch::default(),
+        }
+    }
+
+    /// The pose of the next state; `state` is updated to carry the pose's joints (and, after a
+    /// cleanup, its end effectors).
+    fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32]) -> CharacterPose {
+        let layout = &self.layout;
+        let dt = 1.0 / PROJECT_FPS;
+        if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.is_active()) {
+            // The prior's clamp leaves a margin beyond the data; a low body can sink into the
+            // ground inside it.
+            let h = &mut state[layout.root_height()][0];
+            *h = h.clamp(lo, hi);
+        }
+        let mut pose = decode_pose(layout, &self.root, state);
+        tree.clamp(&mut pose.q);
+        let v = &state[layout.root_linear_velocity()];
+        let wz = state[layout.root_angular_velocity()][2];
+        wheels::roll(&self.wheels, &mut self.wheel_q, Vector2::new(v[0], v[1]), wz, dt);
+        for w in &self.wheels {
+            pose.q[w.dof] = self.wheel_q[w.dof];
+        }
+        if self.cleanup.is_active() {
+            self.cleanup.apply(tree, &mut self.cleanup_state, &mut pose);
+            // The end-effector entries follow the cleaned-up joints.
+            character_state_into(tree, morph, &self.prev_pose, &pose, dt, &mut self.scratch, &mut self.recomputed);
+            for r in [layout.ee_positions(), layout.ee_velocities()] {
+                state[r.clone()].copy_from_slice(&self.recomputed[r]);
+            }
+        }
+        state[layout.joint_positions()].copy_from_slice(&pose.q);
+        self.root = pose.root;
+        self.prev_pose = pose.clone();
+        pose
     }
 }
 
@@ -416,6 +464,37 @@ mod tests {
     }
 
     #[test]
+    fn streams_stepped_together_follow_the_whole_motion_rollout() {
+        let (tree, morph, _) = spot();
+        let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
+        let humans = bundled_humans();
+        let (walk, wave) = (&humans.clips[1].states, &humans.clips[2].states);
+        let frames = walk.len().min(wave.len()).min(90);
+        let whole_walk = r.retarget_states(tree, morph, &walk[..frames]).unwrap();
+        let whole_wave = r.retarget_states(tree, morph, &wave[..frames]).unwrap();
+        // One stream alone is the rollout itself; three in a batch (two on the same clip) agree up
+        // to the rounding of a batched matrix product.
+        let mut alone = r.stream(tree, morph).unwrap();
+        let mut a = r.stream(tree, morph).unwrap();
+        let mut b = r.stream(tree, morph).unwrap();
+        let mut c = r.stream(tree, morph).unwrap();
+        for t in 0..frames {
+            let single = r.step(tree, morph, &mut [&mut alone], &[walk[t]]).unwrap();
+            assert_eq!(single[0].pose, whole_walk.poses[t], "frame {t}");
+            assert_eq!(single[0].state, whole_walk.states[t], "frame {t}");
+            let out = r.step(tree, morph, &mut [&mut a, &mut b, &mut c], &[walk[t], wave[t], walk[t]]).unwrap();
+            for (got, want) in [(&out[0], &whole_walk), (&out[1], &whole_wave), (&out[2], &whole_walk)] {
+                let d = (got.pose.root.translation.vector - want.poses[t].root.translation.vector).norm();
+                assert!(d < 1e-3, "frame {t}: root {d} m away");
+                let dq = got.pose.q.iter().zip(&want.poses[t].q).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+                assert!(dq < 1e-2, "frame {t}: a joint {dq} rad away");
+            }
+        }
+        let err = r.step(tree, morph, &mut [&mut a], &[walk[0], walk[1]]).unwrap_err();
+        assert!(err.to_string().contains("2 human states for 1 characters"), "{err}");
+    }
+
+    #[test]
     fn files_in_memory_load_like_the_directory_and_missing_ones_are_named() {
         let (tree, morph, _) = spot();
         let dir = trained_ace_dir();
@@ -454,34 +533,6 @@ mod tests {
         let walk = &bundled_humans().clips[1].states;
         let g = r.retarget_states(tree, morph, &walk[..90.min(walk.len())]).unwrap();
         assert_ne!(g.states[..g.states.len()], a.states[..g.states.len()]);
-    }
-
-    #[test]
-    fn a_batch_steps_each_character_on_its_own() {
-        let (tree, morph, _) = spot();
-        let mut r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
-        let start = r.start_state(tree, morph).unwrap();
-        let clips = &bundled_humans().clips;
-        let (walk, wave) = (&clips[1].states, &clips[2].states);
-        // `step` returns the networks' raw states: compare with the raw whole-clip rollout.
-        r.set_cleanup(Cleanup::NONE);
-        let single = r.retarget_states(tree, morph, &walk[..20]).unwrap();
-        r.reset(&vec![start; 3]).unwrap();
-        assert_eq!(r.batch_size(), 3);
-        let layout = CharacterLayout::new(tree, morph);
-        let root = 0..layout.joint_positions().start;
-        for t in 0..20 {
-            let out = r.step(&[walk[t], wave[t], walk[t]]);
-            assert_eq!(out.len(), 3);
-            // Characters 0 and 2 see the same motion from the same start (equal up to the rounding
-            // of batched matrix products); 1 does not.
-            let gap = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
-            assert!(gap(&out[0], &out[2]) < 1e-4, "frame {t}");
-            assert!(gap(&out[0], &out[1]) > 1e-3, "frame {t}");
-            for (a, b) in out[0][root.clone()].iter().zip(&single.states[t][root.clone()]) {
-                assert!((a - b).abs() < 1e-4, "frame {t}: {a} vs {b}");
-            }
-        }
     }
 
     #[test]
