@@ -164,3 +164,229 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
     assert!(msg.to_lowercase().contains("cycle") || msg.to_lowercase().contains("root"), "{msg}");
     assert!(app.world().get::<CharacterLinks>(character).is_none());
 }
+
+// ---- Characters driven by a checkpoint (the Retargeter component) ----
+
+use ace::models::human::state::HumanState;
+use ace::models::human::{HumanClip, ImportOptions};
+use ace::models::human_set::HumanRow;
+use ace::models::learn::retarget::{RetargetedMotion, Retargeter as Offline};
+use ace::models::morphology::load_character;
+
+fn asset_path(path: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(path)
+}
+
+/// What `ace retarget` writes for a bundled clip and character with its shipped checkpoint (the CLI
+/// calls this same function; the CLI tests check the files).
+fn offline(character: &str, clip: &str) -> RetargetedMotion {
+    let (tree, morph) = load_character(&asset_path(&format!("characters/{character}.urdf"))).unwrap();
+    let r = Offline::load(&asset_path(&format!("checkpoints/{character}")), ace::models::learn::Device::Cpu).unwrap();
+    let clip = HumanClip::from_bvh_file(&asset_path(&format!("motions/{clip}")), &ImportOptions::default()).unwrap();
+    r.retarget_clip(&tree, &morph, &clip).unwrap()
+}
+
+/// Errors written so far.
+#[derive(Resource, Default)]
+struct SeenErrors(Vec<RetargetError>);
+
+fn record_errors(mut errors: MessageReader<RetargetError>, mut seen: ResMut<SeenErrors>) {
+    seen.0.extend(errors.read().cloned());
+}
+
+fn retargeting_app() -> App {
+    let mut app = app();
+    app.init_resource::<SeenErrors>().add_systems(Last, record_errors);
+    app
+}
+
+/// A driven character: its URDF and a retargeter on it.
+fn spawn_driven(app: &mut App, character: &str, checkpoint: &str, source: Entity, x: f32) -> Entity {
+    let server = app.world().resource::<AssetServer>().clone();
+    app.world_mut()
+        .spawn((
+            Character::new(server.load(format!("characters/{character}.urdf"))),
+            Retargeter::new(server.load(format!("checkpoints/{checkpoint}/ace.json")), source),
+            Transform::from_xyz(x, 0.0, 0.0),
+        ))
+        .id()
+}
+
+fn tick(app: &App, e: Entity) -> Option<i64> {
+    match app.world().get::<RetargetStatus>(e) {
+        Some(RetargetStatus::Running { tick }) => Some(*tick),
+        Some(RetargetStatus::Failed(m)) => panic!("retargeter failed: {m}"),
+        _ => None,
+    }
+}
+
+/// Largest distance (m) and quaternion difference (about half the angle in rad, without the
+/// rounding `angle_between` suffers near zero) between the character's link transforms and those of `pose`
+/// placed by the character's transform.
+fn link_gap(app: &App, e: Entity, pose: &CharacterPose) -> (f32, f32) {
+    let character = app.world().get::<Character>(e).unwrap().urdf.clone();
+    let urdf = app.world().resource::<Assets<UrdfAsset>>().get(&character).unwrap().clone();
+    let placement = *app.world().get::<Transform>(e).unwrap();
+    let expected = urdf.tree.forward_kinematics(pose);
+    let links = &app.world().get::<CharacterLinks>(e).unwrap().0;
+    let (mut d, mut a) = (0.0f32, 0.0f32);
+    for (i, &link) in links.iter().enumerate() {
+        let got = app.world().get::<GlobalTransform>(link).unwrap().compute_transform();
+        let want = placement * convert::transform(&expected[i]);
+        d = d.max(got.translation.distance(want.translation));
+        a = a.max((got.rotation - want.rotation).length().min((got.rotation + want.rotation).length()));
+    }
+    (d, a)
+}
+
+/// Spawns a paused walk player, waits until `characters` show tick 0, then unpauses.
+fn start_together(app: &mut App, player: Entity, characters: &[Entity]) {
+    update_until(app, |w| {
+        characters.iter().all(|&e| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Running { tick: 0 })))
+    });
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = false;
+}
+
+fn paused_player(app: &mut App, clip: &str) -> Entity {
+    let handle: Handle<BvhAsset> = app.world().resource::<AssetServer>().load(format!("motions/{clip}"));
+    let mut p = HumanClipPlayer::new(handle);
+    p.paused = true;
+    p.looping = false;
+    app.world_mut().spawn(p).id()
+}
+
+/// Link transforms within 0.1 mm and 0.001 (quaternion difference) of the offline motion, frame
+/// for frame.
+#[test]
+fn a_retargeted_character_moves_as_ace_retarget_writes_it() {
+    let want = offline("spot", "walk.bvh");
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 1.5);
+    start_together(&mut app, player, &[spot]);
+    let mut seen = Vec::new();
+    for _ in 0..90 {
+        app.update();
+        let t = tick(&app, spot).unwrap();
+        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
+        seen.push(t);
+    }
+    // One tick per fixed step, one frame behind the clip.
+    assert_eq!(seen, (0..90).collect::<Vec<i64>>());
+    let moved = want.poses[89].root.translation.vector - want.poses[0].root.translation.vector;
+    assert!(moved.norm() > 0.3, "the walk moves Spot ({} m)", moved.norm());
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+}
+
+#[test]
+fn one_clip_drives_several_characters_and_a_seek_back_starts_over() {
+    let (spot_walk, crab_walk) = (offline("spot", "walk.bvh"), offline("crab", "walk.bvh"));
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let characters = [
+        spawn_driven(&mut app, "spot", "spot", player, 1.5),
+        spawn_driven(&mut app, "spot", "spot", player, 3.0),
+        spawn_driven(&mut app, "crab", "crab", player, -1.5),
+    ];
+    start_together(&mut app, player, &characters);
+    for _ in 0..45 {
+        app.update();
+        for (&e, want) in characters.iter().zip([&spot_walk, &spot_walk, &crab_walk]) {
+            let t = tick(&app, e).unwrap();
+            // Batched with another character: equal up to the rounding of batched products.
+            let (d, a) = link_gap(&app, e, &want.poses[t as usize]);
+            assert!(d < 2e-3 && a < 2e-2, "tick {t}: links {d} m and {a} rad from the offline motion");
+        }
+    }
+    assert_eq!(tick(&app, characters[0]), tick(&app, characters[2]));
+    // Scrubbing back: every character starts again from rest at the new time.
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().seek(0.0);
+    app.update();
+    app.update();
+    for (&e, want) in characters.iter().zip([&spot_walk, &spot_walk, &crab_walk]) {
+        assert_eq!(tick(&app, e), Some(0));
+        let (d, _) = link_gap(&app, e, &want.poses[0]);
+        assert!(d < 2e-3, "restarted at the clip's first pose ({d} m away)");
+    }
+}
+
+#[test]
+fn a_live_source_fed_from_code_drives_a_character() {
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();
+    let mut app = retargeting_app();
+    let source = app.world_mut().spawn(LiveHuman::default()).id();
+    let spot = spawn_driven(&mut app, "spot", "spot", source, 0.0);
+    // Frames arrive one per step, stamped with the stream's clock.
+    let send = |app: &mut App, k: usize| {
+        app.world_mut().write_message(LiveHumanFrame { source, time: k as f32 / 30.0, frame: clip.frames[k].clone() });
+    };
+    send(&mut app, 0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(spot), Some(RetargetStatus::Running { .. })));
+    for k in 1..60 {
+        send(&mut app, k);
+        app.update();
+    }
+    app.update();
+    assert_eq!(tick(&app, spot), Some(59));
+    // The same as retargeting the frames offline, with the live rule for the first frame (no
+    // next frame yet: no velocities).
+    let frames = &clip.frames[..60];
+    let rows: Vec<HumanRow> = (0..60)
+        .map(|k| {
+            // What the stream held at tick k: frames 0..=k.
+            let at = |t: f32| frames[((t * 30.0).round() as usize).min(k)].clone();
+            HumanState::sampled(at, k as f32 / 30.0, 1.0 / 30.0, k == 0).0
+        })
+        .collect();
+    let (tree, morph) = load_character(&asset_path("characters/spot.urdf")).unwrap();
+    let r = Offline::load(&asset_path("checkpoints/spot"), ace::models::learn::Device::Cpu).unwrap();
+    let want = r.retarget_states(&tree, &morph, &rows).unwrap();
+    let (d, a) = link_gap(&app, spot, &want.poses[59]);
+    assert!(d < 1e-4 && a < 1e-3, "links {d} m and {a} rad from the offline motion");
+}
+
+#[test]
+fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let missing = spawn_driven(&mut app, "spot", "no_such_checkpoint", player, 0.0);
+    let mismatched = spawn_driven(&mut app, "spot", "crab", player, 1.0);
+    let sourceless = spawn_driven(&mut app, "spot", "spot", player, 2.0);
+    app.world_mut().get_mut::<Retargeter>(sourceless).unwrap().source = missing;
+    let failed = |w: &mut World, e: Entity| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Failed(_)));
+    update_until(&mut app, |w| [missing, mismatched, sourceless].iter().all(|&e| failed(w, e)));
+    app.update();
+    let errors = &app.world().resource::<SeenErrors>().0;
+    let message = |e: Entity| {
+        let m: Vec<&str> = errors.iter().filter(|r| r.entity == e).map(|r| r.message.as_str()).collect();
+        assert_eq!(m.len(), 1, "one message per failure: {m:?}");
+        m[0].to_string()
+    };
+    let m = message(missing);
+    assert!(m.contains("no_such_checkpoint/ace.json"), "{m}");
+    let m = message(mismatched);
+    assert!(m.contains("checkpoints/crab") && m.contains("does not fit character spot"), "{m}");
+    let m = message(sourceless);
+    assert!(m.contains("neither a HumanClipPlayer nor a LiveHuman"), "{m}");
+    // A broken checkpoint file fails to load with its name.
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-broken-checkpoint");
+    let ckpt = dir.join("checkpoints/spot");
+    std::fs::create_dir_all(&ckpt).unwrap();
+    for f in ["ace.json", "config.json", "prior.safetensors"] {
+        std::fs::copy(asset_path("checkpoints/spot").join(f), ckpt.join(f)).unwrap();
+    }
+    std::fs::write(ckpt.join("generator.safetensors"), b"not a safetensors file").unwrap();
+    std::fs::create_dir_all(dir.join("characters")).unwrap();
+    std::fs::copy(asset_path("characters/spot.urdf"), dir.join("characters/spot.urdf")).unwrap();
+    std::fs::create_dir_all(dir.join("motions")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), dir.join("motions/walk.bvh")).unwrap();
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    app.init_resource::<SeenErrors>().add_systems(Last, record_errors);
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| failed(w, spot));
+    let Some(RetargetStatus::Failed(m)) = app.world().get::<RetargetStatus>(spot) else { unreachable!() };
+    assert!(m.contains("generator.safetensors"), "{m}");
+}

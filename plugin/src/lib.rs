@@ -18,10 +18,16 @@
 
 pub mod assets;
 pub mod character;
+#[cfg(feature = "learn")]
+pub mod checkpoint;
 pub mod convert;
 pub mod human;
 #[cfg(feature = "render")]
 pub mod render;
+#[cfg(feature = "learn")]
+pub mod retarget;
+#[cfg(feature = "learn")]
+mod worker;
 
 pub use ace_models;
 
@@ -32,7 +38,11 @@ use bevy::transform::TransformSystems;
 pub mod prelude {
     pub use crate::assets::{BvhAsset, BvhSettings, UrdfAsset};
     pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
+    #[cfg(feature = "learn")]
+    pub use crate::checkpoint::CheckpointAsset;
     pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};
+    #[cfg(feature = "learn")]
+    pub use crate::retarget::{LiveHuman, LiveHumanFrame, RetargetError, RetargetStatus, Retargeter};
     pub use crate::{AcePlugin, AceSystems};
 }
 
@@ -43,11 +53,15 @@ pub enum AceSystems {
     Spawn,
     /// Advance clip players and sample their clips.
     Advance,
+    /// Drive characters with a [`retarget::Retargeter`] (feature `learn`): write the poses computed
+    /// during the previous frame, send this frame's human states to the worker threads.
+    Retarget,
     /// Turn poses into link and joint [`Transform`]s.
     Apply,
 }
 
-/// Registers the `.urdf` and `.bvh` assets and the systems that spawn, play and pose them.
+/// Registers the `.urdf` and `.bvh` assets (and with feature `learn` the checkpoint asset) and the
+/// systems that spawn, play, retarget and pose them.
 /// Needs an `AssetPlugin` and Bevy's transform plugin (both in `DefaultPlugins`).
 pub struct AcePlugin;
 
@@ -59,7 +73,7 @@ impl Plugin for AcePlugin {
             .register_asset_loader(assets::BvhLoader)
             .configure_sets(
                 PostUpdate,
-                (AceSystems::Spawn, AceSystems::Advance, AceSystems::Apply).chain().before(TransformSystems::Propagate),
+                (AceSystems::Spawn, AceSystems::Advance, AceSystems::Retarget, AceSystems::Apply).chain().before(TransformSystems::Propagate),
             )
             .add_systems(
                 PostUpdate,
@@ -68,6 +82,18 @@ impl Plugin for AcePlugin {
                     human::advance_players.in_set(AceSystems::Advance),
                     (character::apply_poses, human::apply_human_poses).in_set(AceSystems::Apply),
                 ),
+            );
+        #[cfg(feature = "learn")]
+        app.init_asset::<checkpoint::CheckpointAsset>()
+            .register_asset_loader(checkpoint::CheckpointLoader)
+            .init_resource::<retarget::Workers>()
+            .add_message::<retarget::LiveHumanFrame>()
+            .add_message::<retarget::RetargetError>()
+            .add_systems(
+                PostUpdate,
+                (retarget::receive_live_frames, retarget::collect_poses, retarget::request_poses)
+                    .chain()
+                    .in_set(AceSystems::Retarget),
             );
     }
 }

@@ -115,6 +115,20 @@ impl HumanState {
         HumanState(x)
     }
 
+    /// x^h at time `t` of a motion sampled by `frame_at` (seconds → frame), with velocities over
+    /// `dt`: the backward difference from `t − dt`, or for the first state of a sequence (`first`)
+    /// the forward difference to `t + dt`. This is the rule of [`HumanClip::states`], for motion
+    /// that is sampled or arrives frame by frame; a sampler that clamps at its latest frame gives
+    /// a first state without velocities.
+    pub fn sampled(frame_at: impl Fn(f32) -> HumanFrame, t: f32, dt: f32, first: bool) -> HumanState {
+        let cur = frame_at(t);
+        if first {
+            HumanState::from_frames(&cur, &cur, &frame_at(t + dt), dt)
+        } else {
+            HumanState::from_frames(&cur, &frame_at(t - dt), &cur, dt)
+        }
+    }
+
     /// All values.
     pub fn as_slice(&self) -> &[f32] {
         &self.0
@@ -194,6 +208,22 @@ mod tests {
             layout::joint_position(Joint::RightFoot).end,
             layout::JOINT_POSITIONS.end
         );
+    }
+
+    #[test]
+    fn sampling_a_clip_tick_by_tick_gives_its_states() {
+        let clip = HumanClip::from_bvh_file(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh"),
+            &crate::human::ImportOptions::default(),
+        )
+        .unwrap();
+        let at30 = clip.resampled(30.0);
+        let states = at30.states();
+        for (k, want) in states.iter().enumerate().take(60) {
+            let got = HumanState::sampled(|t| clip.frame_at(t), k as f32 / 30.0, 1.0 / 30.0, k == 0);
+            let gap = got.0.iter().zip(&want.0).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            assert!(gap < 1e-4, "tick {k}: {gap}");
+        }
     }
 
     #[test]

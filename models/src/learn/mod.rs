@@ -21,7 +21,11 @@ pub mod psi;
 pub mod retarget;
 pub mod train_ace;
 
-use tch::{Device, Kind, Tensor};
+pub use files::CheckpointFiles;
+/// The device type inference and training take (libtorch's), for callers that do not use tch.
+pub use tch::Device;
+
+use tch::{Kind, Tensor};
 
 /// Errors raised when data handed to the learning code has the wrong shape.
 #[derive(Debug, thiserror::Error)]

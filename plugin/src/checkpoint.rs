@@ -1,0 +1,87 @@
+//! Trained checkpoints as assets (feature `learn`): load `<dir>/ace.json` as a [`CheckpointAsset`]
+//! and its sibling files come with it.
+//!
+//! ```no_run
+//! # use bevy::prelude::*;
+//! # use bevy_ace::prelude::*;
+//! fn load(assets: Res<AssetServer>) {
+//!     let checkpoint: Handle<CheckpointAsset> = assets.load("checkpoints/spot/ace.json");
+//! }
+//! ```
+//!
+//! The loader is chosen by the asset type (it claims no file extension, so other `.json` loaders are
+//! unaffected). It reads the generator and the motion prior beside `ace.json` through the asset
+//! reader and loads them once to check that they belong together; a missing or broken file fails the
+//! load with its path and the problem.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use ace_models::learn::ace::{ACE_FILE, GENERATOR_FILE};
+use ace_models::learn::checkpoint::{CONFIG_FILE, CharacterInfo, WEIGHTS_FILE};
+use ace_models::learn::retarget::Retargeter;
+use ace_models::learn::{CheckpointFiles, Device};
+use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
+use bevy::reflect::TypePath;
+
+use crate::assets::AceAssetError;
+
+/// The files of a trained checkpoint (prior and generator), checked to load and to belong together.
+/// The networks themselves live in the plugin's worker threads (libtorch objects are not `Sync`).
+#[derive(Asset, TypePath, Clone, Debug)]
+pub struct CheckpointAsset {
+    /// The checkpoint's files, in memory.
+    pub files: Arc<CheckpointFiles>,
+    /// The character the checkpoint was trained for.
+    pub character: CharacterInfo,
+}
+
+impl CheckpointAsset {
+    /// The checkpoint directory (as the asset path names it).
+    pub fn dir(&self) -> &Path {
+        self.files.dir()
+    }
+}
+
+/// Loads a checkpoint's `ace.json` and its siblings into a [`CheckpointAsset`].
+#[derive(Default, TypePath)]
+pub struct CheckpointLoader;
+
+/// The files inference needs besides `ace.json`.
+const SIBLINGS: [&str; 3] = [CONFIG_FILE, WEIGHTS_FILE, GENERATOR_FILE];
+
+impl AssetLoader for CheckpointLoader {
+    type Asset = CheckpointAsset;
+    type Settings = ();
+    type Error = AceAssetError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        ctx: &mut LoadContext<'_>,
+    ) -> Result<CheckpointAsset, AceAssetError> {
+        let path = ctx.path().to_string();
+        let dir: PathBuf = ctx.path().path().parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut files = BTreeMap::new();
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+        files.insert(ACE_FILE.to_string(), bytes);
+        for name in SIBLINGS {
+            // A missing file is left out: loading names it (`dir/<file>` is missing).
+            if let Ok(bytes) = ctx.read_asset_bytes(dir.join(name)).await {
+                files.insert(name.to_string(), bytes);
+            }
+        }
+        let files = CheckpointFiles::in_memory(&dir, files);
+        let retargeter = Retargeter::load_files(&files, Device::Cpu)
+            .map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
+        let character = retargeter.prior().character.clone();
+        Ok(CheckpointAsset { files: Arc::new(files), character })
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &[]
+    }
+}
