@@ -1,18 +1,6 @@
 //! `ace`: the command-line front of ACE retargeting.
 
-mod characters;
-mod dataset;
-mod demo;
-mod eval;
-mod humans;
-mod inspect;
-mod metrics;
-mod picture;
-mod progress;
-mod report;
-mod retarget;
-mod scoring;
-mod train;
+use ace::{dataset, demo, eval, inspect, metrics, retarget, train};
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -13,7 +13,7 @@ use ace::models::features::{
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
-use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
+use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, ufr_episodes};
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 
@@ -76,22 +76,7 @@ impl Scorer {
         FeatureBlock::ALL
             .iter()
             .map(|&block| {
-                let mut only = FeatureWeights {
-                    root_height: 0.0,
-                    root_orientation: 0.0,
-                    root_linear_velocity: 0.0,
-                    root_angular_velocity: 0.0,
-                    ee_positions: 0.0,
-                };
-                let w = self.weights.weight(block);
-                match block {
-                    FeatureBlock::RootHeight => only.root_height = w,
-                    FeatureBlock::RootOrientation => only.root_orientation = w,
-                    FeatureBlock::RootLinearVelocity => only.root_linear_velocity = w,
-                    FeatureBlock::RootAngularVelocity => only.root_angular_velocity = w,
-                    FeatureBlock::EePositions => only.ee_positions = w,
-                }
-                (block.name(), mean_feature_loss(&layout, psi, human_psi, &only))
+                (block.name(), mean_feature_loss(&layout, psi, human_psi, &self.weights.only(block)))
             })
             .collect()
     }
@@ -107,8 +92,21 @@ impl Scorer {
         poses: &[CharacterPose],
         episodes: &[Range<usize>],
     ) -> MetricsReport {
+        self.report_with_flags(tree, morph, psi, human_psi, poses, episodes).0
+    }
+
+    /// [`Scorer::report`] with the UFR detectors' per-frame flags.
+    pub fn report_with_flags(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        psi: &[Vec<f32>],
+        human_psi: Option<&[Vec<f32>]>,
+        poses: &[CharacterPose],
+        episodes: &[Range<usize>],
+    ) -> (MetricsReport, UfrReport) {
         let ufr = ufr_episodes(tree, morph, poses, episodes, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
-        MetricsReport::compute(
+        let report = MetricsReport::compute(
             &MetricsInput {
                 features: psi,
                 reference: self.reference.as_ref(),
@@ -118,6 +116,7 @@ impl Scorer {
                 div: DivConfig::default(),
             },
             &ufr,
-        )
+        );
+        (report, ufr)
     }
 }

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use ace::models::correspondence::{Correspondence, EndEffectorStats};
 use ace::models::dataset::{DatasetConfig, MotionSet, generate};
 use ace::models::features::{FeatureLayout, character_body_length, character_features};
+use ace::models::human_set::HumanSet;
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::AceConfig;
 use ace::models::learn::checkpoint::PriorCheckpoint;
@@ -59,7 +60,7 @@ fn read_config<T: DeserializeOwned + Default>(path: Option<&Path>, paper: impl F
 }
 
 /// Loads `--dataset` or generates the dataset with `cfg` (progress bar).
-fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&Path>, cfg: &DatasetConfig) -> Result<MotionSet> {
+pub fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&Path>, cfg: &DatasetConfig) -> Result<MotionSet> {
     if let Some(file) = file {
         let set = MotionSet::load(file)?;
         characters::check_dataset(&set, file, tree, urdf)?;
@@ -73,7 +74,7 @@ fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&
 }
 
 /// What the command line, data and code version were, for the checkpoint's provenance.
-fn provenance(extra: Value) -> Value {
+pub fn provenance(extra: Value) -> Value {
     let commit = git(&["rev-parse", "--short", "HEAD"]).map(|out| out.trim().to_string());
     // Uncommitted changes to tracked files mean the commit alone does not say which code ran.
     let modified = git(&["status", "--porcelain", "--untracked-files=no"]).map(|out| !out.is_empty());
@@ -161,12 +162,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     );
 
     let body = character_body_length(&tree, &morph);
-    let mut human_stats = EndEffectorStats::human();
-    for c in humans.train_clips() {
-        human_stats.add_human_states(&c.states, c.body_length);
-    }
-    let automatic = Correspondence::automatic(&EndEffectorStats::from_motion_set(&set, body), &human_stats)?;
-    let correspondence = cfg.resolve_mapping(automatic)?;
+    let correspondence = correspondence(&cfg, &set, &humans, body)?;
     println!("{correspondence}");
 
     write_reference(&dir, &set, &correspondence, body)?;
@@ -191,8 +187,19 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// The end-effector correspondence of Ψ: the automatic one between the dataset's and the training
+/// human clips' end-effector distributions, with `cfg`'s manual overrides.
+pub fn correspondence(cfg: &AceConfig, set: &MotionSet, humans: &HumanSet, body: f32) -> Result<Correspondence> {
+    let mut human_stats = EndEffectorStats::human();
+    for c in humans.train_clips() {
+        human_stats.add_human_states(&c.states, c.body_length);
+    }
+    let automatic = Correspondence::automatic(&EndEffectorStats::from_motion_set(set, body), &human_stats)?;
+    Ok(cfg.resolve_mapping(automatic)?)
+}
+
 /// Writes [`REFERENCE_FILE`]: the Gaussian fit of the dataset's Ψ under the chosen correspondence.
-fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Correspondence, body: f32) -> Result<()> {
+pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Correspondence, body: f32) -> Result<()> {
     let mapping = &correspondence.mapping;
     let psi: Vec<Vec<f32>> = (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, mapping)).collect();
     let fit = GaussianFit::fit(&psi);

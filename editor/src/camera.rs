@@ -14,7 +14,7 @@ pub struct OrbitCamera {
 
 impl Default for OrbitCamera {
     fn default() -> Self {
-        Self { focus: Vec3::new(0.0, 0.6, 0.0), yaw: 0.6, pitch: 0.35, distance: 4.5 }
+        Self { focus: Vec3::new(0.0, 0.6, 0.0), yaw: 0.5, pitch: 0.4, distance: 6.0 }
     }
 }
 

@@ -1,56 +1,55 @@
-//! The ACE editor: a Bevy + egui authoring app. For now it shows a character and a human clip side
-//! by side on a ground grid, with an orbit camera, summaries and playback controls.
+//! The ACE editor: a Bevy + egui authoring app. A human clip and a character side by side on a
+//! ground grid with an orbit camera; the clip retargeted with the character's checkpoint (exactly
+//! as `ace retarget` does), its metrics and flagged frames on a timeline; the end-effector mapping
+//! and the loss weights, "Retrain briefly" to fine-tune under them, and export to glTF and a robot
+//! command trajectory.
 //!
 //! ```text
-//! cargo run -p ace_editor -- [--character FILE.urdf] [--clip FILE.bvh] [--screenshot OUT.png]
+//! cargo run -p ace_editor -- [--character FILE.urdf] [--checkpoint DIR] [--clip FILE.bvh] [--tour DIR]
 //! ```
 
 mod camera;
+mod jobs;
+mod preview;
+mod retrain;
+mod tour;
 mod ui;
 
 use std::path::PathBuf;
 
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_ace::ace_models::human::Joint;
+use bevy_ace::ace_models::nalgebra::{UnitQuaternion, Vector3};
+use bevy_ace::convert;
 use bevy_ace::prelude::*;
 use bevy_egui::{EguiPlugin, EguiPrimaryContextPass};
 use clap::Parser;
 
 #[derive(Parser, Resource, Clone, Debug)]
-#[command(name = "ace-editor", about = "Preview human clips beside nonhuman characters")]
+#[command(name = "ace-editor", about = "Retarget human clips onto nonhuman characters, tune and export")]
 struct Args {
     /// Character URDF (a path, absolute or relative to the working directory).
     #[arg(long, default_value = "assets/characters/spot.urdf")]
     character: PathBuf,
+    /// Checkpoint directory; by default the one shipped for a bundled character.
+    #[arg(long)]
+    checkpoint: Option<PathBuf>,
     /// Human clip (BVH).
     #[arg(long, default_value = "assets/motions/walk.bvh")]
     clip: PathBuf,
-    /// Save a screenshot of the window to this PNG once the scene is loaded, then exit.
+    /// Run the scripted tour: screenshots of the main states into this folder (the preview, a
+    /// brief retraining under way, its result), with the figures in `tour.json`; then exit.
     #[arg(long)]
-    screenshot: Option<PathBuf>,
+    tour: Option<PathBuf>,
 }
 
-fn main() -> AppExit {
-    let args = Args::parse();
-    App::new()
-        .add_plugins(DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window { title: "ACE editor".into(), resolution: (1280, 720).into(), ..default() }),
-            ..default()
-        }).set(AssetPlugin {
-            // Paths given on the command line are resolved against the working directory.
-            file_path: std::env::current_dir().map(|d| d.display().to_string()).unwrap_or_else(|_| ".".into()),
-            // The user opens files anywhere on disk, not only below the working directory.
-            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
-            ..default()
-        }))
-        .add_plugins((EguiPlugin::default(), AcePlugin))
-        .insert_resource(args)
-        .init_resource::<camera::OrbitCamera>()
-        .add_systems(Startup, setup)
-        .add_systems(Update, (camera::orbit, draw_grid_and_bones, screenshot_when_ready))
-        .add_systems(EguiPrimaryContextPass, ui::panels)
-        .run()
+/// What is open: the character, its checkpoint and the clip. Changing it respawns what changed and
+/// recomputes the preview.
+#[derive(Resource, Clone, Debug, PartialEq)]
+pub struct Session {
+    pub urdf: PathBuf,
+    pub checkpoint: Option<PathBuf>,
+    pub clip: PathBuf,
 }
 
 /// The scene's two actors.
@@ -60,30 +59,153 @@ pub struct Scene {
     pub player: Entity,
 }
 
-fn absolute(p: &std::path::Path) -> PathBuf {
-    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+fn main() -> AppExit {
+    let args = Args::parse();
+    let absolute = |p: &std::path::Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let urdf = absolute(&args.character);
+    let session = Session {
+        checkpoint: args.checkpoint.as_deref().map(absolute).or_else(|| preview::checkpoint_beside(&urdf)),
+        clip: absolute(&args.clip),
+        urdf,
+    };
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(Window { title: "ACE editor".into(), resolution: (1600, 900).into(), ..default() }),
+                ..default()
+            })
+            .set(AssetPlugin {
+                // Paths given on the command line are resolved against the working directory.
+                file_path: std::env::current_dir().map(|d| d.display().to_string()).unwrap_or_else(|_| ".".into()),
+                // The user opens files anywhere on disk, not only below the working directory.
+                unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+                ..default()
+            }),
+    )
+    .add_plugins((EguiPlugin::default(), AcePlugin))
+    .insert_resource(session)
+    .init_resource::<camera::OrbitCamera>()
+    .init_resource::<preview::Preview>()
+    .init_resource::<retrain::Retrain>()
+    .init_resource::<ui::UiState>()
+    .add_systems(Startup, setup)
+    .add_systems(Update, (camera::orbit, follow, apply_session, preview::poll, retrain::poll))
+    .add_systems(
+        PostUpdate,
+        (
+            preview::show.in_set(AceSystems::Retarget),
+            // After propagation, so that the bones sit on this frame's joints.
+            draw_grid_and_bones.after(bevy::transform::TransformSystems::Propagate),
+        ),
+    )
+    .add_systems(EguiPrimaryContextPass, ui::panels);
+    if let Some(dir) = args.tour {
+        app.insert_resource(tour::Tour::new(dir)).add_systems(Update, tour::run);
+    }
+    app.run()
 }
 
-fn setup(mut commands: Commands, assets: Res<AssetServer>, args: Res<Args>) {
-    let character = commands
-        .spawn((Character::new(assets.load(absolute(&args.character))), Transform::from_xyz(0.8, 0.0, 0.0)))
-        .id();
-    let player = commands
-        .spawn((HumanClipPlayer::new(assets.load(absolute(&args.clip))), Transform::from_xyz(-0.8, 0.0, 0.0)))
-        .id();
-    commands.insert_resource(Scene { character, player });
+fn setup(mut commands: Commands) {
     commands.spawn((DirectionalLight { illuminance: 9000.0, shadow_maps_enabled: true, ..default() }, Transform::from_xyz(3.0, 6.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
     commands.insert_resource(GlobalAmbientLight { brightness: 400.0, ..default() });
     commands.spawn((Camera3d::default(), camera::OrbitCamera::default().transform()));
 }
 
+/// Respawns the character or the clip player when the session names other files, and recomputes
+/// the preview whenever the session changes.
+fn apply_session(
+    mut commands: Commands,
+    session: Res<Session>,
+    mut shown: Local<Option<Session>>,
+    scene: Option<ResMut<Scene>>,
+    assets: Res<AssetServer>,
+    mut preview: ResMut<preview::Preview>,
+) {
+    if shown.as_ref() == Some(&*session) {
+        return;
+    }
+    let before = shown.replace(session.clone());
+    let spawn_character = |commands: &mut Commands| commands.spawn(Character::new(assets.load(session.urdf.clone()))).id();
+    let spawn_player = |commands: &mut Commands| commands.spawn(HumanClipPlayer::new(assets.load(session.clip.clone()))).id();
+    match (scene, before) {
+        (Some(mut scene), Some(before)) => {
+            if before.urdf != session.urdf {
+                commands.entity(scene.character).despawn();
+                scene.character = spawn_character(&mut commands);
+            }
+            if before.clip != session.clip {
+                commands.entity(scene.player).despawn();
+                scene.player = spawn_player(&mut commands);
+            }
+        }
+        _ => {
+            let character = spawn_character(&mut commands);
+            let player = spawn_player(&mut commands);
+            commands.insert_resource(Scene { character, player });
+        }
+    }
+    match &session.checkpoint {
+        Some(checkpoint) => preview.compute(preview::PreviewInputs {
+            urdf: session.urdf.clone(),
+            checkpoint: checkpoint.clone(),
+            clip: session.clip.clone(),
+        }),
+        None => preview.result = None,
+    }
+}
+
+/// Keeps the camera between the actors as the clip travels, and the human 1.2 m beside the
+/// character's start, turned to start facing the way the character does (+x).
+fn follow(
+    scene: Option<Res<Scene>>,
+    preview: Res<preview::Preview>,
+    links: Query<&CharacterLinks>,
+    humans: Query<&HumanJoints>,
+    transforms: Query<&GlobalTransform>,
+    mut players: Query<&mut Transform, With<HumanClipPlayer>>,
+    mut orbit: ResMut<camera::OrbitCamera>,
+    time: Res<Time>,
+) {
+    let Some(scene) = scene else { return };
+    if let (Some(result), Ok(mut t)) = (&preview.result, players.get_mut(scene.player)) {
+        if let Some(first) = result.clip.frames.first() {
+            // The character starts facing +x; the human is turned to start facing the same way.
+            let f = first.forward();
+            let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -f.y.atan2(f.x));
+            let p = first.positions[Joint::Pelvis.index()];
+            let placed = Transform {
+                translation: convert::vec3(&(turn * Vector3::new(-p.x, -p.y, 0.0) + Vector3::new(0.0, 1.2, 0.0))),
+                rotation: convert::quat(&turn),
+                scale: Vec3::ONE,
+            };
+            if *t != placed {
+                *t = placed;
+            }
+        }
+    }
+    let Some(root) = links.get(scene.character).ok().and_then(|l| l.0.first()).and_then(|&e| transforms.get(e).ok()) else { return };
+    let pelvis = humans
+        .get(scene.player)
+        .ok()
+        .and_then(|j| transforms.get(j.0[Joint::Pelvis.index()]).ok())
+        .map_or(root.translation(), |p| p.translation());
+    let middle = (root.translation() + pelvis) / 2.0;
+    let target = Vec3::new(middle.x, 0.6, middle.z);
+    let k = (time.delta_secs() * 3.0).min(1.0);
+    let focus = orbit.focus.lerp(target, k);
+    if focus.distance(orbit.focus) > 1e-4 {
+        orbit.focus = focus;
+    }
+}
+
 /// Ground grid and human bones, drawn as gizmos.
 fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints: Query<&GlobalTransform, With<HumanJoint>>) {
-    for i in -10..=10 {
+    for i in -20..=20 {
         let c = i as f32 * 0.5;
         let color = if i == 0 { Color::srgb(0.55, 0.55, 0.55) } else { Color::srgb(0.35, 0.35, 0.35) };
-        gizmos.line(Vec3::new(c, 0.0, -5.0), Vec3::new(c, 0.0, 5.0), color);
-        gizmos.line(Vec3::new(-5.0, 0.0, c), Vec3::new(5.0, 0.0, c), color);
+        gizmos.line(Vec3::new(c, 0.0, -10.0), Vec3::new(c, 0.0, 10.0), color);
+        gizmos.line(Vec3::new(-10.0, 0.0, c), Vec3::new(10.0, 0.0, c), color);
     }
     for player in &players {
         for joint in Joint::ALL {
@@ -92,27 +214,5 @@ fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints:
                 gizmos.line(a.translation(), b.translation(), Color::srgb(0.3, 0.6, 1.0));
             }
         }
-    }
-}
-
-/// With `--screenshot`, waits until both actors are spawned and a few frames have rendered,
-/// saves the window and exits.
-fn screenshot_when_ready(
-    mut commands: Commands,
-    args: Res<Args>,
-    ready: Query<(), Or<(With<CharacterLinks>, With<HumanJoints>)>>,
-    mut frames: Local<u32>,
-    mut exit: MessageWriter<AppExit>,
-) {
-    let Some(path) = &args.screenshot else { return };
-    if ready.iter().count() < 2 {
-        return;
-    }
-    *frames += 1;
-    if *frames == 30 {
-        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone()));
-    }
-    if *frames == 45 {
-        exit.write(AppExit::Success);
     }
 }

@@ -1,62 +1,355 @@
-//! The editor's egui panels.
+//! The editor's egui panels: files and character on the left with the end-effector mapping, the
+//! loss weights and "Retrain briefly"; metrics and export on the right; the timeline at the bottom.
 
+use std::path::{Path, PathBuf};
+
+use ace::models::features::FeatureBlock;
+use ace::models::human::EndEffector;
+use ace::models::human_set::PROJECT_FPS;
+use ace::models::morphology::load_character;
 use bevy::prelude::*;
 use bevy_ace::prelude::*;
 use bevy_egui::{EguiContexts, egui};
 
-use crate::Scene;
+use crate::preview::{Preview, checkpoint_beside};
+use crate::retrain::Retrain;
+use crate::{Scene, Session};
 
-/// The scene panel: what is loaded, and playback controls for the clip.
+/// Text fields and messages of the panels.
+#[derive(Resource, Default)]
+pub struct UiState {
+    clip: String,
+    urdf: String,
+    checkpoint: String,
+    export: String,
+    message: Option<String>,
+    shown: Option<Session>,
+}
+
+fn absolute(text: &str) -> PathBuf {
+    let p = Path::new(text.trim());
+    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// All panels.
+#[allow(clippy::too_many_arguments)]
 pub fn panels(
     mut contexts: EguiContexts,
+    mut session: ResMut<Session>,
     scene: Option<Res<Scene>>,
-    characters: Query<&Character>,
+    mut state: ResMut<UiState>,
+    preview: Res<Preview>,
+    mut retrain: ResMut<Retrain>,
     mut players: Query<&mut HumanClipPlayer>,
+    characters: Query<&Character>,
     urdfs: Res<Assets<UrdfAsset>>,
-    clips: Res<Assets<BvhAsset>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
-    let Some(scene) = scene else { return Ok(()) };
-    egui::Window::new("Scene").anchor(egui::Align2::LEFT_TOP, [8.0, 8.0]).default_width(280.0).resizable(false).show(ctx, |ui| {
-        ui.heading("Character");
-        match characters.get(scene.character).ok().and_then(|c| urdfs.get(&c.urdf)) {
-            Some(urdf) => {
+    // The text fields follow the session when it changes from elsewhere (a finished training).
+    if state.shown.as_ref() != Some(&*session) {
+        state.clip = session.clip.display().to_string();
+        state.urdf = session.urdf.display().to_string();
+        state.checkpoint = session.checkpoint.as_ref().map(|c| c.display().to_string()).unwrap_or_default();
+        let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        state.export = format!("out/editor/{}_{}.glb", stem(&session.clip), stem(&session.urdf));
+        state.shown = Some(session.clone());
+    }
+
+    egui::Window::new("ACE editor")
+        .anchor(egui::Align2::LEFT_TOP, [8.0, 8.0])
+        .default_width(380.0)
+        .default_height(ctx.content_rect().height() - 130.0)
+        .resizable(false)
+        .vscroll(true)
+        .show(ctx, |ui| {
+            files(ui, &mut session, &mut state, &preview, &mut retrain);
+            ui.separator();
+            let urdf = scene.as_ref().and_then(|s| characters.get(s.character).ok()).and_then(|c| urdfs.get(&c.urdf));
+            if let Some(urdf) = urdf {
                 let names = |v: &[usize]| v.iter().map(|&i| urdf.tree.links[i].name.as_str()).collect::<Vec<_>>().join(", ");
-                ui.label(format!("{}: {} links, {} DoF", urdf.tree.name, urdf.tree.links.len(), urdf.tree.dof()));
-                ui.label(format!("feet: {}", names(&urdf.morphology.feet)));
-                ui.label(format!("manipulators: {}", names(&urdf.morphology.manipulators)));
-                ui.label(format!("wheels: {}", names(&urdf.morphology.wheels)));
+                ui.label(format!("{}: {} links, {} DoF; feet: {}; manipulators: {}", urdf.tree.name, urdf.tree.links.len(), urdf.tree.dof(), names(&urdf.morphology.feet), names(&urdf.morphology.manipulators)));
             }
-            None => {
-                ui.label("loading…");
-            }
-        }
-        ui.separator();
-        ui.heading("Human clip");
+            ui.separator();
+            mapping(ui, &preview, &mut retrain);
+            ui.separator();
+            weights_and_retrain(ui, &preview, &mut retrain);
+        });
+
+    egui::Window::new("Metrics")
+        .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
+        .default_width(300.0)
+        .resizable(false)
+        .show(ctx, |ui| metrics_and_export(ui, &preview, &session, &mut state));
+
+    if let Some(scene) = scene {
         if let Ok(mut player) = players.get_mut(scene.player) {
-            match clips.get(&player.clip) {
-                Some(asset) => {
-                    let clip = &asset.clip;
-                    ui.label(format!("{} ({}): {} frames at {} fps", clip.name, clip.convention, clip.frames.len(), clip.fps));
-                    ui.label(format!("height {:.2} m", clip.height_m));
-                    let duration = clip.duration();
-                    ui.horizontal(|ui| {
-                        let label = if player.paused { "▶ play" } else { "⏸ pause" };
-                        if ui.button(label).clicked() {
-                            player.paused = !player.paused;
-                        }
-                        ui.add(egui::Slider::new(&mut player.speed, 0.1..=2.0).text("speed"));
-                    });
-                    let mut t = player.time;
-                    if ui.add(egui::Slider::new(&mut t, 0.0..=duration).text("s")).changed() {
-                        player.seek(t);
-                    }
-                }
-                None => {
-                    ui.label("loading…");
-                }
+            egui::Window::new("Timeline")
+                .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
+                .default_width(760.0)
+                .resizable(false)
+                .title_bar(false)
+                .show(ctx, |ui| timeline(ui, &mut player, &preview));
+        }
+    }
+    Ok(())
+}
+
+fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview: &Preview, retrain: &mut Retrain) {
+    ui.heading("Clip");
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut state.clip).desired_width(280.0));
+        if ui.button("Open").clicked() {
+            let p = absolute(&state.clip);
+            if p.is_file() {
+                session.clip = p;
+                state.message = None;
+            } else {
+                state.message = Some(format!("no BVH file at {}", p.display()));
             }
         }
     });
-    Ok(())
+    ui.heading("Character");
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut state.urdf).desired_width(280.0));
+        if ui.button("Open").clicked() {
+            let p = absolute(&state.urdf);
+            if p.is_file() {
+                session.checkpoint = checkpoint_beside(&p);
+                session.urdf = p;
+                state.message = None;
+            } else {
+                state.message = Some(format!("no URDF file at {}", p.display()));
+            }
+        }
+    });
+    ui.label("Checkpoint");
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut state.checkpoint).desired_width(280.0));
+        if ui.button("Use").clicked() {
+            let p = absolute(&state.checkpoint);
+            if p.join("ace.json").is_file() {
+                session.checkpoint = Some(p);
+                state.message = None;
+            } else {
+                state.message = Some(format!("{} holds no ace.json (train one with the button below or `ace train`)", p.display()));
+            }
+        }
+    });
+    if ui
+        .add_enabled(!retrain.running(), egui::Button::new("Train a checkpoint for this character (~45 min)"))
+        .on_hover_text("Motion prior, then ACE, with the CPU defaults, into out/editor/checkpoints/")
+        .clicked()
+    {
+        retrain.train_new(session.urdf.clone());
+    }
+    if let Some(m) = &state.message {
+        ui.colored_label(egui::Color32::LIGHT_RED, m);
+    }
+    if preview.busy() {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.label("retargeting the clip…");
+        });
+    }
+    if let Some(e) = &preview.error {
+        ui.colored_label(egui::Color32::LIGHT_RED, e);
+    }
+    if session.checkpoint.is_none() {
+        ui.label("No checkpoint for this character: train one to retarget.");
+    }
+}
+
+fn ee_name(e: Option<EndEffector>) -> &'static str {
+    e.map_or("none", EndEffector::name)
+}
+
+fn mapping(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retrain) {
+    ui.heading("End-effector mapping");
+    let (Some(result), Some(settings)) = (&preview.result, retrain.settings.as_mut()) else {
+        ui.label("(needs a checkpoint)");
+        return;
+    };
+    let corr = &result.record.correspondence;
+    ui.label("KL between each character end effector's and each human end effector's positions (nats); the lowest is the automatic pair.");
+    egui::Grid::new("mapping").striped(true).show(ui, |ui| {
+        ui.strong("link");
+        ui.strong("maps to");
+        for e in EndEffector::ALL {
+            ui.strong(e.name());
+        }
+        ui.end_row();
+        for (j, link) in corr.character_links.iter().enumerate() {
+            ui.label(link);
+            let automatic = corr.scores[j]
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.total_cmp(b.1))
+                .map(|(i, _)| EndEffector::ALL[i]);
+            let choice = settings.mapping.entry(link.clone()).or_default();
+            let text = match choice {
+                None => format!("auto ({})", ee_name(automatic)),
+                Some(e) => ee_name(*e).to_string(),
+            };
+            egui::ComboBox::from_id_salt(("map", j)).selected_text(text).show_ui(ui, |ui| {
+                ui.selectable_value(choice, None, "automatic");
+                for e in EndEffector::ALL {
+                    ui.selectable_value(choice, Some(Some(e)), e.name());
+                }
+                ui.selectable_value(choice, Some(None), "none");
+            });
+            let used = corr.mapping.human[j];
+            for (i, e) in EndEffector::ALL.iter().enumerate() {
+                let s = format!("{:.2}", corr.scores[j][i]);
+                if used == Some(*e) {
+                    ui.strong(s);
+                } else {
+                    ui.label(s);
+                }
+            }
+            ui.end_row();
+        }
+    });
+    ui.small("Bold: the pairs this checkpoint was trained with. A change takes effect with \"Retrain briefly\".");
+}
+
+fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retrain) {
+    ui.heading("Loss weights");
+    if let Some(s) = retrain.settings.as_mut() {
+        ui.add(egui::Slider::new(&mut s.w_adv, 0.0..=5.0).text("w_adv"));
+        ui.add(egui::Slider::new(&mut s.w_fea, 0.0..=50.0).text("w_fea"));
+        for block in FeatureBlock::ALL {
+            ui.add(egui::Slider::new(s.feature_weights.weight_mut(block), 0.0..=5.0).text(block.name()));
+        }
+        ui.add(egui::Slider::new(&mut s.steps, 20..=2000).logarithmic(true).text("steps"));
+    }
+    let ready = !retrain.running() && !preview.busy() && preview.result.is_some();
+    if ui.add_enabled(ready, egui::Button::new("Retrain briefly")).on_hover_text("Fine-tune the generator from this checkpoint under these settings, into out/editor/retrained/").clicked() {
+        retrain.start(preview);
+    }
+    if retrain.started.is_none() {
+        return;
+    }
+    let steps = retrain.history.last().map(|p| (p.step, p.steps));
+    let fraction = steps.map_or(0.0, |(d, n)| {
+        let first = retrain.history.first().map_or(0, |p| p.step - 1);
+        (d - first) as f32 / (n - first).max(1) as f32
+    });
+    let elapsed = retrain.seconds.unwrap_or_else(|| retrain.started.map_or(0.0, |s| s.elapsed().as_secs_f32()));
+    ui.add(egui::ProgressBar::new(fraction).show_percentage().animate(retrain.running()));
+    ui.label(format!("{} ({elapsed:.0} s)", retrain.stage));
+    if let Some(e) = &retrain.error {
+        ui.colored_label(egui::Color32::LIGHT_RED, e);
+    }
+    loss_plot(ui, &retrain.history);
+    if let Some(before) = retrain.fea_before {
+        let after = retrain.fea_after.map_or("…".to_string(), |a| format!("{a:.3}"));
+        ui.label(format!("L_fea on this clip: {before:.3} before, {after} after"));
+    }
+}
+
+/// L_fea and L_adv per step, each scaled to its own range.
+fn loss_plot(ui: &mut egui::Ui, history: &[ace::models::learn::train_ace::AceProgress]) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 90.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
+    if history.len() < 2 {
+        return;
+    }
+    let series: [(&str, fn(&ace::models::learn::train_ace::AceProgress) -> f64, egui::Color32); 2] = [
+        ("L_fea", |p| p.fea, egui::Color32::from_rgb(235, 150, 40)),
+        ("L_adv", |p| p.adv, egui::Color32::from_rgb(90, 160, 240)),
+    ];
+    for (k, (name, value, color)) in series.iter().enumerate() {
+        let v: Vec<f64> = history.iter().map(value).collect();
+        let (lo, hi) = v.iter().fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        let span = (hi - lo).max(1e-9);
+        let points: Vec<egui::Pos2> = v
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| {
+                let px = rect.left() + rect.width() * i as f32 / (v.len() - 1) as f32;
+                let py = rect.bottom() - 4.0 - (rect.height() - 8.0) * ((x - lo) / span) as f32;
+                egui::pos2(px, py)
+            })
+            .collect();
+        painter.add(egui::Shape::line(points, egui::Stroke::new(1.5, *color)));
+        painter.text(
+            rect.left_top() + egui::vec2(6.0, 4.0 + 14.0 * k as f32),
+            egui::Align2::LEFT_TOP,
+            format!("{name} {:.3}", v.last().unwrap()),
+            egui::FontId::proportional(12.0),
+            *color,
+        );
+    }
+}
+
+fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, state: &mut UiState) {
+    let Some(result) = &preview.result else {
+        ui.label(if preview.busy() { "retargeting…" } else { "no preview" });
+        return;
+    };
+    let r = &result.retargeted.report;
+    let rates = &r.ufr.rates;
+    let opt = |v: Option<f32>| v.map_or("n/a".to_string(), |v| format!("{v:.3}"));
+    ui.label(format!("{} frames at {PROJECT_FPS} fps, retargeted in {:.1} s", r.frames, result.seconds));
+    egui::Grid::new("metrics").striped(true).show(ui, |ui| {
+        for (name, value) in [
+            ("L_fea (lower is better)", opt(r.feature_loss)),
+            ("UFR (lower is better)", format!("{:.2} %", 100.0 * rates.ufr)),
+            ("  self-collision", format!("{:.2} %", 100.0 * rates.self_collision)),
+            ("  foot penetration", format!("{:.2} %", 100.0 * rates.penetration)),
+            ("  foot sliding", format!("{:.2} %", 100.0 * rates.sliding)),
+            ("DIV", format!("{:.3}", r.div)),
+            ("FID (lower is better)", opt(r.fid)),
+        ] {
+            ui.label(name);
+            ui.label(value);
+            ui.end_row();
+        }
+    });
+    ui.small(format!("checkpoint {}", result.inputs.checkpoint.display()));
+    ui.separator();
+    ui.heading("Export");
+    ui.add(egui::TextEdit::singleline(&mut state.export).desired_width(280.0));
+    if ui.button("Export glTF and trajectory").clicked() {
+        let out = absolute(&state.export);
+        let written = load_character(&session.urdf)
+            .map_err(anyhow::Error::from)
+            .and_then(|(tree, _)| ace::retarget::write(&result.retargeted, &tree, &result.clip, &out, true));
+        state.message = Some(match written {
+            Ok(w) => format!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display()),
+            Err(e) => format!("export failed: {e:#}"),
+        });
+    }
+    if let Some(m) = &state.message {
+        ui.label(m);
+    }
+}
+
+fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) {
+    let flagged: &[bool] = preview.result.as_ref().map_or(&[], |r| &r.retargeted.flagged);
+    let duration = (flagged.len().max(1) - 1) as f32 / PROJECT_FPS;
+    ui.horizontal(|ui| {
+        if ui.button(if player.paused { "▶ play" } else { "⏸ pause" }).clicked() {
+            player.paused = !player.paused;
+        }
+        ui.add(egui::Slider::new(&mut player.speed, 0.1..=2.0).text("speed"));
+        ui.label(format!("{:.2} / {duration:.2} s, frame {}", player.time, (player.time * PROJECT_FPS).round() as usize));
+        let count = flagged.iter().filter(|&&f| f).count();
+        ui.colored_label(egui::Color32::from_rgb(230, 80, 70), format!("{count} frames flagged by the UFR detectors"));
+    });
+    let (rect, response) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 26.0), egui::Sense::click_and_drag());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 3.0, egui::Color32::from_gray(40));
+    let x_of = |t: f32| rect.left() + rect.width() * (t / duration.max(1e-6)).clamp(0.0, 1.0);
+    for (k, _) in flagged.iter().enumerate().filter(|(_, f)| **f) {
+        let x = x_of(k as f32 / PROJECT_FPS);
+        painter.line_segment([egui::pos2(x, rect.top() + 3.0), egui::pos2(x, rect.bottom() - 3.0)], egui::Stroke::new(2.0, egui::Color32::from_rgb(230, 80, 70)));
+    }
+    let x = x_of(player.time);
+    painter.line_segment([egui::pos2(x, rect.top()), egui::pos2(x, rect.bottom())], egui::Stroke::new(2.5, egui::Color32::WHITE));
+    if let Some(pos) = response.interact_pointer_pos() {
+        let t = ((pos.x - rect.left()) / rect.width()).clamp(0.0, 1.0) * duration;
+        player.seek(t);
+    }
 }

@@ -214,13 +214,26 @@ impl Default for FeatureWeights {
 impl FeatureWeights {
     /// The weight of `block`.
     pub fn weight(&self, block: FeatureBlock) -> f32 {
+        let mut w = *self;
+        *w.weight_mut(block)
+    }
+
+    /// The weight of a block, to change it.
+    pub fn weight_mut(&mut self, block: FeatureBlock) -> &mut f32 {
         match block {
-            FeatureBlock::RootHeight => self.root_height,
-            FeatureBlock::RootOrientation => self.root_orientation,
-            FeatureBlock::RootLinearVelocity => self.root_linear_velocity,
-            FeatureBlock::RootAngularVelocity => self.root_angular_velocity,
-            FeatureBlock::EePositions => self.ee_positions,
+            FeatureBlock::RootHeight => &mut self.root_height,
+            FeatureBlock::RootOrientation => &mut self.root_orientation,
+            FeatureBlock::RootLinearVelocity => &mut self.root_linear_velocity,
+            FeatureBlock::RootAngularVelocity => &mut self.root_angular_velocity,
+            FeatureBlock::EePositions => &mut self.ee_positions,
         }
+    }
+
+    /// These weights with every block but `block` at zero (that block's share of L_fea).
+    pub fn only(&self, block: FeatureBlock) -> FeatureWeights {
+        let mut only = FeatureWeights { root_height: 0.0, root_orientation: 0.0, root_linear_velocity: 0.0, root_angular_velocity: 0.0, ee_positions: 0.0 };
+        *only.weight_mut(block) = self.weight(block);
+        only
     }
 
     /// One weight per entry of Ψ (e.g. to build a weight tensor for training).

@@ -343,6 +343,54 @@ fn place_prior(prior: &PriorCheckpoint, run_dir: &Path) -> Result<(), LearnError
     prior.save(run_dir)
 }
 
+/// Prepares `run_dir` for fine-tuning the checkpoint in `from` (a directory with a prior and a
+/// generator and discriminator): the prior and both networks are copied there with the record's
+/// configuration replaced by `cfg` and its correspondence by `correspondence`, at the step `from`
+/// had reached. [`train_ace`] with the same `cfg` (whose `steps` counts from that step) then
+/// continues the networks under the new loss weights, feature weights and mapping. Fails when
+/// `run_dir` already holds a checkpoint (nothing there is overwritten) or `cfg` changes the
+/// networks' shapes.
+pub fn start_fine_tune(
+    from: &Path,
+    run_dir: &Path,
+    cfg: &AceConfig,
+    correspondence: &Correspondence,
+    device: Device,
+) -> Result<AceCheckpoint, LearnError> {
+    cfg.check()?;
+    if run_dir.join(ACE_FILE).exists() || run_dir.join(CONFIG_FILE).exists() {
+        return Err(LearnError::Config(format!(
+            "{} already holds a checkpoint; fine-tune into an empty directory",
+            run_dir.display()
+        )));
+    }
+    let prior = PriorCheckpoint::load(from, device)?;
+    let mut ckpt = AceCheckpoint::load(from, prior.prior.latent_dim(), &prior.mask, device, true)?;
+    let stored = &ckpt.record.config;
+    if stored.generator_hidden != cfg.generator_hidden || stored.discriminator_hidden != cfg.discriminator_hidden {
+        return Err(LearnError::Config(format!(
+            "fine-tuning {} keeps its networks: generator_hidden and discriminator_hidden must stay {:?} and {:?}",
+            from.display(),
+            stored.generator_hidden,
+            stored.discriminator_hidden
+        )));
+    }
+    if correspondence.character_links != ckpt.record.correspondence.character_links {
+        return Err(LearnError::Config(format!(
+            "the correspondence is for end effectors {:?}, {} has {:?}",
+            correspondence.character_links,
+            from.display(),
+            ckpt.record.correspondence.character_links
+        )));
+    }
+    ckpt.record.config = cfg.clone();
+    ckpt.record.correspondence = correspondence.clone();
+    fs::create_dir_all(run_dir).map_err(|e| LearnError::io(run_dir, e))?;
+    prior.save(run_dir)?;
+    ckpt.save(run_dir)?;
+    Ok(ckpt)
+}
+
 /// Normalised x^h and Ψ of every training clip long enough for a window.
 fn human_windows(
     inputs: &AceInputs<'_>,
@@ -526,15 +574,23 @@ pub(crate) mod test_support {
         dir: &Path,
         cfg: &AceConfig,
     ) -> Result<(AceCheckpoint, Vec<AceProgress>), LearnError> {
+        train_in_with(dir, cfg, &spot_correspondence())
+    }
+
+    /// [`train_in`] with another correspondence.
+    pub(crate) fn train_in_with(
+        dir: &Path,
+        cfg: &AceConfig,
+        corr: &Correspondence,
+    ) -> Result<(AceCheckpoint, Vec<AceProgress>), LearnError> {
         let (tree, morph, set) = spot();
         let prior = PriorCheckpoint::load(trained_spot_dir(), Device::Cpu).unwrap();
-        let corr = spot_correspondence();
         let provenance = serde_json::json!({"test": "train_ace"});
         let inputs = AceInputs {
             prior: &prior,
             dataset: set,
             humans: bundled_humans(),
-            correspondence: &corr,
+            correspondence: corr,
             character_body_length: character_body_length(tree, morph),
             human_body_length: None,
             provenance: &provenance,
@@ -560,6 +616,40 @@ mod tests {
     use super::test_support::*;
     use super::*;
     use crate::learn::prior::test_support::scratch_dir;
+
+    #[test]
+    fn fine_tuning_continues_the_networks_under_new_weights_and_mapping() {
+        let from = trained_ace_dir();
+        let prior = PriorCheckpoint::load(from, Device::Cpu).unwrap();
+        let before = AceCheckpoint::load(from, prior.prior.latent_dim(), &prior.mask, Device::Cpu, true).unwrap();
+        let dir = scratch_dir("fine_tune");
+        let mut cfg = tiny_config(before.record.step + 10);
+        cfg.w_fea = 30.0;
+        cfg.feature_weights.ee_positions = 0.5;
+        // Map every character end effector to the head: a change the record must keep.
+        let mut corr = spot_correspondence();
+        let overrides: Vec<_> = (0..corr.character_links.len()).map(|i| (i, Some(crate::human::EndEffector::Head))).collect();
+        corr = corr.with_overrides(&overrides).unwrap();
+        start_fine_tune(from, &dir, &cfg, &corr, Device::Cpu).unwrap();
+        let (tuned, reports) = train_in_with(&dir, &cfg, &corr).unwrap();
+        assert_eq!(reports.len(), 10, "continues from step {}", before.record.step);
+        assert_eq!(tuned.record.step, before.record.step + 10);
+        assert_eq!(tuned.record.config.w_fea, 30.0);
+        assert_eq!(tuned.record.correspondence, corr);
+        // Started from the trained generator, not afresh: its first loss is the trained one's level.
+        let fresh = scratch_dir("fine_tune_fresh");
+        let (_, fresh_reports) = train_in_with(&fresh, &tiny_config(10), &corr).unwrap();
+        assert_ne!(reports[0].fea, fresh_reports[0].fea);
+        // Nothing is overwritten.
+        let err = start_fine_tune(from, &dir, &cfg, &corr, Device::Cpu).unwrap_err();
+        assert!(err.to_string().contains("already holds a checkpoint"), "{err}");
+        let mut wider = cfg.clone();
+        wider.generator_hidden = vec![32];
+        let err = start_fine_tune(from, &scratch_dir("fine_tune_wider"), &wider, &corr, Device::Cpu).unwrap_err();
+        assert!(err.to_string().contains("generator_hidden"), "{err}");
+        fs::remove_dir_all(&dir).unwrap();
+        fs::remove_dir_all(&fresh).unwrap();
+    }
 
     fn read_losses(dir: &Path) -> Vec<Vec<f64>> {
         let text = fs::read_to_string(dir.join(LOSSES_FILE)).unwrap();

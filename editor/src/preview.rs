@@ -1,0 +1,123 @@
+//! The preview: the current clip retargeted offline (as `ace retarget` does) on a background thread,
+//! scored, and shown on the character frame by frame at the clip player's time. Scrubbing is exact
+//! because the whole motion is known.
+
+use std::path::{Path, PathBuf};
+
+use ace::models::human::{HumanClip, ImportOptions};
+use ace::models::human_set::PROJECT_FPS;
+use ace::models::learn::ace::AceRecord;
+use ace::models::learn::retarget::Retargeter;
+use ace::models::learn::default_device;
+use ace::models::morphology::load_character;
+use ace::retarget::{Retargeted, retarget_and_score};
+use ace::scoring::Scorer;
+use anyhow::{Context, Result};
+use bevy::prelude::*;
+use bevy_ace::prelude::*;
+
+use crate::jobs::Job;
+use crate::Scene;
+
+/// What the preview was computed from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PreviewInputs {
+    pub urdf: PathBuf,
+    pub checkpoint: PathBuf,
+    pub clip: PathBuf,
+}
+
+/// A computed preview.
+pub struct PreviewResult {
+    pub inputs: PreviewInputs,
+    pub retargeted: Retargeted,
+    /// The checkpoint's record (configuration, correspondence with its KL scores).
+    pub record: AceRecord,
+    /// The clip at the project frame rate (what was retargeted and what an export writes).
+    pub clip: HumanClip,
+    pub seconds: f32,
+}
+
+/// The preview's state.
+#[derive(Resource, Default)]
+pub struct Preview {
+    pub result: Option<PreviewResult>,
+    pub error: Option<String>,
+    job: Option<(PreviewInputs, Job<Result<PreviewResult, String>>)>,
+}
+
+impl Preview {
+    /// Starts computing the preview of `inputs` (replacing any running one).
+    pub fn compute(&mut self, inputs: PreviewInputs) {
+        let i = inputs.clone();
+        self.error = None;
+        self.job = Some((inputs, Job::spawn("ace-preview", move |tx| {
+            let _ = tx.send(compute(&i).map_err(|e| format!("{e:#}")));
+        })));
+    }
+
+    /// Whether a computation is running.
+    pub fn busy(&self) -> bool {
+        self.job.is_some()
+    }
+}
+
+/// Retargets and scores `inputs.clip` on the character with the checkpoint.
+pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
+    let start = std::time::Instant::now();
+    let (tree, morph) = load_character(&inputs.urdf)?;
+    let retargeter = Retargeter::load(&inputs.checkpoint, default_device())?;
+    let scorer = Scorer::new(&retargeter, &inputs.checkpoint)?;
+    let clip = HumanClip::from_bvh_file(&inputs.clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })
+        .with_context(|| format!("opening {}", inputs.clip.display()))?;
+    let retargeted = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
+    Ok(PreviewResult {
+        inputs: inputs.clone(),
+        retargeted,
+        record: retargeter.ace().record.clone(),
+        clip,
+        seconds: start.elapsed().as_secs_f32(),
+    })
+}
+
+/// The checkpoint shipped for a bundled character's URDF (`assets/characters/<name>.urdf` →
+/// `assets/checkpoints/<name>`), when there is one.
+pub fn checkpoint_beside(urdf: &Path) -> Option<PathBuf> {
+    let name = urdf.file_stem()?;
+    let dir = urdf.parent()?.parent()?.join("checkpoints").join(name);
+    dir.join("ace.json").is_file().then_some(dir)
+}
+
+/// Takes finished computations.
+pub fn poll(mut preview: ResMut<Preview>) {
+    let Some((_, job)) = preview.job.as_mut() else { return };
+    let messages = job.poll();
+    let finished = job.finished();
+    for m in messages {
+        match m {
+            Ok(r) => {
+                preview.result = Some(r);
+                preview.error = None;
+            }
+            Err(e) => preview.error = Some(e),
+        }
+    }
+    if finished {
+        preview.job = None;
+    }
+}
+
+/// Shows the preview's pose at the clip player's time.
+pub fn show(preview: Res<Preview>, scene: Option<Res<Scene>>, players: Query<&HumanClipPlayer>, mut poses: Query<&mut Pose>) {
+    let (Some(scene), Some(result)) = (scene, &preview.result) else { return };
+    let Ok(player) = players.get(scene.player) else { return };
+    let Ok(mut pose) = poses.get_mut(scene.character) else { return };
+    let poses_of = &result.retargeted.motion.poses;
+    if poses_of.is_empty() || pose.q.len() != poses_of[0].q.len() {
+        return;
+    }
+    let frame = ((player.time * PROJECT_FPS).round() as usize).min(poses_of.len() - 1);
+    if pose.0 != poses_of[frame] {
+        pose.0 = poses_of[frame].clone();
+    }
+}
