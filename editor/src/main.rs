@@ -192,10 +192,14 @@ fn follow(
         .map_or(root.translation(), |p| p.translation());
     let middle = (root.translation() + pelvis) / 2.0;
     let target = Vec3::new(middle.x, 0.6, middle.z);
+    // Far enough to see both when the clip takes them apart.
+    let apart = root.translation().distance(pelvis);
     let k = (time.delta_secs() * 3.0).min(1.0);
     let focus = orbit.focus.lerp(target, k);
-    if focus.distance(orbit.focus) > 1e-4 {
+    let distance = orbit.distance.max(4.0 + 1.5 * apart).min(30.0);
+    if focus.distance(orbit.focus) > 1e-4 || distance != orbit.distance {
         orbit.focus = focus;
+        orbit.distance = distance;
     }
 }
 

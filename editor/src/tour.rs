@@ -11,8 +11,14 @@ use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use serde_json::json;
 
+use bevy_ace::prelude::HumanClipPlayer;
+
+use crate::Scene;
 use crate::preview::Preview;
 use crate::retrain::Retrain;
+
+/// The clip time the pictures show (s).
+const SHOWN_AT: f32 = 1.5;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Step {
@@ -45,9 +51,12 @@ impl Tour {
 }
 
 /// Advances the tour (see the module docs).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     mut commands: Commands,
     mut tour: ResMut<Tour>,
+    scene: Option<Res<Scene>>,
+    mut players: Query<&mut HumanClipPlayer>,
     preview: Res<Preview>,
     mut retrain: ResMut<Retrain>,
     mut exit: MessageWriter<AppExit>,
@@ -60,6 +69,13 @@ pub fn run(
         }
     }
     tour.frames += 1;
+    // The same moment of the clip in every picture.
+    if let Some(mut player) = scene.and_then(|s| players.get_mut(s.player).ok()) {
+        if !player.paused || player.time != SHOWN_AT {
+            player.paused = true;
+            player.seek(SHOWN_AT);
+        }
+    }
     if let Some(e) = preview.error.as_ref().or(retrain.error.as_ref()) {
         error!("tour: {e}");
         exit.write(AppExit::error());

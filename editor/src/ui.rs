@@ -240,11 +240,11 @@ fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retra
     if let Some(e) = &retrain.error {
         ui.colored_label(egui::Color32::LIGHT_RED, e);
     }
-    loss_plot(ui, &retrain.history);
     if let Some(before) = retrain.fea_before {
         let after = retrain.fea_after.map_or("…".to_string(), |a| format!("{a:.3}"));
         ui.label(format!("L_fea on this clip: {before:.3} before, {after} after"));
     }
+    loss_plot(ui, &retrain.history);
 }
 
 /// L_fea and L_adv per step, each scaled to its own range.

@@ -1,20 +1,29 @@
 //! # bevy_ace
 //!
-//! The Bevy layer of ACE retargeting: asset loaders for `.urdf` characters and `.bvh` human clips,
-//! characters spawned as one entity per link and posed from a [`Pose`] component, and a human clip
-//! player. The core (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
+//! The Bevy layer of ACE retargeting: asset loaders for `.urdf` characters, `.bvh` human clips and
+//! trained checkpoints, characters spawned as one entity per link and posed from a [`Pose`]
+//! component, a human clip player, and the [`Retargeter`] component that drives a character from a
+//! human source with a checkpoint every frame (feature `learn`, on by default). The core
+//! (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
 //! use bevy_ace::prelude::*;
 //!
 //! fn setup(mut commands: Commands, assets: Res<AssetServer>) {
-//!     commands.spawn(Character::new(assets.load("characters/spot.urdf")));
-//!     commands.spawn((HumanClipPlayer::new(assets.load("motions/walk.bvh")), Transform::from_xyz(-1.5, 0.0, 0.0)));
+//!     let walk = commands.spawn(HumanClipPlayer::new(assets.load("motions/walk.bvh"))).id();
+//!     commands.spawn((
+//!         Character::new(assets.load("characters/spot.urdf")),
+//!         Retargeter::new(assets.load("checkpoints/spot/ace.json"), walk),
+//!         Transform::from_xyz(1.5, 0.0, 0.0),
+//!     ));
 //! }
 //!
 //! App::new().add_plugins((DefaultPlugins, AcePlugin)).add_systems(Startup, setup).run();
 //! ```
+//!
+//! [`Pose`]: character::Pose
+//! [`Retargeter`]: retarget::Retargeter
 
 pub mod assets;
 pub mod character;
