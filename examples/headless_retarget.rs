@@ -27,6 +27,8 @@ fn main() -> AppExit {
     let server = app.world().resource::<AssetServer>().clone();
     let mut player = HumanClipPlayer::new(server.load(format!("motions/{clip}.bvh")));
     player.looping = false;
+    // Held at the first frame until the checkpoint is loaded and the character has started.
+    player.paused = true;
     let player = app.world_mut().spawn(player).id();
     let robot = app
         .world_mut()
@@ -41,18 +43,19 @@ fn main() -> AppExit {
     let mut last = None;
     for _ in 0..20_000 {
         app.update();
-        match app.world().get::<RetargetStatus>(robot) {
+        match app.world().get::<RetargetStatus>(robot).cloned() {
             Some(RetargetStatus::Failed(message)) => {
                 eprintln!("retargeting failed: {message}");
                 return AppExit::error();
             }
-            Some(RetargetStatus::Running { tick }) if Some(*tick) != last => {
-                last = Some(*tick);
+            Some(RetargetStatus::Running { tick }) if Some(tick) != last => {
+                last = Some(tick);
+                app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = false;
                 let pose = app.world().get::<Pose>(robot).expect("a driven character has a pose");
                 if tick % 15 == 0 {
                     let p = pose.root.translation.vector;
                     let yaw = pose.root.rotation.euler_angles().2.to_degrees();
-                    println!("| {tick} | {:.2} | {:.3} | {:.3} | {:.3} | {yaw:.1} |", *tick as f32 / 30.0, p.x, p.y, p.z);
+                    println!("| {tick} | {:.2} | {:.3} | {:.3} | {:.3} | {yaw:.1} |", tick as f32 / 30.0, p.x, p.y, p.z);
                 }
             }
             _ => std::thread::sleep(Duration::from_millis(1)),
