@@ -37,9 +37,22 @@ struct Request {
 
 /// The systems' end of a worker thread.
 pub(crate) struct Worker {
-    requests: Sender<Request>,
+    /// `None` once dropping.
+    requests: Option<Sender<Request>>,
     outcomes: Mutex<Receiver<Vec<Outcome>>>,
     in_flight: usize,
+    thread: Option<thread::JoinHandle<()>>,
+}
+
+impl Drop for Worker {
+    /// Stops the thread and waits for it: libtorch's global state must outlive every operation, and
+    /// a thread still stepping while the process exits would meet it half torn down.
+    fn drop(&mut self) {
+        self.requests = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 impl Worker {
@@ -48,17 +61,18 @@ impl Worker {
     pub(crate) fn spawn(files: Arc<CheckpointFiles>) -> Worker {
         let (requests, incoming) = channel::<Request>();
         let (outgoing, outcomes) = channel();
-        thread::Builder::new()
+        let thread = thread::Builder::new()
             .name(format!("ace-retarget {}", files.dir().display()))
             .spawn(move || serve(&files, incoming, outgoing))
             .expect("spawning a retargeting thread");
-        Worker { requests, outcomes: Mutex::new(outcomes), in_flight: 0 }
+        Worker { requests: Some(requests), outcomes: Mutex::new(outcomes), in_flight: 0, thread: Some(thread) }
     }
 
     /// Queues a frame's jobs and the characters to drop; returns at once.
     pub(crate) fn send(&mut self, jobs: Vec<Job>, forget: Vec<Entity>) {
         let failed: Vec<Entity> = jobs.iter().map(|j| j.entity).collect();
-        if self.requests.send(Request { jobs, forget }).is_ok() {
+        let sent = self.requests.as_ref().is_some_and(|r| r.send(Request { jobs, forget }).is_ok());
+        if sent {
             self.in_flight += 1;
         } else {
             // The thread is gone (it only ends by panicking): report it on the next collect.
