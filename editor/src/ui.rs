@@ -96,45 +96,32 @@ pub fn panels(
 
 fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview: &Preview, retrain: &mut Retrain) {
     ui.heading("Clip");
-    ui.horizontal(|ui| {
-        ui.add(egui::TextEdit::singleline(&mut state.clip).desired_width(280.0));
-        if ui.button("Open").clicked() {
-            let p = absolute(&state.clip);
-            if p.is_file() {
-                session.clip = p;
-                state.message = None;
-            } else {
-                state.message = Some(format!("no BVH file at {}", p.display()));
-            }
+    if let Some(p) = path_row(ui, &mut state.clip, "Open") {
+        state.message = None;
+        match p.is_file() {
+            true => session.clip = p,
+            false => state.message = Some(format!("no BVH file at {}", p.display())),
         }
-    });
+    }
     ui.heading("Character");
-    ui.horizontal(|ui| {
-        ui.add(egui::TextEdit::singleline(&mut state.urdf).desired_width(280.0));
-        if ui.button("Open").clicked() {
-            let p = absolute(&state.urdf);
-            if p.is_file() {
+    if let Some(p) = path_row(ui, &mut state.urdf, "Open") {
+        state.message = None;
+        match p.is_file() {
+            true => {
                 session.checkpoint = checkpoint_beside(&p);
                 session.urdf = p;
-                state.message = None;
-            } else {
-                state.message = Some(format!("no URDF file at {}", p.display()));
             }
+            false => state.message = Some(format!("no URDF file at {}", p.display())),
         }
-    });
+    }
     ui.label("Checkpoint");
-    ui.horizontal(|ui| {
-        ui.add(egui::TextEdit::singleline(&mut state.checkpoint).desired_width(280.0));
-        if ui.button("Use").clicked() {
-            let p = absolute(&state.checkpoint);
-            if p.join("ace.json").is_file() {
-                session.checkpoint = Some(p);
-                state.message = None;
-            } else {
-                state.message = Some(format!("{} holds no ace.json (train one with the button below or `ace train`)", p.display()));
-            }
+    if let Some(p) = path_row(ui, &mut state.checkpoint, "Use") {
+        state.message = None;
+        match p.join("ace.json").is_file() {
+            true => session.checkpoint = Some(p),
+            false => state.message = Some(format!("{} holds no ace.json (train one with the button below or `ace train`)", p.display())),
         }
-    });
+    }
     if ui
         .add_enabled(!retrain.running(), egui::Button::new("Train a checkpoint for this character (~45 min)"))
         .on_hover_text("Motion prior, then ACE, with the CPU defaults, into out/editor/checkpoints/")
@@ -157,6 +144,15 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
     if session.checkpoint.is_none() {
         ui.label("No checkpoint for this character: train one to retarget.");
     }
+}
+
+/// A path field with a button; the absolute path when the button is clicked.
+fn path_row(ui: &mut egui::Ui, text: &mut String, button: &str) -> Option<PathBuf> {
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(text).desired_width(280.0));
+        ui.button(button).clicked().then(|| absolute(text))
+    })
+    .inner
 }
 
 fn ee_name(e: Option<EndEffector>) -> &'static str {
