@@ -196,15 +196,20 @@ pub fn train_ace(
             let rows = &human + t as i64;
             let z = generator.forward(&humans.states.index_select(0, &rows), &prev);
             let cur = prior.prior.decode(&z, &prev);
-            let psi_r = psi.features(&(&cur * &std + &mean))?;
-            fea += feature_loss(&psi_r, &humans.features.index_select(0, &rows), &weights);
-            adv += generator_adv_loss(&discriminator, &prev, &cur);
+            // A term of weight zero (an ablation) is only monitored: computed without a graph, so
+            // it costs no backward pass and cannot turn the loss into NaN (0·∞).
+            let fea_t = tracked(cfg.w_fea, || {
+                let psi_r = psi.features(&(&cur * &std + &mean))?;
+                Ok(feature_loss(&psi_r, &humans.features.index_select(0, &rows), &weights))
+            })?;
+            fea += fea_t;
+            adv += tracked(cfg.w_adv, || Ok(generator_adv_loss(&discriminator, &prev, &cur)))?;
             fake_prev.push(prev.detach());
             fake_cur.push(cur.detach());
             prev = cur;
         }
         let (fea, adv) = (fea / window as f64, adv / window as f64);
-        let g_loss = &adv * cfg.w_adv + &fea * cfg.w_fea;
+        let g_loss = weighted_sum(&[(cfg.w_adv, &adv), (cfg.w_fea, &fea)]);
         opt_g.backward_step(&g_loss);
         discriminator.var_store_mut().unfreeze();
 
@@ -273,6 +278,20 @@ pub fn train_ace(
         generator,
         discriminator: Some(discriminator),
     })
+}
+
+/// A loss term of weight `w`: in the graph when `w` is positive, computed under
+/// [`tch::no_grad`] (monitored only) when it is zero.
+pub(crate) fn tracked(w: f64, term: impl FnOnce() -> Result<Tensor, LearnError>) -> Result<Tensor, LearnError> {
+    if w > 0.0 { term() } else { tch::no_grad(term) }
+}
+
+/// `Σ wᵢ·termᵢ` over the terms of positive weight (zero-weighted terms, monitored only, stay out of
+/// the graph). At least one weight must be positive.
+pub(crate) fn weighted_sum(terms: &[(f64, &Tensor)]) -> Tensor {
+    let mut used = terms.iter().filter(|(w, _)| *w > 0.0).map(|(w, t)| *t * *w);
+    let first = used.next().expect("at least one positive loss weight");
+    used.fold(first, |acc, t| acc + t)
 }
 
 /// The inputs must describe one character with one normalisation.
