@@ -57,8 +57,6 @@ pub struct Retargeter {
     prev: Tensor,
     /// The cleanup whole-motion rollouts pass through.
     cleanup: Cleanup,
-    /// The root heights the character's dataset spans (m), when the prior's bounds say.
-    root_height_range: Option<(f32, f32)>,
 }
 
 impl Retargeter {
@@ -92,14 +90,12 @@ impl Retargeter {
         }
         prior.prior.freeze();
         let device = prior.prior.device();
-        let root_height_range = data_range(&prior, prior.character.layout.root_height().start);
         let stats = &ace.record.human_stats;
         Ok(Retargeter {
             human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
             human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
             prev: Tensor::zeros([0, prior.prior.state_dim() as i64], (Kind::Float, device)),
             cleanup: Cleanup::default(),
-            root_height_range,
             dir: dir.to_path_buf(),
             prior,
             ace,
@@ -142,15 +138,7 @@ impl Retargeter {
     /// The normalised x^r of the character standing at rest (the standing pose, zero velocities).
     pub fn start_state(&self, tree: &KinematicTree, morph: &Morphology) -> Result<Vec<f32>, LearnError> {
         self.check_character(tree, morph)?;
-        let standing = tree.standing_pose();
-        let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
-        let s = &self.prior.stats;
-        Ok(x.iter()
-            .zip(&s.mean)
-            .zip(&s.std)
-            .zip(&self.prior.mask)
-            .map(|(((v, m), sd), k)| (v - m) / sd * k)
-            .collect())
+        Ok(standing_state(&self.prior, tree, morph))
     }
 
     /// Starts a batch: one normalised start state per character (e.g. [`Retargeter::start_state`]).
@@ -234,8 +222,10 @@ impl Retargeter {
     ) -> Result<RetargetedMotion, LearnError> {
         let human = rows_to_tensor(x_h, self.prior.prior.device())?;
         let human = (human - &self.human_mean) / &self.human_std;
-        self.roll_out(tree, morph, x_h.len(), &mut |t, prev| {
-            self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev)
+        self.check_character(tree, morph)?;
+        roll_out(tree, morph, &self.prior, self.cleanup, x_h.len(), &mut |t, prev| {
+            let z = self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev);
+            self.prior.prior.decode(&z, prev)
         })
     }
 
@@ -252,80 +242,96 @@ impl Retargeter {
         let latent = self.prior.prior.latent_dim();
         let device = self.prior.prior.device();
         let mut rng = Pcg64::seed_from_u64(seed);
-        self.roll_out(tree, morph, frames, &mut |_, _| {
-            Tensor::from_slice(&normals(&mut rng, latent))
+        self.check_character(tree, morph)?;
+        roll_out(tree, morph, &self.prior, self.cleanup, frames, &mut |_, prev| {
+            let z = Tensor::from_slice(&normals(&mut rng, latent))
                 .view([1, latent as i64])
-                .to_device(device)
+                .to_device(device);
+            self.prior.prior.decode(&z, prev)
         })
     }
 
-    /// The rollout loop shared by [`Retargeter::retarget_states`] and
-    /// [`Retargeter::random_latent_rollout`]: `latent(t, prev)` gives ẑ_t (`[1, latent]`) from the
-    /// normalised previous state, π decodes it, and the state is turned into a pose (see the module
-    /// docs).
-    fn roll_out(
-        &self,
-        tree: &KinematicTree,
-        morph: &Morphology,
-        frames: usize,
-        latent: &mut dyn FnMut(usize, &Tensor) -> Tensor,
-    ) -> Result<RetargetedMotion, LearnError> {
-        let start = self.start_state(tree, morph)?;
-        let layout = CharacterLayout::new(tree, morph);
-        let dt = 1.0 / PROJECT_FPS;
-        let standing = tree.standing_pose();
-        let wheels = wheels::find(tree, morph, &standing);
-        let mut prev = rows_to_tensor(&[start], self.prior.prior.device())?;
-        let mut root = standing.root;
-        let mut wheel_q = standing.q.clone();
-        let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
-        let joints = layout.joint_positions();
-        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, &self.cleanup);
-        let mut cleanup_state = cleanup.start();
-        let mut prev_pose = standing.clone();
-        let mut recomputed = vec![0.0; layout.dim()];
-        let mut state_scratch = StateScratch::default();
-        for t in 0..frames {
-            let next = tch::no_grad(|| {
-                let z = latent(t, &prev);
-                self.prior.prior.decode(&z, &prev)
-            });
-            let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), layout.dim())?.remove(0);
-            prev = next;
-            if let Some((lo, hi)) = self.root_height_range.filter(|_| cleanup.is_active()) {
-                // The prior's clamp leaves a margin beyond the data; a low body can sink into the
-                // ground inside it.
-                let h = &mut state[layout.root_height()][0];
-                *h = h.clamp(lo, hi);
-            }
-            let mut pose = decode_pose(&layout, &root, &state);
-            tree.clamp(&mut pose.q);
-            let v = &state[layout.root_linear_velocity()];
-            let wz = state[layout.root_angular_velocity()][2];
-            wheels::roll(&wheels, &mut wheel_q, Vector2::new(v[0], v[1]), wz, dt);
-            for w in &wheels {
-                pose.q[w.dof] = wheel_q[w.dof];
-            }
-            if cleanup.is_active() {
-                cleanup.apply(tree, &mut cleanup_state, &mut pose);
-                // The end-effector entries follow the cleaned-up joints.
-                character_state_into(tree, morph, &prev_pose, &pose, dt, &mut state_scratch, &mut recomputed);
-                for r in [layout.ee_positions(), layout.ee_velocities()] {
-                    state[r.clone()].copy_from_slice(&recomputed[r]);
-                }
-            }
-            state[joints.clone()].copy_from_slice(&pose.q);
-            root = pose.root;
-            prev_pose = pose.clone();
-            states.push(state);
-            poses.push(pose);
+}
+
+/// The rollout loop of [`Retargeter`] and of the NKN baseline ([`super::nkn`]): `next(t, prev)`
+/// gives the normalised state of frame `t` (`[1, D]`) from the normalised previous one (the first
+/// is the standing state), and each state is turned into a pose with the character's joint
+/// limits, its wheels and `cleanup` (see the module docs).
+pub(crate) fn roll_out(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    prior: &PriorCheckpoint,
+    cleanup: Cleanup,
+    frames: usize,
+    next: &mut dyn FnMut(usize, &Tensor) -> Tensor,
+) -> Result<RetargetedMotion, LearnError> {
+    let start = standing_state(prior, tree, morph);
+    let root_height_range = data_range(prior, prior.character.layout.root_height().start);
+    let layout = CharacterLayout::new(tree, morph);
+    let dt = 1.0 / PROJECT_FPS;
+    let standing = tree.standing_pose();
+    let wheels = wheels::find(tree, morph, &standing);
+    let mut prev = rows_to_tensor(&[start], prior.prior.device())?;
+    let mut root = standing.root;
+    let mut wheel_q = standing.q.clone();
+    let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
+    let joints = layout.joint_positions();
+    let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, &cleanup);
+    let mut cleanup_state = cleanup.start();
+    let mut prev_pose = standing.clone();
+    let mut recomputed = vec![0.0; layout.dim()];
+    let mut state_scratch = StateScratch::default();
+    for t in 0..frames {
+        let cur = tch::no_grad(|| next(t, &prev));
+        let mut state = tensor_to_rows(&prior.stats.denormalise(&cur), layout.dim())?.remove(0);
+        prev = cur;
+        if let Some((lo, hi)) = root_height_range.filter(|_| cleanup.is_active()) {
+            // The prior's clamp leaves a margin beyond the data; a low body can sink into the
+            // ground inside it.
+            let h = &mut state[layout.root_height()][0];
+            *h = h.clamp(lo, hi);
         }
-        Ok(RetargetedMotion {
-            fps: PROJECT_FPS,
-            states,
-            poses,
-        })
+        let mut pose = decode_pose(&layout, &root, &state);
+        tree.clamp(&mut pose.q);
+        let v = &state[layout.root_linear_velocity()];
+        let wz = state[layout.root_angular_velocity()][2];
+        wheels::roll(&wheels, &mut wheel_q, Vector2::new(v[0], v[1]), wz, dt);
+        for w in &wheels {
+            pose.q[w.dof] = wheel_q[w.dof];
+        }
+        if cleanup.is_active() {
+            cleanup.apply(tree, &mut cleanup_state, &mut pose);
+            // The end-effector entries follow the cleaned-up joints.
+            character_state_into(tree, morph, &prev_pose, &pose, dt, &mut state_scratch, &mut recomputed);
+            for r in [layout.ee_positions(), layout.ee_velocities()] {
+                state[r.clone()].copy_from_slice(&recomputed[r]);
+            }
+        }
+        state[joints.clone()].copy_from_slice(&pose.q);
+        root = pose.root;
+        prev_pose = pose.clone();
+        states.push(state);
+        poses.push(pose);
     }
+    Ok(RetargetedMotion {
+        fps: PROJECT_FPS,
+        states,
+        poses,
+    })
+}
+
+/// The normalised x^r of the character standing at rest (the standing pose, zero velocities), masked
+/// as the prior's inputs are.
+fn standing_state(prior: &PriorCheckpoint, tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
+    let standing = tree.standing_pose();
+    let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
+    let s = &prior.stats;
+    x.iter()
+        .zip(&s.mean)
+        .zip(&s.std)
+        .zip(&prior.mask)
+        .map(|(((v, m), sd), k)| (v - m) / sd * k)
+        .collect()
 }
 
 /// The range entry `j` of the states spans in the prior's dataset (denormalised): its bounds without
