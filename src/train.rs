@@ -65,6 +65,11 @@ fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&
         characters::check_dataset(&set, file, tree, urdf)?;
         return Ok(set);
     }
+    generate_dataset(tree, morph, cfg)
+}
+
+/// Generates the character dataset of `cfg` (progress bar).
+pub fn generate_dataset(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig) -> Result<MotionSet> {
     let bar = progress::bar(cfg.frames as u64, "frames");
     bar.set_message("generating the character dataset");
     let set = generate(tree, morph, cfg, &mut |done| bar.set_position(done as u64))?;
@@ -73,7 +78,7 @@ fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Option<&
 }
 
 /// What the command line, data and code version were, for the checkpoint's provenance.
-fn provenance(extra: Value) -> Value {
+pub fn provenance(extra: Value) -> Value {
     let commit = git(&["rev-parse", "--short", "HEAD"]).map(|out| out.trim().to_string());
     // Uncommitted changes to tracked files mean the commit alone does not say which code ran.
     let modified = git(&["status", "--porcelain", "--untracked-files=no"]).map(|out| !out.is_empty());
