@@ -17,7 +17,7 @@ use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::{AceConfig, read_record};
 use ace::models::learn::checkpoint::PriorCheckpoint;
 use ace::models::learn::nkn::{NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, train_nkn};
-use ace::models::learn::train_ace::{AceInputs, LOSSES_FILE, train_ace};
+use ace::models::learn::train_ace::AceInputs;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 use serde_json::json;
@@ -130,14 +130,7 @@ pub fn train_missing(
                 bar.finish_and_clear();
                 train::plot_losses(&dir.join(NKN_LOSSES_FILE), system, &["g_loss", "d_loss", "adv", "cycle", "gp"])?;
             } else {
-                let cfg = ablation(ace_cfg, slug, quick);
-                let bar = progress::bar(cfg.steps as u64, "steps");
-                train_ace(&inputs, &cfg, &dir, &mut |p| {
-                    bar.set_position(p.step as u64);
-                    bar.set_message(format!("{system}: G {:.3} (fea {:.3}, adv {:.3}), D {:.3}", p.g_loss, p.fea, p.adv, p.d_loss));
-                })?;
-                bar.finish_and_clear();
-                train::plot_losses(&dir.join(LOSSES_FILE), system, &["g_loss", "d_loss", "fea", "adv", "gp"])?;
+                train::train_ace_with_progress(&inputs, &ablation(ace_cfg, slug, quick), &dir, system)?;
             }
             println!("{system}: trained in {:.0} s into {}", clock.elapsed().as_secs_f64(), dir.display());
         }

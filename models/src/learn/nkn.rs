@@ -33,7 +33,6 @@
 //! turned into poses exactly as ACE's ([`super::retarget`]: root integration, joint limits, cleanup).
 
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -49,7 +48,7 @@ use super::files::{CheckpointFiles, FileRecord, load_weights, open_losses, read_
 use super::fk::{FkLayer, quat_to_matrix};
 use super::prior::{DeviceChoice, window_starts};
 use super::retarget::{RetargetedMotion, roll_out};
-use super::train_ace::{AceInputs, human_windows, normalised_dataset, tracked, weighted_sum};
+use super::train_ace::{AceInputs, human_windows, log_step, normalised_dataset, tracked, weighted_sum};
 use crate::character_state::CharacterLayout;
 use crate::cleanup::Cleanup;
 use crate::human::layout as human_layout;
@@ -459,7 +458,6 @@ pub fn train_nkn(
         opt_d.backward_step(&d.total);
 
         let scalar = |t: &Tensor| t.double_value(&[]);
-        let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
         let report = NknProgress {
             step: step + 1,
             steps: cfg.steps,
@@ -468,27 +466,8 @@ pub fn train_nkn(
             adv: scalar(&adv),
             cycle: scalar(&cycle),
         };
-        if !(report.g_loss.is_finite() && report.d_loss.is_finite()) {
-            return Err(LearnError::Data(format!(
-                "NKN's losses became non-finite at step {} (G {}, D {})",
-                report.step, report.g_loss, report.d_loss
-            )));
-        }
-        writeln!(
-            log,
-            "{step},{},{},{},{},{},{},{},{},{:.3}",
-            report.d_loss,
-            scalar(&d.bce),
-            scalar(&d.gp),
-            report.g_loss,
-            report.adv,
-            report.cycle,
-            mean_sigmoid(&d.real_logits),
-            mean_sigmoid(&d.fake_logits),
-            seconds_before + clock.elapsed().as_secs_f64()
-        )
-        .and_then(|_| log.flush())
-        .map_err(|e| LearnError::io(&losses_path, e))?;
+        let seconds = seconds_before + clock.elapsed().as_secs_f64();
+        log_step(&mut log, &losses_path, step, &d, [report.g_loss, report.adv, report.cycle], seconds)?;
         progress(&report);
         ckpt.record.step = step + 1;
         if ckpt.record.step % cfg.checkpoint_every == 0 || ckpt.record.step == cfg.steps {
@@ -521,9 +500,8 @@ fn save(record: &mut NknRecord, nkn: &Nkn, d: &Discriminator, dir: &Path) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::features::character_body_length;
-    use crate::learn::prior::test_support::{scratch_dir, spot, trained_spot_dir};
-    use crate::learn::train_ace::test_support::{bundled_humans, spot_correspondence};
+    use crate::learn::prior::test_support::{scratch_dir, spot};
+    use crate::learn::train_ace::test_support::{bundled_humans, with_spot_inputs};
 
     fn tiny(steps: usize) -> NknConfig {
         NknConfig {
@@ -542,48 +520,38 @@ mod tests {
 
     #[test]
     fn a_short_run_lowers_its_loss_and_retargets_finite_poses() {
-        let (tree, morph, set) = spot();
-        let prior = PriorCheckpoint::load(trained_spot_dir(), Device::Cpu).unwrap();
-        let corr = spot_correspondence();
-        let provenance = serde_json::json!({"test": "nkn"});
-        let inputs = AceInputs {
-            prior: &prior,
-            dataset: set,
-            humans: bundled_humans(),
-            correspondence: &corr,
-            character_body_length: character_body_length(tree, morph),
-            human_body_length: None,
-            provenance: &provenance,
-        };
-        let dir = scratch_dir("nkn_short");
-        let mut reports = Vec::new();
-        let steps = 60;
-        train_nkn(&inputs, tree, morph, &tiny(steps), &dir, &mut |p| reports.push(p.clone())).unwrap();
-        assert_eq!(reports.len(), steps);
-        let mean = |r: &[NknProgress]| r.iter().map(|p| p.g_loss).sum::<f64>() / r.len() as f64;
-        let (first, last) = (mean(&reports[..10]), mean(&reports[steps - 10..]));
-        assert!(last < first, "NKN's loss went from {first} to {last}");
-        let text = fs::read_to_string(dir.join(NKN_LOSSES_FILE)).unwrap();
-        assert_eq!(text.lines().count(), steps + 1);
+        let (tree, morph, _) = spot();
+        with_spot_inputs("nkn", |inputs| {
+            let dir = scratch_dir("nkn_short");
+            let mut reports = Vec::new();
+            let steps = 60;
+            train_nkn(inputs, tree, morph, &tiny(steps), &dir, &mut |p| reports.push(p.clone())).unwrap();
+            assert_eq!(reports.len(), steps);
+            let mean = |r: &[NknProgress]| r.iter().map(|p| p.g_loss).sum::<f64>() / r.len() as f64;
+            let (first, last) = (mean(&reports[..10]), mean(&reports[steps - 10..]));
+            assert!(last < first, "NKN's loss went from {first} to {last}");
+            let text = fs::read_to_string(dir.join(NKN_LOSSES_FILE)).unwrap();
+            assert_eq!(text.lines().count(), steps + 1);
 
-        // Loaded back, it retargets a clip into finite poses within the joint limits.
-        let ckpt = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap();
-        assert_eq!(ckpt.record.step, steps);
-        let walk = &bundled_humans().clips[1].states;
-        let m = ckpt.retarget_states(tree, morph, walk, Cleanup::default()).unwrap();
-        assert_eq!(m.poses.len(), walk.len());
-        for p in &m.poses {
-            assert!(p.q.iter().chain(p.root.translation.vector.iter()).all(|v| v.is_finite()));
-            let mut clamped = p.q.clone();
-            tree.clamp(&mut clamped);
-            assert_eq!(clamped, p.q);
-        }
-        // A finished run is not trained again; a broken record is named.
-        let again = train_nkn(&inputs, tree, morph, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
-        assert_eq!(again.record.step, steps);
-        fs::write(dir.join(NKN_FILE), "{").unwrap();
-        let e = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap_err().to_string();
-        assert!(e.contains(NKN_FILE), "{e}");
-        fs::remove_dir_all(&dir).unwrap();
+            // Loaded back, it retargets a clip into finite poses within the joint limits.
+            let ckpt = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap();
+            assert_eq!(ckpt.record.step, steps);
+            let walk = &bundled_humans().clips[1].states;
+            let m = ckpt.retarget_states(tree, morph, walk, Cleanup::default()).unwrap();
+            assert_eq!(m.poses.len(), walk.len());
+            for p in &m.poses {
+                assert!(p.q.iter().chain(p.root.translation.vector.iter()).all(|v| v.is_finite()));
+                let mut clamped = p.q.clone();
+                tree.clamp(&mut clamped);
+                assert_eq!(clamped, p.q);
+            }
+            // A finished run is not trained again; a broken record is named.
+            let again = train_nkn(inputs, tree, morph, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
+            assert_eq!(again.record.step, steps);
+            fs::write(dir.join(NKN_FILE), "{").unwrap();
+            let e = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap_err().to_string();
+            assert!(e.contains(NKN_FILE), "{e}");
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 }

@@ -43,7 +43,7 @@ use tch::nn::OptimizerConfig;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::ace::{
-    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, Discriminator,
+    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, Discriminator, DiscriminatorLoss,
     FORMAT_VERSION, FileRecord, Generator, KIND, discriminator_loss, generator_adv_loss,
 };
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint};
@@ -232,7 +232,6 @@ pub fn train_ace(
         let d = last.expect("at least one D evaluation");
 
         let scalar = |t: &Tensor| t.double_value(&[]);
-        let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
         let report = AceProgress {
             step: step + 1,
             steps: cfg.steps,
@@ -242,27 +241,7 @@ pub fn train_ace(
             adv: scalar(&adv),
             seconds: seconds_before + clock.elapsed().as_secs_f64(),
         };
-        if !(report.g_loss.is_finite() && report.d_loss.is_finite()) {
-            return Err(LearnError::Data(format!(
-                "the losses became non-finite at step {} (G {}, D {}); lower the learning rates",
-                report.step, report.g_loss, report.d_loss
-            )));
-        }
-        writeln!(
-            log,
-            "{step},{},{},{},{},{},{},{},{},{:.3}",
-            report.d_loss,
-            scalar(&d.bce),
-            scalar(&d.gp),
-            report.g_loss,
-            report.adv,
-            report.fea,
-            mean_sigmoid(&d.real_logits),
-            mean_sigmoid(&d.fake_logits),
-            report.seconds
-        )
-        .and_then(|_| log.flush())
-        .map_err(|e| LearnError::io(&losses_path, e))?;
+        log_step(&mut log, &losses_path, step, &d, [report.g_loss, report.adv, report.fea], report.seconds)?;
         progress(&report);
         record.step = step + 1;
         if record.step % cfg.checkpoint_every == 0 || record.step == cfg.steps {
@@ -274,6 +253,43 @@ pub fn train_ace(
         generator,
         discriminator: Some(discriminator),
     })
+}
+
+/// Fails when the step's losses are not finite, else appends its row to the loss log `log` (at
+/// `path`): `step,d_loss,d_bce,gp,g_loss,adv,<term>,d_real,d_fake,seconds`, where `g = [g_loss, adv,
+/// term]` (`term` is L_fea for ACE, the cycle loss for NKN) and `d_real`/`d_fake` are the mean
+/// σ(logit) of D's batches.
+pub(crate) fn log_step(
+    log: &mut fs::File,
+    path: &Path,
+    step: usize,
+    d: &DiscriminatorLoss,
+    g: [f64; 3],
+    seconds: f64,
+) -> Result<(), LearnError> {
+    let scalar = |t: &Tensor| t.double_value(&[]);
+    let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
+    let d_loss = scalar(&d.total);
+    if !(g[0].is_finite() && d_loss.is_finite()) {
+        return Err(LearnError::Data(format!(
+            "the losses became non-finite at step {} (G {}, D {d_loss}); lower the learning rates",
+            step + 1,
+            g[0]
+        )));
+    }
+    writeln!(
+        log,
+        "{step},{d_loss},{},{},{},{},{},{},{},{seconds:.3}",
+        scalar(&d.bce),
+        scalar(&d.gp),
+        g[0],
+        g[1],
+        g[2],
+        mean_sigmoid(&d.real_logits),
+        mean_sigmoid(&d.fake_logits),
+    )
+    .and_then(|_| log.flush())
+    .map_err(|e| LearnError::io(path, e))
 }
 
 /// Every state of the prior's dataset `set`, normalised and masked as the prior's inputs (`[N, D]`).
@@ -547,11 +563,21 @@ pub(crate) mod test_support {
         dir: &Path,
         cfg: &AceConfig,
     ) -> Result<(AceCheckpoint, Vec<AceProgress>), LearnError> {
+        with_spot_inputs("train_ace", |inputs| {
+            let mut reports = Vec::new();
+            let ckpt = train_ace(inputs, cfg, dir, &mut |p| reports.push(p.clone()))?;
+            Ok((ckpt, reports))
+        })
+    }
+
+    /// Calls `f` with the inputs of the test Spot: its trained prior and dataset, the bundled clips,
+    /// their automatic correspondence, provenance `{"test": test}`.
+    pub(crate) fn with_spot_inputs<T>(test: &str, f: impl FnOnce(&AceInputs<'_>) -> T) -> T {
         let (tree, morph, set) = spot();
         let prior = PriorCheckpoint::load(trained_spot_dir(), Device::Cpu).unwrap();
         let corr = spot_correspondence();
-        let provenance = serde_json::json!({"test": "train_ace"});
-        let inputs = AceInputs {
+        let provenance = serde_json::json!({ "test": test });
+        f(&AceInputs {
             prior: &prior,
             dataset: set,
             humans: bundled_humans(),
@@ -559,10 +585,7 @@ pub(crate) mod test_support {
             character_body_length: character_body_length(tree, morph),
             human_body_length: None,
             provenance: &provenance,
-        };
-        let mut reports = Vec::new();
-        let ckpt = train_ace(&inputs, cfg, dir, &mut |p| reports.push(p.clone()))?;
-        Ok((ckpt, reports))
+        })
     }
 
     /// A run directory holding 100 steps of [`tiny_config`] (trained once per process).
