@@ -11,6 +11,10 @@
 //!   the cleanup: what the prior does without the generator, the reference L_fea and FID are judged
 //!   against.
 //!
+//! - with `--baselines`, the systems of the paper's Table 1 ([`crate::baselines`]): **NKN**, **ACE w/o
+//!   feature** and **ACE w/o adversarial**, trained first when missing, each scored exactly as ACE (the
+//!   same scorer, correspondence, body lengths and cleanup).
+//!
 //! Columns: DIV, FID against the training dataset's Ψ fit, L_fea against the human (not for the
 //! dataset) and UFR with its detectors. Each learned system is also rolled out for `--seconds` (60 by
 //! default) on the held-out clips played back to back, and checked for non-finite values and for the
@@ -25,6 +29,7 @@ use ace::models::cleanup::Cleanup;
 use ace::models::dataset::generate;
 use ace::models::human_set::{HumanRow, HumanSet, HumanSetClip, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
+use ace::models::learn::nkn::NknCheckpoint;
 use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
 use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
@@ -32,6 +37,7 @@ use ace::plot::{BarChart, Figure};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
+use crate::baselines::{self, Baseline};
 use crate::scoring::Scorer;
 use crate::{characters, humans, progress, retarget, train};
 
@@ -39,6 +45,7 @@ use crate::{characters, humans, progress, retarget, train};
 pub const ACE_RAW: &str = "ACE without cleanup";
 
 /// Options of `ace eval`.
+#[derive(Clone)]
 pub struct EvalArgs {
     pub character: String,
     pub checkpoint: Option<PathBuf>,
@@ -50,7 +57,19 @@ pub struct EvalArgs {
     pub seconds: f32,
     /// Evaluate at most this many held-out clips (all when `None`).
     pub max_clips: Option<usize>,
+    /// Add the paper's baselines, training those missing.
+    pub baselines: bool,
+    /// Where the baselines' runs live [default: [`baselines::default_runs`]].
+    pub runs: Option<PathBuf>,
+    /// CI setting: baselines of [`baselines::QUICK_STEPS`] steps, at most [`QUICK_CLIPS`] clips
+    /// (unless `max_clips` says), rollouts of at most [`QUICK_SECONDS`].
+    pub quick: bool,
 }
+
+/// Held-out clips under `--quick` (unless `--max-clips` says).
+pub const QUICK_CLIPS: usize = 2;
+/// Longest stability rollout under `--quick` (s).
+pub const QUICK_SECONDS: f32 = 4.0;
 
 /// One row of the table.
 #[derive(Clone, Debug, Serialize)]
@@ -106,7 +125,18 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         None => retarget::default_checkpoint(&args.character)?,
     };
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
-    let eval = evaluate(args, &dir, &tree, &morph)?;
+    let mut args = args.clone();
+    if args.quick {
+        args.max_clips = Some(args.max_clips.unwrap_or(QUICK_CLIPS));
+        args.seconds = args.seconds.min(QUICK_SECONDS);
+    }
+    let systems = if args.baselines {
+        let runs = args.runs.clone().unwrap_or_else(|| baselines::default_runs(&tree.name, args.quick));
+        baselines::train_missing(&tree, &morph, &dir, &runs, args.humans.as_deref(), args.quick)?
+    } else {
+        Vec::new()
+    };
+    let eval = evaluate(&args, &dir, &tree, &morph, &systems)?;
     write(&eval, &out)?;
     print!("{}", markdown(&eval));
     println!("wrote {}/eval.md, eval.csv, eval.json and eval.png", out.display());
@@ -114,7 +144,13 @@ pub fn run(args: &EvalArgs) -> Result<()> {
 }
 
 /// Scores every system on the held-out clips (see the module docs).
-pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morphology) -> Result<Evaluation> {
+pub fn evaluate(
+    args: &EvalArgs,
+    dir: &Path,
+    tree: &KinematicTree,
+    morph: &Morphology,
+    baselines: &[(&str, Baseline)],
+) -> Result<Evaluation> {
     let mut retargeter = Retargeter::load(dir, ace::models::learn::default_device())?;
     retargeter.check_character(tree, morph)?;
     let scorer = Scorer::new(&retargeter, dir)?;
@@ -131,7 +167,7 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
         clips.len(),
         folder.display()
     );
-    let bar = progress::bar((3 * clips.len() + 1) as u64, "rollouts");
+    let bar = progress::bar(((3 + baselines.len()) * clips.len() + 1) as u64, "rollouts");
     let mut rows = vec![dataset_row(&retargeter, &scorer, tree, morph, frames, args.seed)?];
     bar.inc(1);
 
@@ -146,6 +182,16 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
         retargeter.set_cleanup(cleanup);
         systems[2].1.push(retargeter.random_latent_rollout(tree, morph, clip.states.len(), args.seed.wrapping_add(k as u64))?);
         bar.inc(3);
+    }
+    // The baselines, with ACE's cleanup.
+    let loaded: Vec<(&str, Runner)> = baselines
+        .iter()
+        .map(|(name, b)| Ok((*name, Runner::new(b, cleanup, tree, morph)?)))
+        .collect::<Result<_>>()?;
+    for (name, runner) in &loaded {
+        let motions = clips.iter().map(|c| runner.retarget(tree, morph, &c.states)).collect::<Result<Vec<_>>>()?;
+        bar.inc(clips.len() as u64);
+        systems.push((name, motions));
     }
     bar.finish_and_clear();
     let human_psi: Vec<Vec<f32>> = clips.iter().flat_map(|c| scorer.human_psi(&c.states, c.body_length)).collect();
@@ -163,10 +209,13 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
     let long = (args.seconds * PROJECT_FPS).round() as usize;
     let looped: Vec<HumanRow> = clips.iter().flat_map(|c| c.states.iter().copied()).cycle().take(long).collect();
     let body = ace::models::features::character_body_length(tree, morph);
-    let stability = vec![
+    let mut stability = vec![
         stability("ACE", &retargeter.retarget_states(tree, morph, &looped)?, body),
         stability("Prior with random z", &retargeter.random_latent_rollout(tree, morph, long, args.seed)?, body),
     ];
+    for (name, runner) in &loaded {
+        stability.push(self::stability(name, &runner.retarget(tree, morph, &looped)?, body));
+    }
     Ok(Evaluation {
         character: tree.name.clone(),
         checkpoint: dir.to_path_buf(),
@@ -177,6 +226,33 @@ pub fn evaluate(args: &EvalArgs, dir: &Path, tree: &KinematicTree, morph: &Morph
         rows,
         stability,
     })
+}
+
+/// A loaded baseline that retargets like ACE (same cleanup).
+enum Runner<'a> {
+    Ace(Retargeter),
+    Nkn(&'a NknCheckpoint, Cleanup),
+}
+
+impl<'a> Runner<'a> {
+    fn new(b: &'a Baseline, cleanup: Cleanup, tree: &KinematicTree, morph: &Morphology) -> Result<Runner<'a>> {
+        Ok(match b {
+            Baseline::Ace(dir) => {
+                let mut r = Retargeter::load(dir, ace::models::learn::default_device())?;
+                r.check_character(tree, morph)?;
+                r.set_cleanup(cleanup);
+                Runner::Ace(r)
+            }
+            Baseline::Nkn(n) => Runner::Nkn(n, cleanup),
+        })
+    }
+
+    fn retarget(&self, tree: &KinematicTree, morph: &Morphology, x_h: &[HumanRow]) -> Result<RetargetedMotion> {
+        Ok(match self {
+            Runner::Ace(r) => r.retarget_states(tree, morph, x_h)?,
+            Runner::Nkn(n, cleanup) => n.retarget_states(tree, morph, x_h, *cleanup)?,
+        })
+    }
 }
 
 /// The held-out clips the checkpoint recorded, found in `set`.
@@ -318,9 +394,21 @@ pub fn markdown(e: &Evaluation) -> String {
             if x.stable { "yes" } else { "NO" }
         );
     }
-    let _ = writeln!(s, "\nThe paper's Table 1 (Spot, its own data and metric implementation):\n\n| system | DIV | FID | L_fea | UFR |\n|---|---:|---:|---:|---:|");
+    let _ = writeln!(
+        s,
+        "\nBeside the paper's Table 1 (Spot; its own data and metric implementation, so compare orderings, not values) — ours / paper's:\n\n| system | DIV | FID | L_fea | UFR |\n|---|---:|---:|---:|---:|"
+    );
     for (name, div, fid, fea, ufr) in PAPER_SPOT {
-        let _ = writeln!(s, "| {name} | {div:.3} | {fid:.3} | {} | {ufr:.3} % |", opt(fea));
+        let ours = e.rows.iter().find(|r| r.system == name).map(|r| &r.metrics);
+        let pair = |o: Option<String>, p: String| format!("{} / {p}", o.unwrap_or_else(|| "—".into()));
+        let _ = writeln!(
+            s,
+            "| {name} | {} | {} | {} | {} |",
+            pair(ours.map(|m| format!("{:.3}", m.div)), format!("{div:.3}")),
+            pair(ours.map(|m| opt(m.fid)), format!("{fid:.3}")),
+            pair(ours.map(|m| opt(m.feature_loss)), opt(fea)),
+            pair(ours.map(|m| format!("{:.2} %", 100.0 * m.ufr.rates.ufr)), format!("{ufr:.3} %")),
+        );
     }
     s
 }

@@ -7,6 +7,7 @@ extern crate self as ace;
 pub use ace_models as models;
 pub use bevy_ace as plugin;
 
+pub mod baselines;
 pub mod characters;
 pub mod dataset;
 pub mod demo;

@@ -127,8 +127,8 @@ enum Command {
         no_cleanup: bool,
     },
     /// Evaluate a checkpoint on the human clips it never saw: DIV, FID, L_fea and UFR of the dataset,
-    /// ACE and the prior driven by random latents, plus long-rollout stability. Writes Markdown, CSV,
-    /// JSON and a chart.
+    /// ACE and the prior driven by random latents (with --baselines also NKN and ACE without either
+    /// loss, the paper's Table 1), plus long-rollout stability. Writes Markdown, CSV, JSON and a chart.
     Eval {
         /// A bundled character (spot, crab, stretch) or a URDF file.
         #[arg(long)]
@@ -151,6 +151,17 @@ enum Command {
         /// Evaluate at most this many held-out clips [default: all].
         #[arg(long)]
         max_clips: Option<usize>,
+        /// Also score the paper's baselines (NKN, ACE without the feature loss, ACE without the
+        /// adversarial loss), training those missing with the checkpoint's data and budget first.
+        #[arg(long)]
+        baselines: bool,
+        /// Folder of the baselines' runs [default: out/baselines/<character>, or
+        /// out/baselines-quick/<character> with --quick].
+        #[arg(long, requires = "baselines")]
+        runs: Option<PathBuf>,
+        /// CI setting: baselines of 20 steps, at most 2 held-out clips, rollouts of at most 4 s.
+        #[arg(long)]
+        quick: bool,
     },
     /// Print the motion-quality metrics (UFR and its detectors, DIV, FID) of a motion file.
     Metrics {
@@ -189,7 +200,7 @@ fn main() -> ExitCode {
         Command::Retarget { clip, character, checkpoint, out, no_human, no_cleanup } => {
             retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human, !no_cleanup)
         }
-        Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips } => eval::run(&eval::EvalArgs {
+        Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick } => eval::run(&eval::EvalArgs {
             character,
             checkpoint,
             humans,
@@ -197,6 +208,9 @@ fn main() -> ExitCode {
             seed,
             seconds,
             max_clips,
+            baselines,
+            runs,
+            quick,
         }),
         Command::Metrics { file, character, reference, json } => {
             metrics::run(&file, character.as_deref(), reference.as_deref(), json)

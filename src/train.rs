@@ -18,7 +18,7 @@ use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::AceConfig;
 use ace::models::learn::checkpoint::PriorCheckpoint;
 use ace::models::learn::prior::{PriorConfig, state_mask, train_prior_with};
-use ace::models::learn::train_ace::{AceInputs, train_ace};
+use ace::models::learn::train_ace::{AceInputs, LOSSES_FILE, train_ace};
 use ace::models::metrics::GaussianFit;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result, bail};
@@ -66,6 +66,11 @@ pub fn dataset(tree: &KinematicTree, morph: &Morphology, urdf: &Path, file: Opti
         characters::check_dataset(&set, file, tree, urdf)?;
         return Ok(set);
     }
+    generate_dataset(tree, morph, cfg)
+}
+
+/// Generates the character dataset of `cfg` (progress bar).
+pub fn generate_dataset(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig) -> Result<MotionSet> {
     let bar = progress::bar(cfg.frames as u64, "frames");
     bar.set_message("generating the character dataset");
     let set = generate(tree, morph, cfg, &mut |done| bar.set_position(done as u64))?;
@@ -176,13 +181,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         human_body_length: None,
         provenance: &provenance(record),
     };
-    let bar = progress::bar(cfg.steps as u64, "steps");
-    train_ace(&inputs, &cfg, &dir, &mut |p| {
-        bar.set_position(p.step as u64);
-        bar.set_message(format!("G {:.3} (fea {:.3}, adv {:.3}), D {:.3}", p.g_loss, p.fea, p.adv, p.d_loss));
-    })?;
-    bar.finish_and_clear();
-    plot_losses(&dir.join("ace_losses.csv"), "ACE", &["g_loss", "d_loss", "fea", "adv", "gp"])?;
+    train_ace_with_progress(&inputs, &cfg, &dir, "ACE")?;
     println!("generator and discriminator saved in {} (curves: ace_losses.csv, ace_losses.png)", dir.display());
     Ok(())
 }
@@ -196,6 +195,18 @@ pub fn correspondence(cfg: &AceConfig, set: &MotionSet, humans: &HumanSet, body:
     }
     let automatic = Correspondence::automatic(&EndEffectorStats::from_motion_set(set, body), &human_stats)?;
     Ok(cfg.resolve_mapping(automatic)?)
+}
+
+/// [`train_ace`] with a progress bar (its message starting with `label`), then plots the loss
+/// curves.
+pub fn train_ace_with_progress(inputs: &AceInputs<'_>, cfg: &AceConfig, dir: &Path, label: &str) -> Result<()> {
+    let bar = progress::bar(cfg.steps as u64, "steps");
+    train_ace(inputs, cfg, dir, &mut |p| {
+        bar.set_position(p.step as u64);
+        bar.set_message(format!("{label}: G {:.3} (fea {:.3}, adv {:.3}), D {:.3}", p.g_loss, p.fea, p.adv, p.d_loss));
+    })?;
+    bar.finish_and_clear();
+    plot_losses(&dir.join(LOSSES_FILE), label, &["g_loss", "d_loss", "fea", "adv", "gp"])
 }
 
 /// Writes [`REFERENCE_FILE`]: the Gaussian fit of the dataset's Ψ under the chosen correspondence.

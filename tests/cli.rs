@@ -356,6 +356,32 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     }
     assert!(image::open(eval_dir.join("eval.png")).is_ok());
 
+    // The paper's comparison in its CI setting: the three baselines train for a few steps and every row
+    // of the table is complete and finite.
+    let (runs, cmp_dir) = (dir.join("baselines"), dir.join("compare"));
+    let compare = ["--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--humans", "assets/motions", "--baselines", "--quick", "--runs", &s(&runs), "--out", &s(&cmp_dir)];
+    let stdout = run(&compare);
+    let systems = ["Dataset", "ACE", "ACE without cleanup", "Prior with random z", "NKN", "ACE w/o feature", "ACE w/o adversarial"];
+    let csv = std::fs::read_to_string(cmp_dir.join("eval.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), systems.len(), "{csv}");
+    for (row, system) in rows.iter().zip(systems) {
+        let cells: Vec<&str> = row.split(',').collect();
+        assert_eq!(cells[1], system, "{csv}");
+        for (k, c) in cells[3..7].iter().enumerate() {
+            assert!(c.is_empty() && system == "Dataset" && k == 2 || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
+        }
+    }
+    for (system, slug) in [("NKN", "nkn"), ("ACE w/o feature", "ace-no-feature"), ("ACE w/o adversarial", "ace-no-adversarial")] {
+        assert!(stdout.contains(&format!("{system}: trained in")), "{stdout}");
+        assert!(runs.join(slug).join("prior.safetensors").is_file(), "{slug} has no prior");
+    }
+    let md = std::fs::read_to_string(cmp_dir.join("eval.md")).unwrap();
+    assert!(md.contains("| ACE w/o adversarial |") && md.contains("ours / paper's"), "{md}");
+    // A second run finds the baselines trained.
+    let stdout = run(&compare);
+    assert!(!stdout.contains("trained in"), "{stdout}");
+
     // A checkpoint of another character is refused with the directory named.
     let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "crab", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))]);
     assert!(!out.status.success());

@@ -166,6 +166,9 @@ impl AceConfig {
                 return bad(format!("{name} must be non-negative, not {v}"));
             }
         }
+        if self.w_adv == 0.0 && self.w_fea == 0.0 {
+            return bad("w_adv and w_fea are both zero: the generator would have nothing to learn".into());
+        }
         if !(0.0..1.0).contains(&self.adam_beta1) {
             return bad(format!("adam_beta1 must be in [0, 1), not {}", self.adam_beta1));
         }

@@ -8,6 +8,9 @@
 //! - [`psi`]: Ψ on tensors, the differentiable twin of [`crate::features`];
 //! - [`ace`]: generator G and discriminator D with their losses (§5);
 //! - [`train_ace`]: the adversarial training loop over human clips;
+//! - [`fk`]: differentiable forward kinematics (end-effector points from joint positions);
+//! - [`nkn`]: the NKN baseline of the paper's comparison (recurrent network, FK layer, adversarial
+//!   and cycle losses);
 //! - [`checkpoint`]: configs, normalisation statistics and weights on disk;
 //! - `files`: file handling both stages share (checksums, weights loading, loss logs, step generators);
 //! - [`retarget`]: inference, a human clip or pose stream to character states.
@@ -15,7 +18,9 @@
 pub mod ace;
 pub mod checkpoint;
 mod files;
+pub mod fk;
 pub mod nets;
+pub mod nkn;
 pub mod prior;
 pub mod psi;
 pub mod retarget;

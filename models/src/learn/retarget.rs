@@ -55,8 +55,6 @@ pub struct Retargeter {
     human_std: Tensor,
     /// The cleanup whole-motion rollouts pass through.
     cleanup: Cleanup,
-    /// The root heights the character's dataset spans (m), when the prior's bounds say.
-    root_height_range: Option<(f32, f32)>,
 }
 
 impl Retargeter {
@@ -90,13 +88,11 @@ impl Retargeter {
         }
         prior.prior.freeze();
         let device = prior.prior.device();
-        let root_height_range = data_range(&prior, prior.character.layout.root_height().start);
         let stats = &ace.record.human_stats;
         Ok(Retargeter {
             human_mean: Tensor::from_slice(&stats.mean).view([1, -1]).to_device(device),
             human_std: Tensor::from_slice(&stats.std).view([1, -1]).to_device(device),
             cleanup: Cleanup::default(),
-            root_height_range,
             dir: dir.to_path_buf(),
             prior,
             ace,
@@ -139,15 +135,7 @@ impl Retargeter {
     /// The normalised x^r of the character standing at rest (the standing pose, zero velocities).
     pub fn start_state(&self, tree: &KinematicTree, morph: &Morphology) -> Result<Vec<f32>, LearnError> {
         self.check_character(tree, morph)?;
-        let standing = tree.standing_pose();
-        let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
-        let s = &self.prior.stats;
-        Ok(x.iter()
-            .zip(&s.mean)
-            .zip(&s.std)
-            .zip(&self.prior.mask)
-            .map(|(((v, m), sd), k)| (v - m) / sd * k)
-            .collect())
+        Ok(standing_state(&self.prior, tree, morph))
     }
 
     /// Starts driving one character (the checkpoint's): standing at rest at the origin facing +x,
@@ -156,7 +144,7 @@ impl Retargeter {
         let start = self.start_state(tree, morph)?;
         Ok(CharacterStream {
             prev: rows_to_tensor(&[start], self.prior.prior.device())?,
-            decoder: StateDecoder::new(tree, morph, &self.cleanup, self.root_height_range),
+            decoder: StateDecoder::new(tree, morph, &self.cleanup, root_height_range(&self.prior)),
         })
     }
 
@@ -234,8 +222,10 @@ impl Retargeter {
     ) -> Result<RetargetedMotion, LearnError> {
         let human = rows_to_tensor(x_h, self.prior.prior.device())?;
         let human = (human - &self.human_mean) / &self.human_std;
-        self.roll_out(tree, morph, x_h.len(), &mut |t, prev| {
-            self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev)
+        self.check_character(tree, morph)?;
+        roll_out(tree, morph, &self.prior, self.cleanup, x_h.len(), &mut |t, prev| {
+            let z = self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev);
+            self.prior.prior.decode(&z, prev)
         })
     }
 
@@ -252,42 +242,64 @@ impl Retargeter {
         let latent = self.prior.prior.latent_dim();
         let device = self.prior.prior.device();
         let mut rng = Pcg64::seed_from_u64(seed);
-        self.roll_out(tree, morph, frames, &mut |_, _| {
-            Tensor::from_slice(&normals(&mut rng, latent))
+        self.check_character(tree, morph)?;
+        roll_out(tree, morph, &self.prior, self.cleanup, frames, &mut |_, prev| {
+            let z = Tensor::from_slice(&normals(&mut rng, latent))
                 .view([1, latent as i64])
-                .to_device(device)
+                .to_device(device);
+            self.prior.prior.decode(&z, prev)
         })
     }
 
-    /// The rollout loop shared by [`Retargeter::retarget_states`] and
-    /// [`Retargeter::random_latent_rollout`]: `latent(t, prev)` gives ẑ_t (`[1, latent]`) from the
-    /// normalised previous state, π decodes it, and the state is turned into a pose (see the module
-    /// docs).
-    fn roll_out(
-        &self,
-        tree: &KinematicTree,
-        morph: &Morphology,
-        frames: usize,
-        latent: &mut dyn FnMut(usize, &Tensor) -> Tensor,
-    ) -> Result<RetargetedMotion, LearnError> {
-        let mut stream = self.stream(tree, morph)?;
-        let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
-        for t in 0..frames {
-            let next = tch::no_grad(|| {
-                let z = latent(t, &stream.prev);
-                self.prior.prior.decode(&z, &stream.prev)
-            });
-            let mut state = tensor_to_rows(&self.prior.stats.denormalise(&next), self.state_dim())?.remove(0);
-            stream.prev = next;
-            poses.push(stream.decoder.decode(tree, morph, &mut state));
-            states.push(state);
-        }
-        Ok(RetargetedMotion {
-            fps: PROJECT_FPS,
-            states,
-            poses,
-        })
+}
+
+/// The rollout loop of [`Retargeter`] and of the NKN baseline ([`super::nkn`]): `next(t, prev)`
+/// gives the normalised state of frame `t` (`[1, D]`) from the normalised previous one (the first
+/// is the standing state), and each state is turned into a pose with the character's joint
+/// limits, its wheels and `cleanup` (see the module docs), as a [`CharacterStream`] does.
+pub(crate) fn roll_out(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    prior: &PriorCheckpoint,
+    cleanup: Cleanup,
+    frames: usize,
+    next: &mut dyn FnMut(usize, &Tensor) -> Tensor,
+) -> Result<RetargetedMotion, LearnError> {
+    let mut prev = rows_to_tensor(&[standing_state(prior, tree, morph)], prior.prior.device())?;
+    let mut decoder = StateDecoder::new(tree, morph, &cleanup, root_height_range(prior));
+    let dim = prior.prior.state_dim();
+    let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
+    for t in 0..frames {
+        let cur = tch::no_grad(|| next(t, &prev));
+        let mut state = tensor_to_rows(&prior.stats.denormalise(&cur), dim)?.remove(0);
+        prev = cur;
+        poses.push(decoder.decode(tree, morph, &mut state));
+        states.push(state);
     }
+    Ok(RetargetedMotion {
+        fps: PROJECT_FPS,
+        states,
+        poses,
+    })
+}
+
+/// The root heights the character's dataset spans (m), when the prior's bounds say.
+fn root_height_range(prior: &PriorCheckpoint) -> Option<(f32, f32)> {
+    data_range(prior, prior.character.layout.root_height().start)
+}
+
+/// The normalised x^r of the character standing at rest (the standing pose, zero velocities), masked
+/// as the prior's inputs are.
+fn standing_state(prior: &PriorCheckpoint, tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
+    let standing = tree.standing_pose();
+    let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
+    let s = &prior.stats;
+    x.iter()
+        .zip(&s.mean)
+        .zip(&s.std)
+        .zip(&prior.mask)
+        .map(|(((v, m), sd), k)| (v - m) / sd * k)
+        .collect()
 }
 
 /// One character being retargeted frame by frame ([`Retargeter::stream`], [`Retargeter::step`]).

@@ -43,7 +43,7 @@ use tch::nn::OptimizerConfig;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::ace::{
-    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, Discriminator,
+    ACE_FILE, AceCheckpoint, AceConfig, AceRecord, BodyLengths, Discriminator, DiscriminatorLoss,
     FORMAT_VERSION, FileRecord, Generator, KIND, discriminator_loss, generator_adv_loss,
 };
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint};
@@ -107,10 +107,10 @@ pub struct AceProgress {
 
 /// The training human data as tensors: normalised x^h rows and Ψ rows of all usable clips back to
 /// back, with the first row of every window.
-struct HumanWindows {
-    states: Tensor,
-    features: Tensor,
-    starts: Vec<usize>,
+pub(crate) struct HumanWindows {
+    pub(crate) states: Tensor,
+    pub(crate) features: Tensor,
+    pub(crate) starts: Vec<usize>,
 }
 
 /// Trains G and D (see the module docs) in `run_dir`, resuming from the checkpoint there if any, and
@@ -154,12 +154,8 @@ pub fn train_ace(
         let _ = v.set_requires_grad(false);
     }
     let set = inputs.dataset;
-    let dim = set.layout.dim();
     let stats = &prior.stats;
-    let data = stats.normalise(&rows_to_tensor(
-        &set.states.chunks(dim).collect::<Vec<_>>(),
-        device,
-    )?) * prior.prior.mask();
+    let data = normalised_dataset(prior, set, device)?;
     let (mean, std) = (
         Tensor::from_slice(&stats.mean).to_device(device),
         Tensor::from_slice(&stats.std).to_device(device),
@@ -196,15 +192,20 @@ pub fn train_ace(
             let rows = &human + t as i64;
             let z = generator.forward(&humans.states.index_select(0, &rows), &prev);
             let cur = prior.prior.decode(&z, &prev);
-            let psi_r = psi.features(&(&cur * &std + &mean))?;
-            fea += feature_loss(&psi_r, &humans.features.index_select(0, &rows), &weights);
-            adv += generator_adv_loss(&discriminator, &prev, &cur);
+            // A term of weight zero (an ablation) is only monitored: computed without a graph, so
+            // it costs no backward pass and cannot turn the loss into NaN (0·∞).
+            let fea_t = tracked(cfg.w_fea, || {
+                let psi_r = psi.features(&(&cur * &std + &mean))?;
+                Ok(feature_loss(&psi_r, &humans.features.index_select(0, &rows), &weights))
+            })?;
+            fea += fea_t;
+            adv += tracked(cfg.w_adv, || Ok(generator_adv_loss(&discriminator, &prev, &cur)))?;
             fake_prev.push(prev.detach());
             fake_cur.push(cur.detach());
             prev = cur;
         }
         let (fea, adv) = (fea / window as f64, adv / window as f64);
-        let g_loss = &adv * cfg.w_adv + &fea * cfg.w_fea;
+        let g_loss = weighted_sum(&[(cfg.w_adv, &adv), (cfg.w_fea, &fea)]);
         opt_g.backward_step(&g_loss);
         discriminator.var_store_mut().unfreeze();
 
@@ -231,7 +232,6 @@ pub fn train_ace(
         let d = last.expect("at least one D evaluation");
 
         let scalar = |t: &Tensor| t.double_value(&[]);
-        let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
         let report = AceProgress {
             step: step + 1,
             steps: cfg.steps,
@@ -241,27 +241,7 @@ pub fn train_ace(
             adv: scalar(&adv),
             seconds: seconds_before + clock.elapsed().as_secs_f64(),
         };
-        if !(report.g_loss.is_finite() && report.d_loss.is_finite()) {
-            return Err(LearnError::Data(format!(
-                "the losses became non-finite at step {} (G {}, D {}); lower the learning rates",
-                report.step, report.g_loss, report.d_loss
-            )));
-        }
-        writeln!(
-            log,
-            "{step},{},{},{},{},{},{},{},{},{:.3}",
-            report.d_loss,
-            scalar(&d.bce),
-            scalar(&d.gp),
-            report.g_loss,
-            report.adv,
-            report.fea,
-            mean_sigmoid(&d.real_logits),
-            mean_sigmoid(&d.fake_logits),
-            report.seconds
-        )
-        .and_then(|_| log.flush())
-        .map_err(|e| LearnError::io(&losses_path, e))?;
+        log_step(&mut log, &losses_path, step, &d, [report.g_loss, report.adv, report.fea], report.seconds)?;
         progress(&report);
         record.step = step + 1;
         if record.step % cfg.checkpoint_every == 0 || record.step == cfg.steps {
@@ -273,6 +253,63 @@ pub fn train_ace(
         generator,
         discriminator: Some(discriminator),
     })
+}
+
+/// Fails when the step's losses are not finite, else appends its row to the loss log `log` (at
+/// `path`): `step,d_loss,d_bce,gp,g_loss,adv,<term>,d_real,d_fake,seconds`, where `g = [g_loss, adv,
+/// term]` (`term` is L_fea for ACE, the cycle loss for NKN) and `d_real`/`d_fake` are the mean
+/// σ(logit) of D's batches.
+pub(crate) fn log_step(
+    log: &mut fs::File,
+    path: &Path,
+    step: usize,
+    d: &DiscriminatorLoss,
+    g: [f64; 3],
+    seconds: f64,
+) -> Result<(), LearnError> {
+    let scalar = |t: &Tensor| t.double_value(&[]);
+    let mean_sigmoid = |t: &Tensor| t.sigmoid().mean(Kind::Float).double_value(&[]);
+    let d_loss = scalar(&d.total);
+    if !(g[0].is_finite() && d_loss.is_finite()) {
+        return Err(LearnError::Data(format!(
+            "the losses became non-finite at step {} (G {}, D {d_loss}); lower the learning rates",
+            step + 1,
+            g[0]
+        )));
+    }
+    writeln!(
+        log,
+        "{step},{d_loss},{},{},{},{},{},{},{},{seconds:.3}",
+        scalar(&d.bce),
+        scalar(&d.gp),
+        g[0],
+        g[1],
+        g[2],
+        mean_sigmoid(&d.real_logits),
+        mean_sigmoid(&d.fake_logits),
+    )
+    .and_then(|_| log.flush())
+    .map_err(|e| LearnError::io(path, e))
+}
+
+/// Every state of the prior's dataset `set`, normalised and masked as the prior's inputs (`[N, D]`).
+pub(crate) fn normalised_dataset(prior: &PriorCheckpoint, set: &MotionSet, device: Device) -> Result<Tensor, LearnError> {
+    let rows = rows_to_tensor(&set.states.chunks(set.layout.dim()).collect::<Vec<_>>(), device)?;
+    Ok(prior.stats.normalise(&rows) * prior.prior.mask())
+}
+
+/// A loss term of weight `w`: in the graph when `w` is positive, computed under
+/// [`tch::no_grad`] (monitored only) when it is zero.
+pub(crate) fn tracked(w: f64, term: impl FnOnce() -> Result<Tensor, LearnError>) -> Result<Tensor, LearnError> {
+    if w > 0.0 { term() } else { tch::no_grad(term) }
+}
+
+/// `Σ wᵢ·termᵢ` over the terms of positive weight (zero-weighted terms, monitored only, stay out of
+/// the graph). At least one weight must be positive.
+pub(crate) fn weighted_sum(terms: &[(f64, &Tensor)]) -> Tensor {
+    let mut used = terms.iter().filter(|(w, _)| *w > 0.0).map(|(w, t)| *t * *w);
+    let first = used.next().expect("at least one positive loss weight");
+    used.fold(first, |acc, t| acc + t)
 }
 
 /// The inputs must describe one character with one normalisation.
@@ -321,7 +358,7 @@ fn check_inputs(inputs: &AceInputs<'_>, run_dir: &Path) -> Result<(), LearnError
 /// Makes sure `run_dir` holds `prior`: an equal prior checkpoint there (same configuration, step,
 /// statistics, mask and character) is kept, anything else is replaced — unless an ACE checkpoint
 /// already depends on it.
-fn place_prior(prior: &PriorCheckpoint, run_dir: &Path) -> Result<(), LearnError> {
+pub(crate) fn place_prior(prior: &PriorCheckpoint, run_dir: &Path) -> Result<(), LearnError> {
     if run_dir.join(CONFIG_FILE).exists() {
         let there = PriorCheckpoint::load(run_dir, Device::Cpu)?;
         let same = there.config == prior.config
@@ -392,7 +429,7 @@ pub fn start_fine_tune(
 }
 
 /// Normalised x^h and Ψ of every training clip long enough for a window.
-fn human_windows(
+pub(crate) fn human_windows(
     inputs: &AceInputs<'_>,
     stats: &HumanStats,
     features: &FeatureLayout,
@@ -583,10 +620,25 @@ pub(crate) mod test_support {
         cfg: &AceConfig,
         corr: &Correspondence,
     ) -> Result<(AceCheckpoint, Vec<AceProgress>), LearnError> {
+        with_spot_inputs_for("train_ace", corr, |inputs| {
+            let mut reports = Vec::new();
+            let ckpt = train_ace(inputs, cfg, dir, &mut |p| reports.push(p.clone()))?;
+            Ok((ckpt, reports))
+        })
+    }
+
+    /// Calls `f` with the inputs of the test Spot: its trained prior and dataset, the bundled clips,
+    /// their automatic correspondence, provenance `{"test": test}`.
+    pub(crate) fn with_spot_inputs<T>(test: &str, f: impl FnOnce(&AceInputs<'_>) -> T) -> T {
+        with_spot_inputs_for(test, &spot_correspondence(), f)
+    }
+
+    /// [`with_spot_inputs`] with correspondence `corr`.
+    pub(crate) fn with_spot_inputs_for<T>(test: &str, corr: &Correspondence, f: impl FnOnce(&AceInputs<'_>) -> T) -> T {
         let (tree, morph, set) = spot();
         let prior = PriorCheckpoint::load(trained_spot_dir(), Device::Cpu).unwrap();
-        let provenance = serde_json::json!({"test": "train_ace"});
-        let inputs = AceInputs {
+        let provenance = serde_json::json!({ "test": test });
+        f(&AceInputs {
             prior: &prior,
             dataset: set,
             humans: bundled_humans(),
@@ -594,10 +646,7 @@ pub(crate) mod test_support {
             character_body_length: character_body_length(tree, morph),
             human_body_length: None,
             provenance: &provenance,
-        };
-        let mut reports = Vec::new();
-        let ckpt = train_ace(&inputs, cfg, dir, &mut |p| reports.push(p.clone()))?;
-        Ok((ckpt, reports))
+        })
     }
 
     /// A run directory holding 100 steps of [`tiny_config`] (trained once per process).
@@ -658,6 +707,39 @@ mod tests {
         lines
             .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect())
             .collect()
+    }
+
+    /// The ablations of the paper's Table 1: with one weight zero, the other term alone drives G, its
+    /// loss falls, and the zero-weighted term is still logged (finite) without entering the loss.
+    /// L_adv alone is a game whose loss need not fall while D learns too (it hovers near log 2), so
+    /// for that ablation D is held fixed here: G must then learn to fool it.
+    #[test]
+    fn each_ablation_lowers_its_own_loss() {
+        for (name, column) in [("w_fea", 5), ("w_adv", 6)] {
+            let mut cfg = tiny_config(60);
+            if name == "w_fea" {
+                (cfg.w_fea, cfg.discriminator_steps) = (0.0, 0);
+            } else {
+                cfg.w_adv = 0.0;
+            }
+            let dir = scratch_dir(&format!("ablation_{name}"));
+            let (_, reports) = train_in(&dir, &cfg).unwrap();
+            let rows = read_losses(&dir);
+            assert!(rows.iter().flatten().all(|v| v.is_finite()), "{name} = 0");
+            // g_loss is the remaining term alone.
+            for (r, p) in rows.iter().zip(&reports) {
+                let own = if name == "w_fea" { cfg.w_adv * p.adv } else { cfg.w_fea * p.fea };
+                assert!((r[4] - own).abs() <= 1e-5 * own.abs().max(1.0), "{name} = 0: g_loss {} vs {own}", r[4]);
+            }
+            let mean = |r: &[Vec<f64>]| r.iter().map(|r| r[column]).sum::<f64>() / r.len() as f64;
+            let (first, last) = (mean(&rows[..10]), mean(&rows[50..]));
+            println!("{name} = 0: own loss, first 10 steps {first:.4}, last 10 steps {last:.4}");
+            assert!(last < first, "{name} = 0: own loss {first} → {last}");
+            fs::remove_dir_all(&dir).unwrap();
+        }
+        let mut both = tiny_config(1);
+        (both.w_adv, both.w_fea) = (0.0, 0.0);
+        assert!(both.check().unwrap_err().to_string().contains("both zero"));
     }
 
     #[test]

@@ -1,0 +1,150 @@
+//! The baselines of the paper's Table 1 (§7.3–§7.4) for `ace eval --baselines`: NKN
+//! ([`ace::models::learn::nkn`]), ACE without the feature loss (`w_fea = 0`) and ACE without the
+//! adversarial loss (`w_adv = 0`), each trained on the same data with the same budget as the ACE
+//! checkpoint it is compared with.
+//!
+//! Every baseline reuses that checkpoint's motion prior (copied into its run directory), the prior's
+//! character dataset (regenerated from the configuration its provenance records), the same human
+//! clips and split, and ACE's correspondence and configuration: the ablations change one weight, NKN
+//! takes ACE's steps, batch size, window, learning rates, D and seed ([`NknConfig::matching`]). Runs
+//! live in `<runs>/<slug>` and resume when interrupted; a finished run is not trained again.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use ace::models::features::character_body_length;
+use ace::models::kinematics::KinematicTree;
+use ace::models::learn::ace::{AceConfig, read_record};
+use ace::models::learn::checkpoint::PriorCheckpoint;
+use ace::models::learn::nkn::{NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, train_nkn};
+use ace::models::learn::train_ace::AceInputs;
+use ace::models::morphology::Morphology;
+use anyhow::{Context, Result};
+use serde_json::json;
+
+use crate::{humans, progress, train};
+
+/// Steps of every baseline under `--quick`.
+pub const QUICK_STEPS: usize = 20;
+
+/// The systems, in the paper's order: row name and run-directory name.
+pub const BASELINES: [(&str, &str); 3] =
+    [("NKN", "nkn"), ("ACE w/o feature", "ace-no-feature"), ("ACE w/o adversarial", "ace-no-adversarial")];
+
+/// A trained baseline, as `ace eval` scores it.
+pub enum Baseline {
+    /// An ACE ablation: a checkpoint directory the ACE retargeter loads.
+    Ace(PathBuf),
+    /// NKN.
+    Nkn(Box<NknCheckpoint>),
+}
+
+/// Where the runs of a character go by default.
+pub fn default_runs(character: &str, quick: bool) -> PathBuf {
+    PathBuf::from(if quick { "out/baselines-quick" } else { "out/baselines" }).join(character)
+}
+
+/// The configuration of an ablation of `ace` (the compared checkpoint's).
+fn ablation(ace: &AceConfig, slug: &str, quick: bool) -> AceConfig {
+    let mut cfg = ace.clone();
+    match slug {
+        "ace-no-feature" => cfg.w_fea = 0.0,
+        _ => cfg.w_adv = 0.0,
+    }
+    if quick {
+        cfg.steps = cfg.steps.min(QUICK_STEPS);
+    }
+    cfg
+}
+
+fn nkn_config(ace: &AceConfig, quick: bool) -> NknConfig {
+    let mut cfg = NknConfig::matching(ace);
+    if quick {
+        cfg.steps = cfg.steps.min(QUICK_STEPS);
+    }
+    cfg
+}
+
+/// Steps a run directory holds, from its record (0 when there is none yet).
+fn steps_done(dir: &Path, slug: &str) -> usize {
+    if slug == "nkn" {
+        std::fs::read_to_string(dir.join(NKN_FILE))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["step"].as_u64())
+            .map_or(0, |s| s as usize)
+    } else {
+        read_record(dir).map_or(0, |r| r.step)
+    }
+}
+
+/// Trains every baseline of the checkpoint in `ace_dir` that `runs` does not hold finished (with
+/// progress and wall times), then loads them all, in [`BASELINES`] order.
+pub fn train_missing(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    ace_dir: &Path,
+    runs: &Path,
+    humans_arg: Option<&Path>,
+    quick: bool,
+) -> Result<Vec<(&'static str, Baseline)>> {
+    let record = read_record(ace_dir).with_context(|| format!("{}: no ACE checkpoint to compare with", ace_dir.display()))?;
+    let ace_cfg = &record.config;
+    let missing: Vec<(&str, &str)> = BASELINES
+        .into_iter()
+        .filter(|(_, slug)| {
+            let steps = if *slug == "nkn" { nkn_config(ace_cfg, quick).steps } else { ablation(ace_cfg, slug, quick).steps };
+            steps_done(&runs.join(slug), slug) < steps
+        })
+        .collect();
+    if !missing.is_empty() {
+        let device = ace::models::learn::default_device();
+        let prior = PriorCheckpoint::load_for(ace_dir, device, tree, morph)?;
+        let data_cfg = train::prior_dataset_config(&prior)?;
+        let set = train::generate_dataset(tree, morph, &data_cfg)?;
+        let folder = humans::folder(humans_arg)?;
+        let humans = humans::load(&folder)?;
+        let provenance = train::provenance(json!({
+            "humans": folder.display().to_string(),
+            "compared_with": ace_dir.display().to_string(),
+        }));
+        let inputs = AceInputs {
+            prior: &prior,
+            dataset: &set,
+            humans: &humans,
+            correspondence: &record.correspondence,
+            character_body_length: character_body_length(tree, morph),
+            human_body_length: record.body_lengths.human_override,
+            provenance: &provenance,
+        };
+        for (system, slug) in missing {
+            let dir = runs.join(slug);
+            let clock = Instant::now();
+            if slug == "nkn" {
+                let cfg = nkn_config(ace_cfg, quick);
+                let bar = progress::bar(cfg.steps as u64, "steps");
+                train_nkn(&inputs, tree, morph, &cfg, &dir, &mut |p| {
+                    bar.set_position(p.step as u64);
+                    bar.set_message(format!("{system}: G {:.3} (adv {:.3}, cycle {:.3}), D {:.3}", p.g_loss, p.adv, p.cycle, p.d_loss));
+                })?;
+                bar.finish_and_clear();
+                train::plot_losses(&dir.join(NKN_LOSSES_FILE), system, &["g_loss", "d_loss", "adv", "cycle", "gp"])?;
+            } else {
+                train::train_ace_with_progress(&inputs, &ablation(ace_cfg, slug, quick), &dir, system)?;
+            }
+            println!("{system}: trained in {:.0} s into {}", clock.elapsed().as_secs_f64(), dir.display());
+        }
+    }
+    BASELINES
+        .into_iter()
+        .map(|(system, slug)| {
+            let dir = runs.join(slug);
+            let b = if slug == "nkn" {
+                Baseline::Nkn(Box::new(NknCheckpoint::load(&dir, tree, morph, ace::models::learn::default_device())?))
+            } else {
+                Baseline::Ace(dir)
+            };
+            Ok((system, b))
+        })
+        .collect()
+}
