@@ -86,7 +86,8 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     let body = character_body_length(&tree, &morph);
     let correspondence = train::correspondence(&cfg, &set, &humans, body)?;
 
-    start_fine_tune(&ft.from, &ft.to, &cfg, &correspondence, device)
+    let human_body_length = stored.record.body_lengths.human_override;
+    start_fine_tune(&prior, stored, &ft.from, &ft.to, &cfg, &correspondence)
         .with_context(|| format!("starting to fine-tune {} into {}", ft.from.display(), ft.to.display()))?;
     train::write_reference(&ft.to, &set, &correspondence, body)?;
     let provenance = train::provenance(json!({ "humans": folder.display().to_string(), "fine_tuned_from": ft.from.display().to_string() }));
@@ -96,7 +97,7 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
         humans: &humans,
         correspondence: &correspondence,
         character_body_length: body,
-        human_body_length: stored.record.body_lengths.human_override,
+        human_body_length,
         provenance: &provenance,
     };
     train_ace(&inputs, &cfg, &ft.to, &mut |p| report(Stage::Training(p.clone())))?;

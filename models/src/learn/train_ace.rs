@@ -380,19 +380,20 @@ pub(crate) fn place_prior(prior: &PriorCheckpoint, run_dir: &Path) -> Result<(),
     prior.save(run_dir)
 }
 
-/// Prepares `run_dir` for fine-tuning the checkpoint in `from` (a directory with a prior and a
-/// generator and discriminator): the prior and both networks are copied there with the record's
-/// configuration replaced by `cfg` and its correspondence by `correspondence`, at the step `from`
-/// had reached. [`train_ace`] with the same `cfg` (whose `steps` counts from that step) then
+/// Prepares `run_dir` for fine-tuning a trained checkpoint (`prior` and `ckpt`, with its
+/// discriminator, as loaded from directory `from`): the prior and both networks are saved there with
+/// the record's configuration replaced by `cfg` and its correspondence by `correspondence`, at the
+/// step `ckpt` had reached. [`train_ace`] with the same `cfg` (whose `steps` counts from that step) then
 /// continues the networks under the new loss weights, feature weights and mapping. Fails when
 /// `run_dir` already holds a checkpoint (nothing there is overwritten) or `cfg` changes the
 /// networks' shapes.
 pub fn start_fine_tune(
+    prior: &PriorCheckpoint,
+    mut ckpt: AceCheckpoint,
     from: &Path,
     run_dir: &Path,
     cfg: &AceConfig,
     correspondence: &Correspondence,
-    device: Device,
 ) -> Result<AceCheckpoint, LearnError> {
     cfg.check()?;
     if run_dir.join(ACE_FILE).exists() || run_dir.join(CONFIG_FILE).exists() {
@@ -401,8 +402,12 @@ pub fn start_fine_tune(
             run_dir.display()
         )));
     }
-    let prior = PriorCheckpoint::load(from, device)?;
-    let mut ckpt = AceCheckpoint::load(from, prior.prior.latent_dim(), &prior.mask, device, true)?;
+    if ckpt.discriminator.is_none() {
+        return Err(LearnError::Config(format!(
+            "fine-tuning {} needs its discriminator: load the checkpoint with it",
+            from.display()
+        )));
+    }
     let stored = &ckpt.record.config;
     if stored.generator_hidden != cfg.generator_hidden || stored.discriminator_hidden != cfg.discriminator_hidden {
         return Err(LearnError::Config(format!(
@@ -679,7 +684,8 @@ mod tests {
         let mut corr = spot_correspondence();
         let overrides: Vec<_> = (0..corr.character_links.len()).map(|i| (i, Some(crate::human::EndEffector::Head))).collect();
         corr = corr.with_overrides(&overrides).unwrap();
-        start_fine_tune(from, &dir, &cfg, &corr, Device::Cpu).unwrap();
+        let load = || AceCheckpoint::load(from, prior.prior.latent_dim(), &prior.mask, Device::Cpu, true).unwrap();
+        start_fine_tune(&prior, load(), from, &dir, &cfg, &corr).unwrap();
         let (tuned, reports) = train_in_with(&dir, &cfg, &corr).unwrap();
         assert_eq!(reports.len(), 10, "continues from step {}", before.record.step);
         assert_eq!(tuned.record.step, before.record.step + 10);
@@ -690,11 +696,11 @@ mod tests {
         let (_, fresh_reports) = train_in_with(&fresh, &tiny_config(10), &corr).unwrap();
         assert_ne!(reports[0].fea, fresh_reports[0].fea);
         // Nothing is overwritten.
-        let err = start_fine_tune(from, &dir, &cfg, &corr, Device::Cpu).unwrap_err();
+        let err = start_fine_tune(&prior, load(), from, &dir, &cfg, &corr).unwrap_err();
         assert!(err.to_string().contains("already holds a checkpoint"), "{err}");
         let mut wider = cfg.clone();
         wider.generator_hidden = vec![32];
-        let err = start_fine_tune(from, &scratch_dir("fine_tune_wider"), &wider, &corr, Device::Cpu).unwrap_err();
+        let err = start_fine_tune(&prior, load(), from, &scratch_dir("fine_tune_wider"), &wider, &corr).unwrap_err();
         assert!(err.to_string().contains("generator_hidden"), "{err}");
         fs::remove_dir_all(&dir).unwrap();
         fs::remove_dir_all(&fresh).unwrap();
