@@ -8,7 +8,8 @@ use std::path::Path;
 
 use ace::models::character_state::CharacterLayout;
 use ace::models::features::{
-    EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, character_features, human_features, mean_feature_loss,
+    EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, centre_human_features, character_features, human_features,
+    mean_feature_loss,
 };
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
@@ -26,6 +27,7 @@ pub struct Scorer {
     body: f32,
     human_body_override: Option<f32>,
     weights: FeatureWeights,
+    feature_offset: Vec<f32>,
     reference: Option<GaussianFit>,
 }
 
@@ -49,6 +51,7 @@ impl Scorer {
             body: record.body_lengths.character,
             human_body_override: record.body_lengths.human_override,
             weights: record.config.feature_weights,
+            feature_offset: record.feature_offset.clone(),
             reference,
         })
     }
@@ -63,11 +66,18 @@ impl Scorer {
         states.iter().map(|x| character_features(&self.layout, x.as_ref(), self.body, &self.mapping)).collect()
     }
 
-    /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m); the checkpoint's
-    /// fixed human body length wins when it was trained with one.
+    /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m), centred on the
+    /// character as the checkpoint was trained (`feature_offset`); the checkpoint's fixed human body
+    /// length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body_override.unwrap_or(clip_body);
-        x_h.iter().map(|x| human_features(x, body, &self.mapping)).collect()
+        x_h.iter()
+            .map(|x| {
+                let mut psi = human_features(x, body, &self.mapping);
+                centre_human_features(&mut psi, &self.feature_offset);
+                psi
+            })
+            .collect()
     }
 
     /// L_fea split by feature block (each block's weighted share; they add up to L_fea).

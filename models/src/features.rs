@@ -27,6 +27,15 @@
 //!
 //! **End effectors.** An [`EndEffectorMapping`] says which human end effector each character end effector
 //! is compared with (paper §5.3); unmapped character end effectors are left out of Ψ on both sides.
+//!
+//! **Centring.** A human and a character do not share a rest pose: Spot's feet stand 0.3 body lengths
+//! ahead of and behind its root where a human's stand under the pelvis, the crab's sprawl two body
+//! lengths out, and a human pelvis stands at 0.55 body lengths where Spot's body is at 0.85. Compared
+//! as they are, the feature loss asks for poses the character cannot or should not take. So L_fea
+//! compares the root height and the end-effector positions as displacements from each body's mean:
+//! the human's Ψ is shifted by a [`centring_offset`] (the character dataset's mean minus the human
+//! training clips' mean, on those entries only) before it is compared. Ψ itself, and with it DIV and
+//! FID, is unchanged: a common shift of the character's features would change neither.
 
 use std::ops::Range;
 
@@ -284,6 +293,60 @@ pub fn mean_feature_loss<R: AsRef<[f32]>, S: AsRef<[f32]>>(
         .map(|(x, y)| f64::from(feature_loss(layout, x.as_ref(), y.as_ref(), weights)))
         .sum();
     (sum / a.len() as f64) as f32
+}
+
+/// The per-entry mean of feature rows (an empty vector for no rows).
+pub fn mean_features<R: AsRef<[f32]>>(rows: impl IntoIterator<Item = R>) -> Vec<f32> {
+    let mut sum: Vec<f64> = Vec::new();
+    let mut n = 0usize;
+    for r in rows {
+        let r = r.as_ref();
+        if sum.is_empty() {
+            sum = vec![0.0; r.len()];
+        }
+        assert_eq!(r.len(), sum.len(), "feature rows of different lengths");
+        for (s, v) in sum.iter_mut().zip(r) {
+            *s += f64::from(*v);
+        }
+        n += 1;
+    }
+    sum.iter().map(|s| (s / n as f64) as f32).collect()
+}
+
+/// The offset added to a human's Ψ so that its root height and end-effector positions compare as
+/// displacements from the mean pose (module docs, "Centring"): `character_mean − human_mean` on those
+/// entries, zero on the orientation and velocities, whose means are shared (upright, at rest).
+///
+/// # Panics
+/// If either mean is not [`FeatureLayout::dim`] long.
+pub fn centring_offset(layout: &FeatureLayout, human_mean: &[f32], character_mean: &[f32]) -> Vec<f32> {
+    let dim = layout.dim();
+    assert!(
+        human_mean.len() == dim && character_mean.len() == dim,
+        "feature means must have {dim} entries, got {} and {}",
+        human_mean.len(),
+        character_mean.len()
+    );
+    let mut offset = vec![0.0; dim];
+    for i in layout.root_height().chain(layout.ee_positions()) {
+        offset[i] = character_mean[i] - human_mean[i];
+    }
+    offset
+}
+
+/// Adds `offset` ([`centring_offset`]) to a human's Ψ; an empty offset (a checkpoint trained without
+/// centring) leaves it as it is.
+///
+/// # Panics
+/// If `offset` is neither empty nor as long as `psi`.
+pub fn centre_human_features(psi: &mut [f32], offset: &[f32]) {
+    if offset.is_empty() {
+        return;
+    }
+    assert_eq!(psi.len(), offset.len(), "the centring offset has the wrong length");
+    for (v, o) in psi.iter_mut().zip(offset) {
+        *v += o;
+    }
 }
 
 /// The body length of a human clip: its standing height, or [`DEFAULT_HUMAN_HEIGHT`] when the clip

@@ -71,6 +71,9 @@ pub struct AceConfig {
     pub w_fea: f64,
     /// Per-block weights inside the feature loss.
     pub feature_weights: FeatureWeights,
+    /// Compare the root height and end-effector positions in L_fea as displacements from each
+    /// body's mean pose ([`crate::features`], "Centring"); `false` compares them as they are.
+    pub centre_features: bool,
     /// Weight of the gradient penalty w_gp (paper: 0.1).
     pub w_gp: f64,
     /// Adam's learning rate for G.
@@ -108,6 +111,7 @@ impl Default for AceConfig {
             w_adv: 1.0,
             w_fea: 10.0,
             feature_weights: FeatureWeights::default(),
+            centre_features: true,
             w_gp: 0.1,
             // At 2e-4 the Spot run collapsed after 3,260 steps (D took over, L_adv jumped from 1 to 8);
             // at 1e-4 it stayed balanced to the end and its held-out FID was lower.
@@ -410,6 +414,10 @@ pub struct AceRecord {
     pub human_split: HumanSplit,
     /// Body lengths of Ψ.
     pub body_lengths: BodyLengths,
+    /// Added to the human's Ψ before L_fea compares it ([`crate::features::centring_offset`]); empty
+    /// when trained without centring (and in checkpoints from before it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub feature_offset: Vec<f32>,
     /// The generator's weights file.
     pub generator: FileRecord,
     /// The discriminator's weights file.

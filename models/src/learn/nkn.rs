@@ -378,7 +378,7 @@ pub fn train_nkn(
     super::train_ace::place_prior(prior, run_dir)?;
     let human_stats = inputs.humans.train_statistics();
     let psi = super::psi::Psi::new(&prior.character.layout, &inputs.correspondence.mapping, inputs.character_body_length, device);
-    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, device)?;
+    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, false, device)?;
     let nkn = Nkn::new(cfg, prior, tree, morph);
     let mut discriminator = Discriminator::new(&cfg.discriminator(), prior.prior.state_dim(), &prior.mask, device);
     let mut record = NknRecord {

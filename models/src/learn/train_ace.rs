@@ -53,7 +53,9 @@ use super::psi::{Psi, feature_loss, weight_tensor};
 use super::rows_to_tensor;
 use crate::correspondence::Correspondence;
 use crate::dataset::MotionSet;
-use crate::features::{FeatureLayout, human_features_into};
+use crate::features::{
+    FeatureLayout, centre_human_features, centring_offset, character_features, human_features_into, mean_features,
+};
 use crate::human::layout as human_layout;
 use crate::human_set::{HumanSet, HumanStats};
 
@@ -111,6 +113,8 @@ pub(crate) struct HumanWindows {
     pub(crate) states: Tensor,
     pub(crate) features: Tensor,
     pub(crate) starts: Vec<usize>,
+    /// The centring offset already added to `features` (empty without centring).
+    pub(crate) offset: Vec<f32>,
 }
 
 /// Trains G and D (see the module docs) in `run_dir`, resuming from the checkpoint there if any, and
@@ -135,8 +139,8 @@ pub fn train_ace(
         inputs.character_body_length,
         device,
     );
-    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, device)?;
-    let ckpt = start_or_resume(inputs, cfg, &human_stats, run_dir, device)?;
+    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, cfg.centre_features, device)?;
+    let ckpt = start_or_resume(inputs, cfg, &human_stats, &humans.offset, run_dir, device)?;
     if ckpt.record.step >= cfg.steps {
         return Ok(ckpt);
     }
@@ -433,12 +437,14 @@ pub fn start_fine_tune(
     Ok(ckpt)
 }
 
-/// Normalised x^h and Ψ of every training clip long enough for a window.
+/// Normalised x^h and Ψ of every training clip long enough for a window; with `centre`, Ψ is
+/// shifted by the [`centring_offset`] of the training clips against the character dataset.
 pub(crate) fn human_windows(
     inputs: &AceInputs<'_>,
     stats: &HumanStats,
     features: &FeatureLayout,
     window: usize,
+    centre: bool,
     device: Device,
 ) -> Result<HumanWindows, LearnError> {
     let mapping = &inputs.correspondence.mapping;
@@ -469,11 +475,25 @@ pub(crate) fn human_windows(
             inputs.humans.folder.display()
         )));
     }
+    let offset = if centre {
+        let set = inputs.dataset;
+        let character_mean = mean_features((0..set.len()).map(|i| {
+            character_features(&set.layout, set.state(i), inputs.character_body_length, mapping)
+        }));
+        let offset = centring_offset(features, &mean_features(psi.chunks(f)), &character_mean);
+        for row in psi.chunks_mut(f) {
+            centre_human_features(row, &offset);
+        }
+        offset
+    } else {
+        Vec::new()
+    };
     let n = rows as i64;
     Ok(HumanWindows {
         states: Tensor::from_slice(&states).view([n, h as i64]).to_device(device),
         features: Tensor::from_slice(&psi).view([n, f as i64]).to_device(device),
         starts,
+        offset,
     })
 }
 
@@ -482,6 +502,7 @@ fn start_or_resume(
     inputs: &AceInputs<'_>,
     cfg: &AceConfig,
     human_stats: &HumanStats,
+    feature_offset: &[f32],
     run_dir: &Path,
     device: Device,
 ) -> Result<AceCheckpoint, LearnError> {
@@ -507,6 +528,7 @@ fn start_or_resume(
         human_folder: inputs.humans.folder.clone(),
         human_split: inputs.humans.split.clone(),
         body_lengths,
+        feature_offset: feature_offset.to_vec(),
         // The file records are filled in when the checkpoint is saved.
         generator: FileRecord::default(),
         discriminator: FileRecord::default(),
@@ -786,6 +808,54 @@ mod tests {
             (&record.correspondence.mapping, record.correspondence.source),
             (&corr.mapping, corr.source)
         );
+    }
+
+    #[test]
+    fn centred_human_features_share_the_character_datasets_mean_pose() {
+        let corr = spot_correspondence();
+        let (tree, morph, set) = crate::learn::prior::test_support::spot();
+        let body = crate::features::character_body_length(tree, morph);
+        let character_mean = mean_features(
+            (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, &corr.mapping)),
+        );
+        let layout = FeatureLayout::new(&corr.mapping);
+        let (plain, centred) = with_spot_inputs("centring", |inputs| {
+            let stats = inputs.humans.train_statistics();
+            let w = |centre| human_windows(inputs, &stats, &layout, 6, centre, Device::Cpu).unwrap();
+            (w(false), w(true))
+        });
+        let rows = |t: &Tensor| -> Vec<Vec<f32>> {
+            let v = Vec::<f32>::try_from(t.flatten(0, -1)).unwrap();
+            v.chunks(layout.dim()).map(<[f32]>::to_vec).collect()
+        };
+        let (plain_rows, centred_rows) = (rows(&plain.features), rows(&centred.features));
+        let centred_mean = mean_features(&centred_rows);
+        assert!(plain.offset.is_empty());
+        assert_eq!(centred.offset.len(), layout.dim());
+        for i in layout.root_height().chain(layout.ee_positions()) {
+            // The human's mean height and end-effector positions become the character's …
+            assert!(
+                (centred_mean[i] - character_mean[i]).abs() < 1e-4,
+                "entry {i}: {} vs the dataset's {}",
+                centred_mean[i],
+                character_mean[i]
+            );
+        }
+        // … by a real shift (a human's feet stand under its pelvis, Spot's ahead of and behind it) …
+        let ee = layout.ee_positions();
+        assert!(centred.offset[ee].iter().any(|o| o.abs() > 0.1), "offset {:?}", centred.offset);
+        // … that leaves orientation and velocities alone and moves every frame alike.
+        for i in layout.root_orientation().start..layout.root_angular_velocity().end {
+            assert_eq!(centred.offset[i], 0.0);
+        }
+        for (p, c) in plain_rows.iter().zip(&centred_rows).step_by(97) {
+            for i in 0..layout.dim() {
+                assert!((c[i] - p[i] - centred.offset[i]).abs() < 1e-5);
+            }
+        }
+        // Training records the offset that scoring applies.
+        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        assert_eq!(record.feature_offset, centred.offset);
     }
 
     #[test]
