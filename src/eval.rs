@@ -38,8 +38,11 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
 use crate::baselines::{self, Baseline};
-use crate::scoring::Scorer;
+use crate::scoring::{FidSplit, Scorer};
 use crate::{characters, humans, progress, retarget, train};
+
+/// The FID table's row of the human clips themselves ([`Evaluation::source_fid`]).
+pub const SOURCE_ROW: &str = "Human clips (L_fea = 0)";
 
 /// The row of ACE's networks without the cleanup.
 pub const ACE_RAW: &str = "ACE without cleanup";
@@ -78,6 +81,8 @@ pub struct Row {
     pub metrics: MetricsReport,
     /// L_fea split by feature block (empty for the dataset).
     pub feature_loss_by_block: Vec<(&'static str, f32)>,
+    /// FID whole and by feature block (`None` without a reference).
+    pub fid_split: Option<FidSplit>,
 }
 
 /// A long rollout's health.
@@ -105,6 +110,9 @@ pub struct Evaluation {
     pub frames: usize,
     pub seed: u64,
     pub rows: Vec<Row>,
+    /// The FID of the held-out clips' own Ψ (the human's, centred as L_fea compares it): what a
+    /// system that matched the human's features exactly (L_fea = 0) would score.
+    pub source_fid: Option<FidSplit>,
     pub stability: Vec<Stability>,
 }
 
@@ -202,6 +210,7 @@ pub fn evaluate(
             system: name.to_string(),
             metrics: scorer.report(tree, morph, &psi, Some(&human_psi), &poses, &episodes),
             feature_loss_by_block: scorer.feature_loss_by_block(&psi, &human_psi),
+            fid_split: scorer.fid_split(&psi),
         });
     }
 
@@ -224,6 +233,7 @@ pub fn evaluate(
         frames,
         seed: args.seed,
         rows,
+        source_fid: scorer.fid_split(&human_psi),
         stability,
     })
 }
@@ -306,6 +316,7 @@ fn dataset_row(
         system: "Dataset".into(),
         metrics: scorer.report(tree, morph, &psi, None, &poses, &set.episodes),
         feature_loss_by_block: Vec::new(),
+        fid_split: scorer.fid_split(&psi),
     })
 }
 
@@ -379,6 +390,25 @@ pub fn markdown(e: &Evaluation) -> String {
         for r in e.rows.iter().filter(|r| !r.feature_loss_by_block.is_empty()) {
             let v: Vec<String> = r.feature_loss_by_block.iter().map(|b| format!("{:.3}", b.1)).collect();
             let _ = writeln!(s, "| {} | {} |", r.system, v.join(" | "));
+        }
+    }
+    let splits: Vec<(&str, &FidSplit)> = e
+        .rows
+        .iter()
+        .filter_map(|r| Some((r.system.as_str(), r.fid_split.as_ref()?)))
+        .chain(e.source_fid.as_ref().map(|f| (SOURCE_ROW, f)))
+        .collect();
+    if let Some((_, first)) = splits.first() {
+        let names: Vec<&str> = first.blocks.iter().map(|b| b.0).collect();
+        let _ = writeln!(
+            s,
+            "\nFID by feature block (each block's marginal Gaussian alone, so the parts need not add up to FID):\n\n| system | FID | {} |\n|---|---:|{}",
+            names.join(" | "),
+            "---:|".repeat(names.len())
+        );
+        for (system, f) in &splits {
+            let v: Vec<String> = f.blocks.iter().map(|b| format!("{:.3}", b.1)).collect();
+            let _ = writeln!(s, "| {system} | {:.3} | {} |", f.total, v.join(" | "));
         }
     }
     let _ = writeln!(s, "\n| {:.0}-second rollout | finite | root height (m) | mean speed (m/s) | stable |\n|---|---|---|---:|---|", e.stability.first().map_or(0.0, |x| x.seconds));

@@ -14,11 +14,21 @@ use ace::models::features::{
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
-use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, ufr_episodes};
+use ace::models::metrics::{DivConfig, GaussianFit, frechet_distance, MetricsInput, MetricsReport, UfrConfig, UfrReport, ufr_episodes};
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
+use serde::Serialize;
 
 use crate::train::REFERENCE_FILE;
+
+/// FID whole and by feature block: the Fréchet distance of each block's marginal Gaussian to the
+/// reference's, a diagnostic of where the distance comes from (the blocks' correlations are left
+/// out, so the parts need not add up to the whole).
+#[derive(Clone, Debug, Serialize)]
+pub struct FidSplit {
+    pub total: f64,
+    pub blocks: Vec<(&'static str, f64)>,
+}
 
 /// Scores motions of one checkpoint's character (see the module docs).
 pub struct Scorer {
@@ -89,6 +99,22 @@ impl Scorer {
                 (block.name(), mean_feature_loss(&layout, psi, human_psi, &self.weights.only(block)))
             })
             .collect()
+    }
+
+    /// FID of `psi` against the reference, whole and split by feature block ([`FidSplit`]); `None`
+    /// without a reference or rows.
+    pub fn fid_split(&self, psi: &[Vec<f32>]) -> Option<FidSplit> {
+        let reference = self.reference.as_ref().filter(|_| !psi.is_empty())?;
+        let fit = GaussianFit::fit(psi);
+        let layout = FeatureLayout::new(&self.mapping);
+        let blocks = FeatureBlock::ALL
+            .iter()
+            .map(|&block| {
+                let r = layout.range(block);
+                (block.name(), frechet_distance(&fit.marginal(r.clone()), &reference.marginal(r)))
+            })
+            .collect();
+        Some(FidSplit { total: frechet_distance(&fit, reference), blocks })
     }
 
     /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`) and UFR over `poses`, which hold

@@ -355,6 +355,24 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
         assert!((st["seconds"].as_f64().unwrap() - 4.0).abs() < 0.1, "{st}");
     }
     assert!(image::open(eval_dir.join("eval.png")).is_ok());
+    // FID split by feature block: every row's whole FID is the table's, and the human clips' own
+    // features (what a system with L_fea = 0 would score) are scored the same way.
+    for r in e["rows"].as_array().unwrap() {
+        let (fid, split) = (r["metrics"]["fid"].as_f64().unwrap(), &r["fid_split"]);
+        assert!((split["total"].as_f64().unwrap() - fid).abs() < 1e-3 * (1.0 + fid), "{r}");
+        let blocks = split["blocks"].as_array().unwrap();
+        assert_eq!(blocks.len(), 5, "{split}");
+        assert!(blocks.iter().all(|b| b[1].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0)), "{split}");
+    }
+    assert!(e["source_fid"]["total"].as_f64().is_some_and(|v| v.is_finite() && v > 0.0), "{}", e["source_fid"]);
+    let md = std::fs::read_to_string(eval_dir.join("eval.md")).unwrap();
+    assert!(md.contains("FID by feature block") && md.contains("| Human clips (L_fea = 0) |"), "{md}");
+    // The checkpoint records the centring of L_fea that the scores used: one offset per Ψ entry.
+    let record: Value = serde_json::from_str(&std::fs::read_to_string(ck.join("ace.json")).unwrap()).unwrap();
+    let offset = record["feature_offset"].as_array().unwrap();
+    let mapped = record["correspondence"]["mapping"]["human"].as_array().unwrap().iter().filter(|h| !h.is_null()).count();
+    assert_eq!(offset.len(), 13 + 3 * mapped, "{offset:?}");
+    assert!(offset.iter().any(|o| o.as_f64().unwrap().abs() > 1e-3), "{offset:?}");
 
     // The paper's comparison in its CI setting: the three baselines train for a few steps and every row
     // of the table is complete and finite.

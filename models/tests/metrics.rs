@@ -487,6 +487,19 @@ fn fid_matches_the_closed_form_for_gaussians() {
 }
 
 #[test]
+fn a_marginal_fit_is_the_fit_of_its_columns() {
+    let a = correlated_set(3000, 4);
+    let fit = GaussianFit::fit(&a);
+    let cols: Vec<Vec<f32>> = a.iter().map(|r| r[1..4].to_vec()).collect();
+    let want = GaussianFit::fit(&cols);
+    let got = fit.marginal(1..4);
+    assert_eq!((got.n, got.dim()), (3000, 3));
+    assert!((&got.mean - &want.mean).amax() < 1e-12 && (&got.cov - &want.cov).amax() < 1e-12);
+    // The correlated columns 1 and 2 keep their covariance (a·0.5 against −a: −0.5).
+    assert!((got.cov[(0, 1)] + 0.5).abs() < 0.1, "{}", got.cov[(0, 1)]);
+}
+
+#[test]
 fn div_matches_a_hand_computation() {
     // Three frames; pair distances 5, 10, 5 → mean 20/3 (few enough pairs to use them all).
     let set = vec![vec![0.0f32, 0.0], vec![3.0, 4.0], vec![6.0, 8.0]];

@@ -125,6 +125,19 @@ impl GaussianFit {
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
+
+    /// The marginal Gaussian of the entries `range` (its mean and covariance block).
+    ///
+    /// # Panics
+    /// If `range` reaches past [`GaussianFit::dim`].
+    pub fn marginal(&self, range: std::ops::Range<usize>) -> GaussianFit {
+        let len = range.len();
+        GaussianFit {
+            n: self.n,
+            mean: self.mean.rows(range.start, len).into_owned(),
+            cov: self.cov.view((range.start, range.start), (len, len)).into_owned(),
+        }
+    }
 }
 
 /// The square root of a symmetric positive semi-definite matrix through its eigen decomposition
