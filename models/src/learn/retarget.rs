@@ -612,6 +612,7 @@ mod tests {
                     human_override: None,
                     human_clips: Default::default(),
                 },
+                feature_offset: Vec::new(),
                 generator: FileRecord::default(),
                 discriminator: FileRecord::default(),
                 prior: FileRecord::default(),
