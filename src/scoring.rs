@@ -14,7 +14,9 @@ use ace::models::features::{
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
-use ace::models::metrics::{DivConfig, GaussianFit, frechet_distance, MetricsInput, MetricsReport, UfrConfig, UfrReport, ufr_episodes};
+use ace::models::metrics::{
+    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, frechet_distance, ufr_episodes,
+};
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 use serde::Serialize;

@@ -21,8 +21,8 @@
 //! `format_version`, the character, the training `step`, the [`AceConfig`], the end-effector
 //! correspondence with its source (automatic or manual), the x^h normalisation statistics, the human
 //! clip folder and split, the body lengths, the `feature_offset` that centres the human's Ψ for L_fea
-//! (absent in checkpoints trained without centring), checksums of both weights files and of the prior's weights
-//! file it was trained against, and a free-form `provenance`. Files are written under temporary names
+//! (absent in checkpoints trained without centring), checksums of both weights files and of the
+//! prior's weights file it was trained against, and a free-form `provenance`. Files are written under temporary names
 //! and renamed into place (weights first); the checksums tie the files together.
 
 use std::collections::BTreeMap;
