@@ -115,6 +115,7 @@ pub fn train_missing(
             correspondence: &record.correspondence,
             character_body_length: character_body_length(tree, morph),
             human_body_length: record.body_lengths.human_override,
+            speed_scale: ace::models::dataset::speed_scale(tree, morph, &set.config)?,
             provenance: &provenance,
         };
         for (system, slug) in missing {

@@ -73,6 +73,8 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     cfg.w_fea = ft.w_fea;
     cfg.feature_weights = ft.feature_weights;
     cfg.end_effector_mapping = ft.end_effector_mapping.clone();
+    // A checkpoint from before speed matching keeps comparing body lengths per second.
+    cfg.match_speed_scale = stored.record.speed_scale.is_some();
 
     report(Stage::Preparing("generating the character dataset"));
     let data_cfg = train::prior_dataset_config(&prior)?;
@@ -98,6 +100,7 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
         correspondence: &correspondence,
         character_body_length: body,
         human_body_length,
+        speed_scale: ace::models::dataset::speed_scale(&tree, &morph, &set.config)?,
         provenance: &provenance,
     };
     train_ace(&inputs, &cfg, &ft.to, &mut |p| report(Stage::Training(p.clone())))?;

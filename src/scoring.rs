@@ -9,7 +9,7 @@ use std::path::Path;
 use ace::models::character_state::CharacterLayout;
 use ace::models::features::{
     EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, centre_human_features, character_features, human_features,
-    mean_feature_loss,
+    human_speed_factor, mean_feature_loss, scale_human_speed,
 };
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
@@ -40,6 +40,7 @@ pub struct Scorer {
     human_body_override: Option<f32>,
     weights: FeatureWeights,
     feature_offset: Vec<f32>,
+    speed_scale: Option<f32>,
     reference: Option<GaussianFit>,
 }
 
@@ -64,6 +65,7 @@ impl Scorer {
             human_body_override: record.body_lengths.human_override,
             weights: record.config.feature_weights,
             feature_offset: record.feature_offset.clone(),
+            speed_scale: record.speed_scale,
             reference,
         })
     }
@@ -78,14 +80,19 @@ impl Scorer {
         states.iter().map(|x| character_features(&self.layout, x.as_ref(), self.body, &self.mapping)).collect()
     }
 
-    /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m), centred on the
-    /// character as the checkpoint was trained (`feature_offset`); the checkpoint's fixed human body
-    /// length wins when it was trained with one.
+    /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m), brought to the
+    /// character as the checkpoint was trained (its `speed_scale` and `feature_offset`); the
+    /// checkpoint's fixed human body length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body_override.unwrap_or(clip_body);
+        let layout = FeatureLayout::new(&self.mapping);
+        let speed = self.speed_scale.map(|s| human_speed_factor(s, body, self.body));
         x_h.iter()
             .map(|x| {
                 let mut psi = human_features(x, body, &self.mapping);
+                if let Some(factor) = speed {
+                    scale_human_speed(&mut psi, &layout, factor);
+                }
                 centre_human_features(&mut psi, &self.feature_offset);
                 psi
             })

@@ -179,6 +179,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         correspondence: &correspondence,
         character_body_length: body,
         human_body_length: None,
+        speed_scale: ace::models::dataset::speed_scale(&tree, &morph, &set.config)?,
         provenance: &provenance(record),
     };
     train_ace_with_progress(&inputs, &cfg, &dir, "ACE")?;

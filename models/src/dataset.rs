@@ -155,6 +155,19 @@ pub struct MotionSet {
     pub contacts: Vec<u8>,
 }
 
+/// The human-equivalent speed scale of the controller that [`generate`] builds for `cfg`
+/// ([`Rig::speed_scale`]): character speed = scale × commanded human speed.
+pub fn speed_scale(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig) -> Result<f32, DatasetError> {
+    Ok(rig(tree, morph, cfg)?.speed_scale)
+}
+
+fn rig(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig) -> Result<Rig, DatasetError> {
+    Rig::new(tree, morph, &cfg.controller, cfg.fps).map_err(|problem| DatasetError::Controller {
+        character: tree.name.clone(),
+        problem,
+    })
+}
+
 /// Rolls out the controllers of a character (see the module docs). `progress` is called with the
 /// number of frames done every 1024 frames and at the end.
 pub fn generate(
@@ -164,10 +177,7 @@ pub fn generate(
     progress: &mut dyn FnMut(usize),
 ) -> Result<MotionSet, DatasetError> {
     check_config(cfg)?;
-    let rig = Rig::new(tree, morph, &cfg.controller, cfg.fps).map_err(|problem| DatasetError::Controller {
-        character: tree.name.clone(),
-        problem,
-    })?;
+    let rig = rig(tree, morph, cfg)?;
     let layout = CharacterLayout::new(tree, morph);
     let (n, dof, dim, n_feet) = (cfg.frames, tree.dof(), layout.dim(), morph.feet.len());
     let dt = 1.0 / cfg.fps;

@@ -36,6 +36,17 @@
 //! the human's Ψ is shifted by a [`centring_offset`] (the character dataset's mean minus the human
 //! training clips' mean, on those entries only) before it is compared. Ψ itself, and with it DIV and
 //! FID, is unchanged: a common shift of the character's features would change neither.
+//!
+//! **Speed.** The character dataset's controller turns human-equivalent speeds into the character's
+//! by a speed scale `s` (leg length over a human's 0.9 m for legged characters, height over 1.7 m
+//! for wheeled ones; [`crate::controller::ScalingConfig`]), while Ψ divides speeds by body length.
+//! The two disagree where legs are long for the height: a human's 1.2 m/s walk is 0.7 body lengths
+//! per second, but the dataset's Spot trots that command at 1.2 and the crab scurries at 1.6. So
+//! L_fea compares the root's linear velocity at the dataset's scale: the human's velocity entries
+//! are multiplied by [`human_speed_factor`] `s·H / L` (`H` the human's body length, `L` the
+//! character's), which makes them `v·s / L` — the character speed the dataset pairs with the
+//! human's `v`, in the character's body lengths per second. For Stretch, whose scale is its
+//! height over 1.7 m, the factor is 1. Ψ itself, and with it DIV and FID, is unchanged.
 
 use std::ops::Range;
 
@@ -346,6 +357,21 @@ pub fn centre_human_features(psi: &mut [f32], offset: &[f32]) {
     assert_eq!(psi.len(), offset.len(), "the centring offset has the wrong length");
     for (v, o) in psi.iter_mut().zip(offset) {
         *v += o;
+    }
+}
+
+/// The factor by which a human's root linear velocity in Ψ is multiplied to compare at the
+/// character dataset's speed scale (module docs, "Speed"): `speed_scale · human_body / character_body`,
+/// for a human of `human_body` metres, a character of `character_body` metres and the dataset
+/// controller's human-equivalent `speed_scale` ([`crate::dataset::speed_scale`]).
+pub fn human_speed_factor(speed_scale: f32, human_body: f32, character_body: f32) -> f32 {
+    speed_scale * human_body / character_body
+}
+
+/// Multiplies the root linear velocity entries of a human's Ψ by `factor` ([`human_speed_factor`]).
+pub fn scale_human_speed(psi: &mut [f32], layout: &FeatureLayout, factor: f32) {
+    for v in &mut psi[layout.root_linear_velocity()] {
+        *v *= factor;
     }
 }
 

@@ -5,7 +5,10 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use ace_models::character_state::character_state;
-use ace_models::dataset::{DatasetConfig, DatasetError, FORMAT_VERSION, MotionSet, STD_FLOOR, generate, statistics};
+use ace_models::dataset::{
+    DatasetConfig, DatasetError, FORMAT_VERSION, MotionSet, STD_FLOOR, generate, speed_scale, statistics,
+};
+use ace_models::features::{character_body_length, human_speed_factor};
 use ace_models::kinematics::{CharacterPose, KinematicTree};
 use ace_models::metrics::{UfrConfig, ufr_episodes};
 use ace_models::morphology::{Morphology, load_character};
@@ -377,5 +380,18 @@ fn bundled_datasets_are_clean_by_the_ufr_detectors() {
         );
         println!("{name}: {:?} {:?}", ufr.rates, ufr.collision_pairs);
         assert!(ufr.rates.ufr <= 0.005, "{name}: UFR {:.3} %", 100.0 * ufr.rates.ufr);
+    }
+}
+
+#[test]
+fn speed_scales_bring_a_humans_speed_to_the_pace_of_each_dataset() {
+    // L_fea's factor s·H/L for a 1.7 m human: Stretch's scale is its height over 1.7 m, so its factor
+    // is 1; Spot's and the crab's legs are long for their heights, so their datasets move faster in
+    // body lengths per second than a human does at the same human-equivalent speed.
+    for (name, range) in [("spot", 1.5..1.9), ("crab", 2.0..2.7), ("stretch", 0.95..1.05)] {
+        let (t, m) = character(name);
+        let s = speed_scale(&t, &m, &DatasetConfig::default()).unwrap();
+        let f = human_speed_factor(s, 1.7, character_body_length(&t, &m));
+        assert!(range.contains(&f), "{name}: factor {f} (speed scale {s})");
     }
 }

@@ -21,7 +21,8 @@
 //! `format_version`, the character, the training `step`, the [`AceConfig`], the end-effector
 //! correspondence with its source (automatic or manual), the x^h normalisation statistics, the human
 //! clip folder and split, the body lengths, the `feature_offset` that centres the human's Ψ for L_fea
-//! (absent in checkpoints trained without centring), checksums of both weights files and of the
+//! (absent in checkpoints trained without centring), the `speed_scale` at which it compares the
+//! root's linear velocity (absent when trained without it), checksums of both weights files and of the
 //! prior's weights file it was trained against, and a free-form `provenance`. Files are written under temporary names
 //! and renamed into place (weights first); the checksums tie the files together.
 
@@ -75,6 +76,9 @@ pub struct AceConfig {
     /// Compare the root height and end-effector positions in L_fea as displacements from each
     /// body's mean pose ([`crate::features`], "Centring"); `false` compares them as they are.
     pub centre_features: bool,
+    /// Compare the root's linear velocity in L_fea at the character dataset's speed scale
+    /// ([`crate::features`], "Speed"); `false` compares body lengths per second on both sides.
+    pub match_speed_scale: bool,
     /// Weight of the gradient penalty w_gp (paper: 0.1).
     pub w_gp: f64,
     /// Adam's learning rate for G.
@@ -113,6 +117,7 @@ impl Default for AceConfig {
             w_fea: 10.0,
             feature_weights: FeatureWeights::default(),
             centre_features: true,
+            match_speed_scale: true,
             w_gp: 0.1,
             // At 2e-4 the Spot run collapsed after 3,260 steps (D took over, L_adv jumped from 1 to 8);
             // at 1e-4 it stayed balanced to the end and its held-out FID was lower.
@@ -419,6 +424,11 @@ pub struct AceRecord {
     /// when trained without centring (and in checkpoints from before it).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub feature_offset: Vec<f32>,
+    /// The dataset controller's speed scale at which L_fea compares the root's linear velocity
+    /// ([`crate::features::human_speed_factor`]); absent when trained without it (and in
+    /// checkpoints from before it), which compares body lengths per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_scale: Option<f32>,
     /// The generator's weights file.
     pub generator: FileRecord,
     /// The discriminator's weights file.

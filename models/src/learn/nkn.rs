@@ -48,7 +48,7 @@ use super::files::{CheckpointFiles, FileRecord, load_weights, open_losses, read_
 use super::fk::{FkLayer, quat_to_matrix};
 use super::prior::{DeviceChoice, window_starts};
 use super::retarget::{RetargetedMotion, roll_out};
-use super::train_ace::{AceInputs, human_windows, log_step, normalised_dataset, tracked, weighted_sum};
+use super::train_ace::{AceInputs, FeatureMatching, human_windows, log_step, normalised_dataset, tracked, weighted_sum};
 use crate::character_state::CharacterLayout;
 use crate::cleanup::Cleanup;
 use crate::human::layout as human_layout;
@@ -378,7 +378,7 @@ pub fn train_nkn(
     super::train_ace::place_prior(prior, run_dir)?;
     let human_stats = inputs.humans.train_statistics();
     let psi = super::psi::Psi::new(&prior.character.layout, &inputs.correspondence.mapping, inputs.character_body_length, device);
-    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, false, device)?;
+    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, FeatureMatching::NONE, device)?;
     let nkn = Nkn::new(cfg, prior, tree, morph);
     let mut discriminator = Discriminator::new(&cfg.discriminator(), prior.prior.state_dim(), &prior.mask, device);
     let mut record = NknRecord {

@@ -613,6 +613,7 @@ mod tests {
                     human_clips: Default::default(),
                 },
                 feature_offset: Vec::new(),
+                speed_scale: None,
                 generator: FileRecord::default(),
                 discriminator: FileRecord::default(),
                 prior: FileRecord::default(),

@@ -54,7 +54,8 @@ use super::rows_to_tensor;
 use crate::correspondence::Correspondence;
 use crate::dataset::MotionSet;
 use crate::features::{
-    FeatureLayout, centre_human_features, centring_offset, character_features, human_features_into, mean_features,
+    FeatureLayout, centre_human_features, centring_offset, character_features, human_features_into, human_speed_factor,
+    mean_features, scale_human_speed,
 };
 use crate::human::layout as human_layout;
 use crate::human_set::{HumanSet, HumanStats};
@@ -84,6 +85,9 @@ pub struct AceInputs<'a> {
     pub character_body_length: f32,
     /// One body length for every human clip (m); `None` uses each clip's own.
     pub human_body_length: Option<f32>,
+    /// The human-equivalent speed scale of the controller that made `dataset`
+    /// ([`crate::dataset::speed_scale`]), at which L_fea compares the root's linear velocity.
+    pub speed_scale: f32,
     /// Recorded in `ace.json` (a resumed run keeps the stored one when this is `null`).
     pub provenance: &'a Value,
 }
@@ -115,6 +119,26 @@ pub(crate) struct HumanWindows {
     pub(crate) starts: Vec<usize>,
     /// The centring offset already added to `features` (empty without centring).
     pub(crate) offset: Vec<f32>,
+    /// The speed scale the root's linear velocity in `features` was brought to (`None`: body lengths
+    /// per second).
+    pub(crate) speed_scale: Option<f32>,
+}
+
+/// How the human's Ψ is brought to the character's before L_fea compares them
+/// ([`crate::features`], "Centring" and "Speed").
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FeatureMatching {
+    pub(crate) centre: bool,
+    pub(crate) speed: bool,
+}
+
+impl FeatureMatching {
+    /// Ψ as it is (NKN, which has no feature loss).
+    pub(crate) const NONE: FeatureMatching = FeatureMatching { centre: false, speed: false };
+
+    pub(crate) fn of(cfg: &AceConfig) -> FeatureMatching {
+        FeatureMatching { centre: cfg.centre_features, speed: cfg.match_speed_scale }
+    }
 }
 
 /// Trains G and D (see the module docs) in `run_dir`, resuming from the checkpoint there if any, and
@@ -139,8 +163,8 @@ pub fn train_ace(
         inputs.character_body_length,
         device,
     );
-    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, cfg.centre_features, device)?;
-    let ckpt = start_or_resume(inputs, cfg, &human_stats, &humans.offset, run_dir, device)?;
+    let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, FeatureMatching::of(cfg), device)?;
+    let ckpt = start_or_resume(inputs, cfg, &human_stats, &humans, run_dir, device)?;
     if ckpt.record.step >= cfg.steps {
         return Ok(ckpt);
     }
@@ -437,16 +461,25 @@ pub fn start_fine_tune(
     Ok(ckpt)
 }
 
-/// Normalised x^h and Ψ of every training clip long enough for a window; with `centre`, Ψ is
-/// shifted by the [`centring_offset`] of the training clips against the character dataset.
+/// Normalised x^h and Ψ of every training clip long enough for a window. Ψ's root linear velocity
+/// is brought to the dataset's speed scale ([`human_speed_factor`]) with `matching.speed`; then, with
+/// `matching.centre`, Ψ is shifted by the [`centring_offset`] of the training clips against the
+/// character dataset.
 pub(crate) fn human_windows(
     inputs: &AceInputs<'_>,
     stats: &HumanStats,
     features: &FeatureLayout,
     window: usize,
-    centre: bool,
+    matching: FeatureMatching,
     device: Device,
 ) -> Result<HumanWindows, LearnError> {
+    if matching.speed && !(inputs.speed_scale.is_finite() && inputs.speed_scale > 0.0) {
+        return Err(LearnError::Config(format!(
+            "the dataset's speed scale must be positive, got {}",
+            inputs.speed_scale
+        )));
+    }
+    let speed_scale = matching.speed.then_some(inputs.speed_scale);
     let mapping = &inputs.correspondence.mapping;
     let (f, h) = (features.dim(), human_layout::DIM);
     let mut states: Vec<f32> = Vec::new();
@@ -467,6 +500,9 @@ pub(crate) fn human_windows(
             let at = psi.len();
             psi.resize(at + f, 0.0);
             human_features_into(x, body, mapping, &mut psi[at..]);
+            if let Some(s) = speed_scale {
+                scale_human_speed(&mut psi[at..], features, human_speed_factor(s, body, inputs.character_body_length));
+            }
         }
     }
     if starts.is_empty() {
@@ -475,7 +511,7 @@ pub(crate) fn human_windows(
             inputs.humans.folder.display()
         )));
     }
-    let offset = if centre {
+    let offset = if matching.centre {
         let set = inputs.dataset;
         let character_mean = mean_features((0..set.len()).map(|i| {
             character_features(&set.layout, set.state(i), inputs.character_body_length, mapping)
@@ -494,6 +530,7 @@ pub(crate) fn human_windows(
         features: Tensor::from_slice(&psi).view([n, f as i64]).to_device(device),
         starts,
         offset,
+        speed_scale,
     })
 }
 
@@ -502,7 +539,7 @@ fn start_or_resume(
     inputs: &AceInputs<'_>,
     cfg: &AceConfig,
     human_stats: &HumanStats,
-    feature_offset: &[f32],
+    humans: &HumanWindows,
     run_dir: &Path,
     device: Device,
 ) -> Result<AceCheckpoint, LearnError> {
@@ -528,7 +565,8 @@ fn start_or_resume(
         human_folder: inputs.humans.folder.clone(),
         human_split: inputs.humans.split.clone(),
         body_lengths,
-        feature_offset: feature_offset.to_vec(),
+        feature_offset: humans.offset.clone(),
+        speed_scale: humans.speed_scale,
         // The file records are filled in when the checkpoint is saved.
         generator: FileRecord::default(),
         discriminator: FileRecord::default(),
@@ -564,6 +602,9 @@ fn start_or_resume(
         || stored.body_lengths != record.body_lengths
     {
         return refuse("other human data (statistics, split or body lengths differ)");
+    }
+    if stored.speed_scale != record.speed_scale {
+        return refuse("another dataset speed scale");
     }
     let step = stored.step;
     let provenance = if inputs.provenance.is_null() {
@@ -672,6 +713,7 @@ pub(crate) mod test_support {
             correspondence: corr,
             character_body_length: character_body_length(tree, morph),
             human_body_length: None,
+            speed_scale: crate::dataset::speed_scale(tree, morph, &set.config).unwrap(),
             provenance: &provenance,
         })
     }
@@ -821,7 +863,10 @@ mod tests {
         let layout = FeatureLayout::new(&corr.mapping);
         let (plain, centred) = with_spot_inputs("centring", |inputs| {
             let stats = inputs.humans.train_statistics();
-            let w = |centre| human_windows(inputs, &stats, &layout, 6, centre, Device::Cpu).unwrap();
+            let w = |centre| {
+                let matching = FeatureMatching { centre, speed: false };
+                human_windows(inputs, &stats, &layout, 6, matching, Device::Cpu).unwrap()
+            };
             (w(false), w(true))
         });
         let rows = |t: &Tensor| -> Vec<Vec<f32>> {
@@ -856,6 +901,45 @@ mod tests {
         // Training records the offset that scoring applies.
         let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
         assert_eq!(record.feature_offset, centred.offset);
+    }
+
+    #[test]
+    fn human_speeds_are_compared_at_the_datasets_speed_scale() {
+        let corr = spot_correspondence();
+        let layout = FeatureLayout::new(&corr.mapping);
+        let (plain, matched, scale, character_body) = with_spot_inputs("speed", |inputs| {
+            let stats = inputs.humans.train_statistics();
+            let w = |speed| {
+                let matching = FeatureMatching { centre: false, speed };
+                human_windows(inputs, &stats, &layout, 6, matching, Device::Cpu).unwrap()
+            };
+            (w(false), w(true), inputs.speed_scale, inputs.character_body_length)
+        });
+        assert_eq!(plain.speed_scale, None);
+        assert_eq!(matched.speed_scale, Some(scale));
+        let rows = |t: &Tensor| Vec::<f32>::try_from(t.flatten(0, -1)).unwrap();
+        let (p, m) = (rows(&plain.features), rows(&matched.features));
+        let velocity = layout.root_linear_velocity();
+        let speed = |r: &[f32]| r[velocity.clone()].iter().map(|v| v * v).sum::<f32>().sqrt();
+        let bodies: Vec<f32> = bundled_humans().train_clips().map(|c| c.body_length).collect();
+        let mut moving = 0;
+        for (pr, mr) in p.chunks(layout.dim()).zip(m.chunks(layout.dim())) {
+            for i in (0..layout.dim()).filter(|i| !velocity.contains(i)) {
+                assert_eq!(pr[i], mr[i], "entry {i} is not a velocity and must not change");
+            }
+            if speed(pr) > 0.1 {
+                moving += 1;
+                // One clip's s·H/L: Spot's legs are long for its height, so its dataset moves 1.5–2
+                // times as many body lengths per second as a human at the same commanded speed.
+                let f = speed(mr) / speed(pr);
+                let of_a_clip = bodies.iter().any(|&h| (f - human_speed_factor(scale, h, character_body)).abs() < 1e-3);
+                assert!(of_a_clip && (1.4..2.0).contains(&f), "factor {f}");
+            }
+        }
+        assert!(moving > 0, "the bundled walk moves");
+        // Training records the scale that scoring applies.
+        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        assert_eq!(record.speed_scale, Some(scale));
     }
 
     #[test]
