@@ -2,8 +2,8 @@
 //!
 //! A [`Retargeter`] holds a checkpoint directory's prior, generator and normalisation statistics. Per
 //! frame, for each character of a batch, `ẑ = G(x^h_t, x^r_{t−1})` and `x^r_t = π(ẑ, x^r_{t−1})`,
-//! without gradients; each character keeps its own previous state ([`Retargeter::reset`] sets the
-//! start states, usually [`Retargeter::start_state`]: the standing pose at rest).
+//! without gradients; each character keeps its own previous state in a [`CharacterStream`]
+//! ([`Retargeter::stream`] starts one from [`Retargeter::start_state`]: the standing pose at rest).
 //!
 //! [`Retargeter::retarget_clip`] turns a whole human clip into character states and poses: the root is
 //! integrated from the states' displacements and delta rotations
