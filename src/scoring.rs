@@ -36,6 +36,8 @@ pub struct FidSplit {
 pub struct Scorer {
     layout: CharacterLayout,
     mapping: EndEffectorMapping,
+    /// Ψ's index map for `mapping`.
+    features: FeatureLayout,
     body: f32,
     human_body_override: Option<f32>,
     weights: FeatureWeights,
@@ -61,6 +63,7 @@ impl Scorer {
         Ok(Scorer {
             layout: retargeter.prior().character.layout,
             mapping: record.correspondence.mapping.clone(),
+            features: FeatureLayout::new(&record.correspondence.mapping),
             body: record.body_lengths.character,
             human_body_override: record.body_lengths.human_override,
             weights: record.config.feature_weights,
@@ -85,13 +88,12 @@ impl Scorer {
     /// checkpoint's fixed human body length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body_override.unwrap_or(clip_body);
-        let layout = FeatureLayout::new(&self.mapping);
         let speed = self.speed_scale.map(|s| human_speed_factor(s, body, self.body));
         x_h.iter()
             .map(|x| {
                 let mut psi = human_features(x, body, &self.mapping);
                 if let Some(factor) = speed {
-                    scale_human_speed(&mut psi, &layout, factor);
+                    scale_human_speed(&mut psi, &self.features, factor);
                 }
                 centre_human_features(&mut psi, &self.feature_offset);
                 psi
@@ -101,11 +103,10 @@ impl Scorer {
 
     /// L_fea split by feature block (each block's weighted share; they add up to L_fea).
     pub fn feature_loss_by_block(&self, psi: &[Vec<f32>], human_psi: &[Vec<f32>]) -> Vec<(&'static str, f32)> {
-        let layout = FeatureLayout::new(&self.mapping);
         FeatureBlock::ALL
             .iter()
             .map(|&block| {
-                (block.name(), mean_feature_loss(&layout, psi, human_psi, &self.weights.only(block)))
+                (block.name(), mean_feature_loss(&self.features, psi, human_psi, &self.weights.only(block)))
             })
             .collect()
     }
@@ -115,11 +116,10 @@ impl Scorer {
     pub fn fid_split(&self, psi: &[Vec<f32>]) -> Option<FidSplit> {
         let reference = self.reference.as_ref().filter(|_| !psi.is_empty())?;
         let fit = GaussianFit::fit(psi);
-        let layout = FeatureLayout::new(&self.mapping);
         let blocks = FeatureBlock::ALL
             .iter()
             .map(|&block| {
-                let r = layout.range(block);
+                let r = self.features.range(block);
                 (block.name(), frechet_distance(&fit.marginal(r.clone()), &reference.marginal(r)))
             })
             .collect();
@@ -156,7 +156,7 @@ impl Scorer {
                 features: psi,
                 reference: self.reference.as_ref(),
                 source_features: human_psi,
-                layout: FeatureLayout::new(&self.mapping),
+                layout: self.features,
                 weights: self.weights,
                 div: DivConfig::default(),
             },
