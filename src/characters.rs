@@ -1,5 +1,5 @@
 //! Where the CLI finds characters: `--character` takes a bundled character's name (`spot`, `crab`,
-//! `stretch`) or a path to any URDF.
+//! `stretch`) or a path to any URDF robot or rigged glTF creature (`.glb`/`.gltf`).
 
 use std::path::{Path, PathBuf};
 
@@ -32,7 +32,7 @@ pub fn character_path(arg: &str) -> Result<PathBuf> {
         return Ok(assets_dir().join("characters").join(format!("{arg}.urdf")));
     }
     bail!(
-        "no character `{arg}`: not a URDF file, nor a bundled character ({})",
+        "no character `{arg}`: not a URDF or glTF file, nor a bundled character ({})",
         BUNDLED.join(", ")
     )
 }

@@ -1,4 +1,4 @@
-//! `ace inspect`: summaries of BVH clips and URDF characters, as text or JSON.
+//! `ace inspect`: summaries of BVH clips, URDF robots and glTF creatures, as text or JSON.
 
 use std::path::Path;
 
@@ -50,11 +50,42 @@ pub fn urdf_summary(path: &Path) -> Result<(KinematicTree, Morphology, Value)> {
     Ok((tree, morphology, v))
 }
 
+/// A glTF creature's summary: the URDF fields, plus its skins, clips, helper bones and the joints
+/// left at rest.
+pub fn gltf_summary(path: &Path) -> Result<Value> {
+    let c = ace::models::character::load_creature(path)?;
+    let (tree, m) = (&c.tree, &c.morphology);
+    let names = |links: &[usize]| -> Vec<String> { links.iter().map(|&i| tree.links[i].name.clone()).collect() };
+    Ok(json!({
+        "kind": "gltf",
+        "file": path.display().to_string(),
+        "name": tree.name,
+        "links": tree.links.len(),
+        "dof": tree.dof(),
+        "dof_names": tree.dof_names(),
+        "feet": names(&m.feet),
+        "manipulators": names(&m.manipulators),
+        "wheels": names(&m.wheels),
+        "head": m.head.map(|h| tree.links[h].name.clone()),
+        "tails": c.plan.tails,
+        "standing_height_m": tree.standing_root_height(),
+        "scale_m_per_unit": c.scale,
+        "body_root": c.plan.body_root,
+        "skins": c.skins,
+        "animations": c.animations,
+        "moving_bones": c.plan.roles,
+        "joints_at_rest": c.plan.at_rest,
+        "helper_bones": c.plan.helpers,
+        "warnings": tree.warnings,
+    }))
+}
+
 fn kind_of(path: &Path) -> Result<&'static str> {
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("bvh") => Ok("bvh"),
         Some("urdf") => Ok("urdf"),
-        _ => bail!("{}: unknown file type (expected .bvh or .urdf)", path.display()),
+        Some("glb" | "gltf") => Ok("gltf"),
+        _ => bail!("{}: unknown file type (expected .bvh, .urdf, .glb or .gltf)", path.display()),
     }
 }
 
@@ -78,6 +109,7 @@ pub fn text(v: &Value) -> String {
 pub fn run(path: &Path, as_json: bool) -> Result<()> {
     let v = match kind_of(path)? {
         "bvh" => bvh_summary(path)?.1,
+        "gltf" => gltf_summary(path)?,
         _ => urdf_summary(path)?.2,
     };
     if as_json {

@@ -78,6 +78,12 @@ pub fn generate_dataset(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetC
     Ok(set)
 }
 
+/// The character file's path, size and FNV-1a 64 checksum, for the checkpoint's provenance.
+pub fn character_record(path: &Path) -> Result<Value> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the character file", path.display()))?;
+    Ok(serde_json::to_value(ace::models::learn::files::FileRecord::of(&path.display().to_string(), &bytes))?)
+}
+
 /// What the command line, data and code version were, for the checkpoint's provenance.
 pub fn provenance(extra: Value) -> Value {
     let commit = git(&["rev-parse", "--short", "HEAD"]).map(|out| out.trim().to_string());
@@ -128,6 +134,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
     println!("character {} ({}): dataset of {} frames, x^r of {} values", tree.name, urdf.display(), set.len(), set.layout.dim());
     let record = json!({
         "character_urdf": urdf.display().to_string(),
+        "character_file": character_record(&urdf)?,
         "dataset": { "file": args.dataset.as_ref().map(|p| p.display().to_string()), "frames": set.len(), "config": set.config },
     });
     let bar = progress::bar(cfg.steps as u64, "steps");
@@ -171,7 +178,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     println!("{correspondence}");
 
     write_reference(&dir, &set, &correspondence, body)?;
-    let record = json!({ "humans": folder.display().to_string() });
+    let record = json!({ "humans": folder.display().to_string(), "character_file": character_record(&urdf)? });
     let inputs = AceInputs {
         prior: &prior,
         dataset: &set,

@@ -9,6 +9,7 @@
 
 pub use nalgebra;
 
+pub mod character;
 pub mod character_state;
 pub mod cleanup;
 pub mod collision_guard;

@@ -38,6 +38,18 @@
 //! [tip_offsets]                      # end-effector point in the link frame (m)
 //! fl_foot = [0.0, 0.0, -0.02]
 //! ```
+//! A rigged glTF creature's profile (`Fox.profile.toml` beside `Fox.glb`) takes the same keys, with
+//! bone names for links, and these of its own (see [`crate::character`]):
+//! ```toml
+//! scale = 0.01                       # metres per file unit
+//! forward = "+z"                     # the file axis the creature faces
+//! animated = ["b_Neck_04", "b_Head_05"]   # the bones that move (replaces the analysis)
+//! at_rest = ["b_Tail01_012"]         # bones held at rest
+//! [dofs]                             # bone = the axes it turns about
+//! b_Head_05 = ["yaw", "pitch"]
+//! [limits]                           # joint = [lower, upper] (rad)
+//! "b_Head_05:yaw" = [-0.5, 0.5]
+//! ```
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -176,6 +188,22 @@ pub struct Profile {
     /// End-effector points in their link frames: link name → `[x, y, z]`.
     #[serde(default)]
     pub tip_offsets: BTreeMap<String, [f32; 3]>,
+    /// glTF creatures only: metres per file unit (replaces the unit detection).
+    pub scale: Option<f32>,
+    /// glTF creatures only: the file axis the creature faces (`"+z"`, the glTF convention, `"-z"`,
+    /// `"+x"` or `"-x"`).
+    pub forward: Option<crate::character::gltf::Forward>,
+    /// glTF creatures only: the bones that move (replaces the analysis).
+    pub animated: Option<Vec<String>>,
+    /// glTF creatures only: bones held at rest.
+    #[serde(default)]
+    pub at_rest: Vec<String>,
+    /// glTF creatures only: bone → the axes it turns about (`"yaw"`, `"pitch"`, `"roll"`).
+    #[serde(default)]
+    pub dofs: BTreeMap<String, Vec<String>>,
+    /// glTF creatures only: joint (`"bone:axis"`) → `[lower, upper]` (rad).
+    #[serde(default)]
+    pub limits: BTreeMap<String, [f32; 2]>,
     /// File the profile was read from (for error messages).
     #[serde(skip)]
     pub source: Option<String>,
@@ -200,6 +228,8 @@ pub enum ProfileProblem {
     UnknownLink(String),
     #[error("no movable joint with its own DoF named `{0}`")]
     UnknownJoint(String),
+    #[error("`{0}` applies to glTF creatures only, not to a URDF")]
+    GltfOnly(&'static str),
 }
 
 impl Profile {
@@ -242,6 +272,27 @@ impl Profile {
         }
     }
 
+    /// Fails if the profile sets a key that only glTF creatures have.
+    pub fn check_urdf(&self) -> Result<(), ProfileError> {
+        let key = [
+            ("scale", self.scale.is_some()),
+            ("forward", self.forward.is_some()),
+            ("animated", self.animated.is_some()),
+            ("at_rest", !self.at_rest.is_empty()),
+            ("dofs", !self.dofs.is_empty()),
+            ("limits", !self.limits.is_empty()),
+        ]
+        .into_iter()
+        .find(|k| k.1);
+        match key {
+            Some((k, _)) => Err(ProfileError {
+                file: self.source.clone().unwrap_or_else(|| "<profile>".into()),
+                problem: ProfileProblem::GltfOnly(k),
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Sets the tree's rest pose (its `neutral_q`) from `rest_pose`, if the profile has one.
     pub fn apply_rest_pose(&self, tree: &mut KinematicTree) -> Result<(), ProfileError> {
         if self.rest_pose.is_empty() {
@@ -267,14 +318,22 @@ pub enum CharacterError {
     Urdf(#[from] UrdfError),
     #[error(transparent)]
     Profile(#[from] ProfileError),
+    #[error(transparent)]
+    Gltf(#[from] crate::character::GltfError),
 }
 
-/// Loads a character: the URDF, the profile beside it if any (rest pose and overrides), and its
+/// Loads a character: a URDF robot, or a rigged glTF creature (`.glb`/`.gltf`, see
+/// [`crate::character`]), with the profile beside it if any (rest pose and overrides), and its
 /// morphology.
 pub fn load_character(urdf_path: &Path) -> Result<(KinematicTree, Morphology), CharacterError> {
+    if crate::character::is_gltf(urdf_path) {
+        let c = crate::character::load_creature(urdf_path)?;
+        return Ok((c.tree, c.morphology));
+    }
     let mut tree = KinematicTree::from_urdf_file(urdf_path)?;
     let morph = match Profile::beside(urdf_path)? {
         Some(p) => {
+            p.check_urdf()?;
             p.apply_rest_pose(&mut tree)?;
             Morphology::with_profile(&tree, &p)?
         }

@@ -17,7 +17,7 @@
 
 pub mod ace;
 pub mod checkpoint;
-mod files;
+pub mod files;
 pub mod fk;
 pub mod nets;
 pub mod nkn;

@@ -1,0 +1,761 @@
+//! The body plan of a rigged creature, and the [`KinematicTree`] and [`Morphology`] built from it.
+//!
+//! Works on the bones [`super::gltf::read`] found, at rest, in the character frame, with a capsule per
+//! bone fitted to the vertices it deforms. Nothing depends on bone names.
+//!
+//! # Limbs
+//! A *branching* bone has two or more children. The children of the body root and of branching bones
+//! start *limbs*: a limb runs down single-child bones to a leaf (or to a *hand*: a bone whose children
+//! are all short chains of at most three bones reaching less than half as far as the limb, i.e. fingers
+//! or toes). A limb that ends at another branching bone is *spine*, and its branches are limbs in turn.
+//! Then, with `H` the creature's height, `S` its largest extent and `W` its width at rest:
+//! - **Feet**: limbs of two or more bones whose lowest capsule point (of the tip and its fingers/toes)
+//!   is within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
+//!   The foot point is that lowest point.
+//! - **Head**: of the limbs whose tip is near the mid-plane (`|y| < 10 % W` from the body root) and
+//!   deforms at least 30 % as many vertices as the largest such tip (a head, not a tongue), the one
+//!   whose tip is farthest forward.
+//! - **Arms** (and wings): limbs of two or more bones whose tip is off the mid-plane with a mirror
+//!   image among the other limbs (within `0.15 S`), whose length is at least `S/10` and which do not
+//!   branch from the head's path close to the head (ears). Their end effector is the far end of the
+//!   tip's capsule. They become manipulators.
+//! - **Tails**: other limbs of two or more bones, without a mirror image, whose tip is behind the body
+//!   root.
+//! - Everything else (ears, jaws, tongues, fingers, toes) stays **at rest**, and so do the spine bones
+//!   above the feet: the controllers' leg IK runs from the root, so a spine joint shared by legs would be
+//!   moved by each of them.
+//!
+//! # Joints
+//! Moving bones get up to three revolute DoFs (see [`super::gltf`]). Leg bones use the leg's axes: the
+//! vertical, the knee hinge (the lateral axis for a leg that hangs below its hip, else the horizontal
+//! normal of the vertical plane through hip and foot) and the leg's outward direction. With clips in the
+//! file, each axis the clips turn by more than [`MIN_CLIP_RANGE`] is kept with limits of its range over
+//! every keyframe widened by 15 % + 3° ([`clip_limits`]); without keyframes for a bone, the role's
+//! defaults in [`default_limits`] apply. The profile overrides every choice.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
+
+use super::gltf::{Rig, fit_capsule};
+use crate::geometry::{Aabb, Geometry, Shape};
+use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link};
+use crate::morphology::Morphology;
+
+/// Smallest range (rad) over a file's clips for which an axis becomes a DoF (5°).
+pub const MIN_CLIP_RANGE: f32 = 0.0873;
+
+/// What a moving bone is part of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Leg { first: bool },
+    Arm { first: bool },
+    Head,
+    Spine,
+    Tail,
+}
+
+/// The three axis names, in the order their DoFs are applied.
+pub const AXES: [&str; 3] = ["yaw", "pitch", "roll"];
+
+/// Default limits (rad) of a bone of `role` with no keyframes, per axis (`None`: no DoF).
+pub fn default_limits(role: Role) -> [Option<(f32, f32)>; 3] {
+    let d = |deg: f32| Some((-deg.to_radians(), deg.to_radians()));
+    match role {
+        Role::Leg { first: true } => [d(10.0), d(45.0), d(20.0)],
+        Role::Leg { first: false } => [None, d(60.0), None],
+        Role::Arm { first: true } => [d(45.0), d(45.0), d(45.0)],
+        Role::Arm { first: false } => [None, d(75.0), None],
+        Role::Head => [d(40.0), d(30.0), None],
+        Role::Spine => [d(15.0), d(15.0), None],
+        Role::Tail => [d(25.0), d(20.0), None],
+    }
+}
+
+/// Limits from keyframe angles: axes whose range exceeds [`MIN_CLIP_RANGE`], widened by 15 % + 3°
+/// on each side and always containing the rest pose (0).
+pub fn clip_limits(angles: &[[f32; 3]]) -> [Option<(f32, f32)>; 3] {
+    let mut out = [None; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let lo = angles.iter().map(|a| a[k]).fold(f32::INFINITY, f32::min);
+        let hi = angles
+            .iter()
+            .map(|a| a[k])
+            .fold(f32::NEG_INFINITY, f32::max);
+        let range = hi - lo;
+        if range.is_finite() && range > MIN_CLIP_RANGE {
+            let m = 0.15 * range + 3f32.to_radians();
+            let pi = std::f32::consts::PI;
+            *o = Some(((lo - m).min(0.0).max(-pi), (hi + m).max(0.0).min(pi)));
+        }
+    }
+    out
+}
+
+/// Per-creature choices a profile may override (the glTF keys of [`crate::morphology::Profile`]).
+#[derive(Clone, Debug, Default)]
+pub struct Overrides {
+    pub feet: Option<Vec<String>>,
+    pub manipulators: Option<Vec<String>>,
+    pub head: Option<String>,
+    /// Bones that move (replaces the analysis).
+    pub animated: Option<Vec<String>>,
+    /// Bones held at rest.
+    pub at_rest: Vec<String>,
+    /// Bone → axes it keeps.
+    pub dofs: BTreeMap<String, Vec<String>>,
+    /// Joint (`bone:axis`) → limits (rad).
+    pub limits: BTreeMap<String, [f32; 2]>,
+}
+
+/// What the analysis decided, for `ace inspect` and the warnings.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct BodyPlan {
+    /// The bone that is the tree's root link.
+    pub body_root: String,
+    /// Helper bones (outside the body): not DoFs.
+    pub helpers: Vec<String>,
+    /// Moving bones and their roles.
+    pub roles: BTreeMap<String, Role>,
+    /// Body bones held at rest.
+    pub at_rest: Vec<String>,
+    /// Tail tips.
+    pub tails: Vec<String>,
+    /// Notes on what was assumed.
+    pub warnings: Vec<String>,
+}
+
+struct Limb {
+    /// Bones from the limb's first bone to its tip.
+    path: Vec<usize>,
+    /// Bones below the tip (fingers, toes).
+    digits: Vec<usize>,
+    /// The bone whose child starts the limb.
+    from: usize,
+}
+
+/// Builds the tree and morphology of a creature (see the module docs). `name` names the tree.
+pub fn build(
+    rig: &Rig,
+    name: &str,
+    ov: &Overrides,
+) -> Result<(KinematicTree, Morphology, BodyPlan), String> {
+    let nb = rig.bones.len();
+    let mut children = vec![Vec::new(); nb];
+    for (i, b) in rig.bones.iter().enumerate() {
+        if let Some(p) = b.parent {
+            children[p].push(i);
+        }
+    }
+    let mut size = vec![1usize; nb];
+    for i in (0..nb).rev() {
+        if let Some(p) = rig.bones[i].parent {
+            size[p] += size[i];
+        }
+    }
+    // Body root: down from the largest top-level bone past bones that deform little and have one large child.
+    let total_vertices = rig.vertices.len().max(1);
+    let mut root = (0..nb)
+        .filter(|&i| rig.bones[i].parent.is_none())
+        .max_by_key(|&i| (size[i], std::cmp::Reverse(i)))
+        .ok_or("no bones")?;
+    loop {
+        let big: Vec<usize> = children[root]
+            .iter()
+            .copied()
+            .filter(|&c| size[c] > 2)
+            .collect();
+        if big.len() == 1 && rig.bones[root].deforms * 20 <= total_vertices {
+            root = big[0];
+        } else {
+            break;
+        }
+    }
+    let mut in_body = vec![false; nb];
+    let mut stack = vec![root];
+    while let Some(b) = stack.pop() {
+        in_body[b] = true;
+        stack.extend(&children[b]);
+    }
+    let body: Vec<usize> = (0..nb).filter(|&i| in_body[i]).collect();
+    let pos0 = |b: usize| rig.bones[b].rest.translation.vector;
+    let mut plan = BodyPlan {
+        body_root: rig.bones[root].name.clone(),
+        ..Default::default()
+    };
+
+    // Each vertex goes to its heaviest body bone. Vertices that only helpers deform (an IK foot hanging
+    // off the root) go to the helper's host: the end of a body chain nearest to the helper, which is
+    // where an IK target sits; the helper then follows that bone as a fixed link.
+    let leaves: Vec<usize> = body
+        .iter()
+        .copied()
+        .filter(|&b| children[b].iter().all(|&c| !in_body[c]))
+        .collect();
+    let host_of = |h: usize| -> usize {
+        let p = rig.bones[h].rest.translation.vector;
+        leaves
+            .iter()
+            .copied()
+            .min_by(|&a, &b| (pos0(a) - p).norm().total_cmp(&(pos0(b) - p).norm()))
+            .unwrap_or(root)
+    };
+    let mut owned: Vec<Vec<Point3<f32>>> = vec![Vec::new(); nb];
+    let mut helper_host: BTreeMap<usize, usize> = BTreeMap::new();
+    for (p, w) in &rig.vertices {
+        let heaviest = |body_only: bool| {
+            w.iter()
+                .filter(|(b, _)| !body_only || in_body[*b])
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|&(b, _)| b)
+        };
+        match heaviest(true) {
+            Some(b) => owned[b].push(*p),
+            None => {
+                if let Some(h) = heaviest(false) {
+                    let host = *helper_host.entry(h).or_insert_with(|| host_of(h));
+                    owned[host].push(*p);
+                }
+            }
+        }
+    }
+    for i in 0..nb {
+        if !in_body[i] {
+            plan.helpers.push(rig.bones[i].name.clone());
+        }
+    }
+    let capsules: Vec<Option<Geometry>> = (0..nb)
+        .map(|b| {
+            if !in_body[b] {
+                return None;
+            }
+            let inv = rig.bones[b].rest.inverse();
+            let local: Vec<Point3<f32>> = owned[b].iter().map(|p| inv.transform_point(p)).collect();
+            fit_capsule(&local)
+        })
+        .collect();
+    let capsule_ends = |b: usize| -> Option<(Point3<f32>, Point3<f32>, f32)> {
+        let g = capsules[b].as_ref()?;
+        let Shape::Capsule { radius, length } = g.shape else {
+            return None;
+        };
+        let pose = rig.bones[b].rest * g.origin;
+        Some((
+            pose.transform_point(&Point3::new(0.0, 0.0, -0.5 * length)),
+            pose.transform_point(&Point3::new(0.0, 0.0, 0.5 * length)),
+            radius,
+        ))
+    };
+    let lowest_point = |bones: &[usize]| -> Option<Point3<f32>> {
+        bones
+            .iter()
+            .filter_map(|&b| capsule_ends(b))
+            .map(|(a, e, r)| {
+                let p = if a.z < e.z { a } else { e };
+                Point3::new(p.x, p.y, p.z - r)
+            })
+            .min_by(|a, b| a.z.total_cmp(&b.z))
+    };
+    let mut bb = Aabb::empty();
+    for &b in &body {
+        for p in &owned[b] {
+            bb.include(p);
+        }
+        bb.include(&Point3::from(rig.bones[b].rest.translation.vector));
+    }
+    let ground = bb.min.z;
+    let height = (bb.max.z - bb.min.z).max(1e-3);
+    let extent = (bb.max - bb.min).max().max(1e-3);
+    let width = (bb.max.y - bb.min.y).max(1e-3);
+    let tol = (0.03 * height).max(0.005);
+    let pos = |b: usize| rig.bones[b].rest.translation.vector;
+    let reach = |path: &[usize]| -> f32 {
+        let mut r = 0.0;
+        for w in path.windows(2) {
+            r += (pos(w[1]) - pos(w[0])).norm();
+        }
+        let last = *path.last().expect("non-empty");
+        r + capsule_ends(last).map_or(0.0, |(a, e, rad)| {
+            ((a - Point3::from(pos(last))).norm()).max((e - Point3::from(pos(last))).norm()) + rad
+        })
+    };
+
+    // Limbs.
+    let body_kids = |b: usize| -> Vec<usize> {
+        children[b]
+            .iter()
+            .copied()
+            .filter(|&c| in_body[c])
+            .collect()
+    };
+    let subtree = |b: usize| -> Vec<usize> {
+        let mut out = vec![b];
+        let mut i = 0;
+        while i < out.len() {
+            out.extend(children[out[i]].iter().copied().filter(|&c| in_body[c]));
+            i += 1;
+        }
+        out
+    };
+    let mut limbs: Vec<Limb> = Vec::new();
+    let mut spine: Vec<usize> = Vec::new();
+    let mut todo: Vec<(usize, usize)> = body_kids(root).into_iter().map(|c| (root, c)).collect();
+    while let Some((from, start)) = todo.pop() {
+        let mut path = vec![start];
+        loop {
+            let k = body_kids(*path.last().expect("non-empty"));
+            if k.len() == 1 {
+                path.push(k[0]);
+            } else {
+                break;
+            }
+        }
+        let tip = *path.last().expect("non-empty");
+        let kids = body_kids(tip);
+        if kids.is_empty() {
+            limbs.push(Limb {
+                path,
+                digits: Vec::new(),
+                from,
+            });
+            continue;
+        }
+        let r = reach(&path);
+        let digits_only = path.len() >= 2
+            && kids.iter().all(|&c| {
+                let s = subtree(c);
+                s.len() <= 3
+                    && s.iter().all(|&x| body_kids(x).len() <= 1)
+                    && (pos(*s.last().expect("non-empty")) - pos(tip)).norm() < 0.5 * r
+            });
+        if digits_only {
+            let digits = kids.iter().flat_map(|&c| subtree(c)).collect();
+            limbs.push(Limb { path, digits, from });
+        } else {
+            spine.extend(&path);
+            todo.extend(kids.into_iter().map(|c| (tip, c)));
+        }
+    }
+    limbs.sort_by_key(|l| l.path[0]);
+
+    let by_name = |n: &str| -> Result<usize, String> {
+        body.iter()
+            .copied()
+            .find(|&b| rig.bones[b].name == n)
+            .ok_or_else(|| format!("no body bone named `{n}`"))
+    };
+    let mid_y = pos(root).y;
+    let tip_of = |l: &Limb| *l.path.last().expect("non-empty");
+    let midline = |l: &Limb| (pos(tip_of(l)).y - mid_y).abs() < 0.1 * width;
+    // Feet.
+    let mut feet: Vec<(usize, Point3<f32>)> = Vec::new();
+    let mut foot_limbs = Vec::new();
+    for (i, l) in limbs.iter().enumerate() {
+        let mut bones = vec![tip_of(l)];
+        bones.extend(&l.digits);
+        let Some(low) = lowest_point(&bones) else {
+            continue;
+        };
+        if l.path.len() >= 2 && low.z - ground <= tol && pos(l.path[0]).z - low.z >= 0.25 * height {
+            feet.push((tip_of(l), low));
+            foot_limbs.push(i);
+        }
+    }
+    if let Some(names) = &ov.feet {
+        feet.clear();
+        foot_limbs.clear();
+        for n in names {
+            let b = by_name(n)?;
+            let p = lowest_point(&[b]).unwrap_or_else(|| Point3::from(pos(b)));
+            feet.push((b, p));
+            if let Some(i) = limbs.iter().position(|l| l.path.contains(&b)) {
+                foot_limbs.push(i);
+            }
+        }
+    }
+    if feet.is_empty() {
+        plan.warnings.push(
+            "no feet found (no limb reaches the ground from above it at rest): the creature is taken as legless; \
+             name its feet in the profile if it has some"
+                .into(),
+        );
+    }
+    // Head.
+    let root_x = pos(root).x;
+    let dominant = |b: usize| owned[b].len();
+    // The head: the most forward of the mid-plane limbs whose tip is a substantial part of the body
+    // (at least 30 % of the vertices of the largest such tip: a head, not a tongue).
+    let mid: Vec<usize> = (0..limbs.len())
+        .filter(|i| !foot_limbs.contains(i) && midline(&limbs[*i]))
+        .collect();
+    let most = mid
+        .iter()
+        .map(|&i| dominant(tip_of(&limbs[i])))
+        .max()
+        .unwrap_or(0);
+    let head_limb = mid
+        .iter()
+        .copied()
+        .filter(|&i| dominant(tip_of(&limbs[i])) * 10 >= most * 3)
+        .max_by(|&a, &b| {
+            pos(tip_of(&limbs[a]))
+                .x
+                .total_cmp(&pos(tip_of(&limbs[b])).x)
+        });
+    let mut head = head_limb.map(|i| tip_of(&limbs[i]));
+    if let Some(h) = &ov.head {
+        head = if h.is_empty() {
+            None
+        } else {
+            Some(by_name(h)?)
+        };
+    }
+    // Tails and arms.
+    let head_path: Vec<usize> = head.map_or(Vec::new(), |h| {
+        let mut p = vec![h];
+        while let Some(q) = rig.bones[*p.last().expect("non-empty")].parent {
+            if !in_body[q] {
+                break;
+            }
+            p.push(q);
+        }
+        p
+    });
+    // Ears, jaws and the like branch from the head's path close to the head.
+    let near_head = |b: usize| {
+        head.is_some_and(|h| head_path.contains(&b) && (pos(b) - pos(h)).norm() < 0.15 * extent)
+    };
+    // Arms and wings come in mirrored pairs; a limb off the mid-plane on its own is no arm.
+    let paired = |i: usize| {
+        let t = pos(tip_of(&limbs[i]));
+        !midline(&limbs[i])
+            && limbs.iter().enumerate().any(|(k, o)| {
+                let u = pos(tip_of(o));
+                k != i
+                    && !foot_limbs.contains(&k)
+                    && (Vector3::new(u.x, 2.0 * mid_y - u.y, u.z) - t).norm() < 0.15 * extent
+            })
+    };
+    let mut tails = Vec::new();
+    let mut arms: Vec<(usize, usize)> = Vec::new();
+    for (i, l) in limbs.iter().enumerate() {
+        if foot_limbs.contains(&i) || Some(i) == head_limb || l.path.len() < 2 {
+            continue;
+        }
+        if paired(i) && reach(&l.path) >= 0.1 * extent && !near_head(l.from) {
+            arms.push((i, tip_of(l)));
+        } else if !paired(i) && pos(tip_of(l)).x < root_x {
+            tails.push(i);
+        }
+    }
+    let mut manipulators: Vec<usize> = arms.iter().map(|a| a.1).collect();
+    if let Some(names) = &ov.manipulators {
+        manipulators = names.iter().map(|n| by_name(n)).collect::<Result<_, _>>()?;
+    }
+
+    // Roles of moving bones.
+    let mut role: BTreeMap<usize, Role> = BTreeMap::new();
+    let mut above_feet = vec![false; nb];
+    for &i in &foot_limbs {
+        let mut b = Some(limbs[i].from);
+        while let Some(x) = b {
+            above_feet[x] = true;
+            b = rig.bones[x].parent;
+        }
+    }
+    for &i in &foot_limbs {
+        let l = &limbs[i];
+        for (k, &b) in l.path.iter().enumerate() {
+            role.insert(b, Role::Leg { first: k == 0 });
+        }
+    }
+    for &m in &manipulators {
+        if let Some(l) = limbs.iter().find(|l| l.path.contains(&m)) {
+            for (k, &b) in l.path.iter().enumerate() {
+                role.entry(b).or_insert(Role::Arm { first: k == 0 });
+            }
+        }
+    }
+    for &b in &head_path {
+        if b != root && !above_feet[b] {
+            role.entry(b).or_insert(if Some(b) == head {
+                Role::Head
+            } else {
+                Role::Spine
+            });
+        }
+    }
+    for &i in &tails {
+        for &b in &limbs[i].path {
+            role.entry(b).or_insert(Role::Tail);
+        }
+        plan.tails.push(rig.bones[tip_of(&limbs[i])].name.clone());
+    }
+    for &b in &spine {
+        if b != root && !above_feet[b] {
+            role.entry(b).or_insert(Role::Spine);
+        }
+    }
+    role.retain(|&b, _| !above_feet[b] && b != root);
+    if let Some(names) = &ov.animated {
+        let keep: Vec<usize> = names.iter().map(|n| by_name(n)).collect::<Result<_, _>>()?;
+        role.retain(|b, _| keep.contains(b));
+        for b in keep {
+            role.entry(b).or_insert(Role::Spine);
+        }
+    }
+    for n in &ov.at_rest {
+        role.remove(&by_name(n)?);
+    }
+
+    // Axes per moving bone: leg axes for legs, the character frame's elsewhere.
+    let mut basis: BTreeMap<usize, Matrix3<f32>> = BTreeMap::new();
+    for &i in &foot_limbs {
+        let l = &limbs[i];
+        let hip = pos(l.path[0]);
+        let Some(&(_, foot)) = feet.iter().find(|(f, _)| l.path.contains(f)) else {
+            continue;
+        };
+        let d = foot.coords - hip;
+        let dh = Vector3::new(d.x, d.y, 0.0);
+        let hinge = if dh.norm() > 0.5 * d.norm() {
+            Vector3::z().cross(&dh).normalize()
+        } else {
+            Vector3::y()
+        };
+        let out = hinge.cross(&Vector3::z());
+        for &b in &l.path {
+            // Columns: roll (x), pitch (y), yaw (z) axes in the character frame.
+            basis.insert(b, Matrix3::from_columns(&[out, hinge, Vector3::z()]));
+        }
+    }
+
+    // Joints and links.
+    let mut links: Vec<Link> = Vec::new();
+    let mut link_of = vec![usize::MAX; nb];
+    let mut dof = 0usize;
+    let mut warnings = rig.warnings.clone();
+    warnings.extend(plan.warnings.iter().cloned());
+    for &b in &body {
+        let bone = &rig.bones[b];
+        let geometry: Vec<Geometry> = capsules[b].iter().cloned().collect();
+        let mass = geometry.iter().map(|g| capsule_mass(&g.shape)).sum();
+        if b == root {
+            // The root link is upright at rest (the character frame at the body root); the root bone
+            // hangs off it, fixed, so that every bone-named link has its bone's frame.
+            let frame = Isometry3::from_parts(bone.rest.translation, UnitQuaternion::identity());
+            links.push(Link {
+                name: format!("{}:frame", bone.name),
+                parent: None,
+                joint: None,
+                visuals: Vec::new(),
+                collisions: Vec::new(),
+                mass: 0.0,
+            });
+            link_of[b] = links.len();
+            links.push(Link {
+                name: bone.name.clone(),
+                parent: Some(0),
+                joint: Some(fixed(
+                    format!("{}:fixed", bone.name),
+                    frame.inverse() * bone.rest,
+                )),
+                visuals: Vec::new(),
+                collisions: geometry,
+                mass,
+            });
+            continue;
+        }
+        let p = bone
+            .parent
+            .expect("body bones below the root have a parent");
+        let parent_link = link_of[p];
+        let origin = rig.bones[p].rest.inverse() * bone.rest;
+        let limits = match role.get(&b) {
+            None => [None; 3],
+            Some(&r) => axis_limits(rig, b, p, basis.get(&b), r),
+        };
+        let mut limits = limits;
+        if let Some(axes) = ov.dofs.get(&bone.name) {
+            for (k, a) in AXES.iter().enumerate() {
+                if !axes.iter().any(|x| x == a) {
+                    limits[k] = None;
+                } else if limits[k].is_none() {
+                    limits[k] = default_limits(role.get(&b).copied().unwrap_or(Role::Spine))[k]
+                        .or(Some((-0.5, 0.5)));
+                }
+            }
+        }
+        for (k, a) in AXES.iter().enumerate() {
+            if let Some(&[lo, hi]) = ov.limits.get(&format!("{}:{a}", bone.name)) {
+                limits[k] = Some((lo, hi));
+            }
+        }
+        let axes: Vec<usize> = (0..3).filter(|&k| limits[k].is_some()).collect();
+        if axes.is_empty() {
+            if b != root && in_body[b] {
+                plan.at_rest.push(bone.name.clone());
+            }
+            link_of[b] = links.len();
+            links.push(Link {
+                name: bone.name.clone(),
+                parent: Some(parent_link),
+                joint: Some(fixed(format!("{}:fixed", bone.name), origin)),
+                visuals: Vec::new(),
+                collisions: geometry,
+                mass,
+            });
+            continue;
+        }
+        // Axes in the bone's rest frame: B's columns (x = roll, y = pitch, z = yaw) rotated into it.
+        let m = basis.get(&b).copied().unwrap_or_else(Matrix3::identity);
+        let to_bone = bone.rest.rotation.inverse();
+        let mut parent_link = parent_link;
+        for (n, &k) in axes.iter().enumerate() {
+            let world_axis: Vector3<f32> = m.column(2 - k).into_owned();
+            let axis = nalgebra::Unit::new_normalize(to_bone * world_axis);
+            let (lo, hi) = limits[k].expect("kept axis");
+            let last = n + 1 == axes.len();
+            let link_name = if last {
+                bone.name.clone()
+            } else {
+                format!("{}:{}", bone.name, AXES[k])
+            };
+            links.push(Link {
+                name: link_name,
+                parent: Some(parent_link),
+                joint: Some(JointSpec {
+                    name: format!("{}:{}", bone.name, AXES[k]),
+                    kind: JointKind::Revolute,
+                    origin: if n == 0 {
+                        origin
+                    } else {
+                        Isometry3::identity()
+                    },
+                    axis,
+                    limits: Some(Limits {
+                        lower: lo,
+                        upper: hi,
+                        velocity: f32::INFINITY,
+                        effort: f32::INFINITY,
+                    }),
+                    dof: Some(dof),
+                    mimic: None,
+                }),
+                visuals: Vec::new(),
+                collisions: if last { geometry.clone() } else { Vec::new() },
+                mass: if last { mass } else { 0.0 },
+            });
+            dof += 1;
+            parent_link = links.len() - 1;
+        }
+        link_of[b] = links.len() - 1;
+        plan.roles.insert(bone.name.clone(), role[&b]);
+    }
+    // Deforming helpers follow the body bone their vertices went to.
+    for (&h, &host) in &helper_host {
+        let origin = rig.bones[host].rest.inverse() * rig.bones[h].rest;
+        links.push(Link {
+            name: rig.bones[h].name.clone(),
+            parent: Some(link_of[host]),
+            joint: Some(fixed(format!("{}:fixed", rig.bones[h].name), origin)),
+            visuals: Vec::new(),
+            collisions: Vec::new(),
+            mass: 0.0,
+        });
+    }
+    let mut tree = KinematicTree::from_parts(name.to_owned(), links, warnings);
+
+    let mut morph = Morphology::default();
+    for &(f, p) in &feet {
+        let l = link_of[f];
+        morph.feet.push(l);
+        let off = rig.bones[f].rest.inverse_transform_point(&p).coords;
+        morph.tip_offsets.insert(l, off);
+    }
+    for &m in &manipulators {
+        let l = link_of[m];
+        morph.manipulators.push(l);
+        if let Some((a, e, _)) = capsule_ends(m) {
+            let o = Point3::from(pos(m));
+            let far = if (a - o).norm() > (e - o).norm() {
+                a
+            } else {
+                e
+            };
+            morph
+                .tip_offsets
+                .insert(l, rig.bones[m].rest.inverse_transform_point(&far).coords);
+        }
+    }
+    if let Some(h) = head {
+        let l = link_of[h];
+        morph.head = Some(l);
+        if let Some((a, e, _)) = capsule_ends(h) {
+            morph.tip_offsets.insert(
+                l,
+                rig.bones[h]
+                    .rest
+                    .inverse_transform_point(&nalgebra::center(&a, &e))
+                    .coords,
+            );
+        }
+    }
+    morph.feet.sort_unstable();
+    morph.manipulators.sort_unstable();
+    tree.warnings.dedup();
+    Ok((tree, morph, plan))
+}
+
+fn fixed(name: String, origin: Isometry3<f32>) -> JointSpec {
+    JointSpec {
+        name,
+        kind: JointKind::Fixed,
+        origin,
+        axis: Vector3::z_axis(),
+        limits: None,
+        dof: None,
+        mimic: None,
+    }
+}
+
+/// Mass of a capsule of water density (kg): links need a mass for the controllers' balance.
+fn capsule_mass(s: &Shape) -> f32 {
+    match *s {
+        Shape::Capsule { radius, length } => {
+            1000.0 * std::f32::consts::PI * radius * radius * (length + 4.0 / 3.0 * radius)
+        }
+        _ => 0.0,
+    }
+}
+
+/// Limits per axis of bone `b` (parent `p`): from its keyframes when it has any, else the role's defaults.
+fn axis_limits(
+    rig: &Rig,
+    b: usize,
+    p: usize,
+    basis: Option<&Matrix3<f32>>,
+    role: Role,
+) -> [Option<(f32, f32)>; 3] {
+    let keys = &rig.clip_rotations[b];
+    if keys.is_empty() {
+        return default_limits(role);
+    }
+    // D = R_P · (L(t) · L_rest⁻¹) · R_P⁻¹ in the character frame (R_P maps the parent's file axes to
+    // the character frame), then in the bone's axes.
+    let rp = rig.bones[p].rest.rotation;
+    let rest_inv = rig.bones[b].local_rotation.inverse();
+    let m = basis.copied().unwrap_or_else(Matrix3::identity);
+    let bq = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
+    let angles: Vec<[f32; 3]> = keys
+        .iter()
+        .map(|l| {
+            let d = rp * (l * rest_inv) * rp.inverse();
+            let e = bq.inverse() * d * bq;
+            let (roll, pitch, yaw) = e.euler_angles();
+            [yaw, pitch, roll]
+        })
+        .collect();
+    clip_limits(&angles)
+}

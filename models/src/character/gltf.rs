@@ -1,0 +1,770 @@
+//! Skinned glTF 2.0 (`.glb`, `.gltf` with embedded or external buffers) → [`KinematicTree`]: the rigged
+//! creatures that game developers and artists bring become the same tree a URDF becomes, so morphology,
+//! controllers, datasets, training, metrics and cleanup see no difference.
+//!
+//! Decisions, documented once:
+//! - **Frame.** glTF is y up with the model facing +z; the character frame is z up facing +x. A point
+//!   `(x, y, z)` of the file becomes `(z, x, y)` (a proper rotation). The profile's `forward` names
+//!   another facing axis of the file.
+//! - **Units.** glTF says metres, but files are authored at many scales: after the armature's own
+//!   transforms, a creature whose largest extent exceeds [`MAX_PLAUSIBLE_SIZE`] is read as centimetres
+//!   (then millimetres), with a warning. The profile's `scale` (metres per file unit) overrides this.
+//! - **Skin.** The skin that deforms the most vertices; when there are several, a warning says which.
+//! - **Bones.** The *body root* is found by walking down from the skin's top joint past joints whose
+//!   other children are small (at most two joints: IK targets, pole targets, foot controls). Bones
+//!   outside the body root's subtree are *helpers* and never DoFs: non-deforming helpers are dropped;
+//!   deforming ones (a foot bone driven by IK, hanging off the root) become fixed links under the body
+//!   bone whose segment is nearest to the vertices they deform, and those vertices count as that bone's.
+//!   Ancestors of the body root fold into the root pose.
+//! - **Joints.** A moving bone becomes up to three revolute DoFs about axes fixed in its rest frame and
+//!   applied in the order yaw, pitch, roll: links `bone:yaw`, `bone:pitch` and finally `bone` (the link
+//!   carrying the geometry), joints `bone:yaw`, `bone:pitch`, `bone:roll` (only the axes it keeps).
+//!   For legs the axes are vertical, the knee's hinge axis and the leg's outward direction; elsewhere
+//!   the character frame's z, y and x at rest. Which bones move and their limits: see [`super::body_plan`].
+//! - **Rest pose** (all q = 0) is the file's node transforms, which glTF exporters write as the bind
+//!   pose; a warning says so when the inverse bind matrices disagree.
+//! - **Geometry.** Each body bone gets a capsule fitted to the vertices it deforms most (see
+//!   [`fit_capsule`]); UFR, the cleanup and the controllers use it as they use URDF geometry.
+
+use std::path::Path;
+
+use ::gltf::animation::util::ReadOutputs;
+use nalgebra::{
+    Isometry3, Matrix3, Matrix4, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
+};
+use thiserror::Error;
+
+use crate::geometry::{Geometry, Shape};
+
+/// Largest plausible extent of a creature in metres; larger files are read as centimetres.
+pub const MAX_PLAUSIBLE_SIZE: f32 = 20.0;
+/// Most joints a skin may have.
+pub const MAX_JOINTS: usize = 256;
+/// Most bytes a glTF file (and each of its buffers) may have.
+pub const MAX_FILE_BYTES: u64 = 512 << 20;
+
+/// An error importing a glTF creature: which file, and what is wrong with it.
+#[derive(Debug, Clone, Error, PartialEq)]
+#[error("{file}: {problem}")]
+pub struct GltfError {
+    /// The file.
+    pub file: String,
+    /// What is wrong.
+    pub problem: GltfProblem,
+}
+
+/// The problems [`GltfError`] reports.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum GltfProblem {
+    #[error("cannot read the file: {0}")]
+    Io(String),
+    #[error("not a regular file")]
+    NotAFile,
+    #[error("the file is {0} bytes, more than the {MAX_FILE_BYTES} a creature may have")]
+    TooLarge(u64),
+    #[error("malformed glTF: {0}")]
+    Parse(String),
+    #[error("buffer {index} ({uri}) cannot be read: {reason}")]
+    Buffer {
+        index: usize,
+        uri: String,
+        reason: String,
+    },
+    #[error("the model has no skin: a creature needs a rigged (skinned) mesh")]
+    NoSkin,
+    #[error("skin {skin} has {joints} joint(s); a creature needs at least two")]
+    TooFewJoints { skin: usize, joints: usize },
+    #[error("skin {skin} has {joints} joints, more than the {MAX_JOINTS} supported")]
+    TooManyJoints { skin: usize, joints: usize },
+    #[error("skin {skin} lists node {node} (`{name}`) more than once among its joints")]
+    DuplicateJoint {
+        skin: usize,
+        node: usize,
+        name: String,
+    },
+    #[error("node {node} (`{name}`) is its own child")]
+    SelfParent { node: usize, name: String },
+    #[error("node {node} (`{name}`) is the child of several nodes")]
+    SeveralParents { node: usize, name: String },
+    #[error("the node hierarchy has a cycle through {}", .0.join(" → "))]
+    Cycle(Vec<String>),
+    #[error("mesh {mesh} primitive {primitive}, vertex {vertex}: {what}")]
+    BadVertex {
+        mesh: usize,
+        primitive: usize,
+        vertex: usize,
+        what: String,
+    },
+    #[error("skin {skin} deforms no vertex: no mesh that uses it has JOINTS_0 and WEIGHTS_0")]
+    NoSkinnedMesh { skin: usize },
+    #[error("non-finite or degenerate transform: {0}")]
+    BadTransform(String),
+}
+
+impl GltfProblem {
+    /// Attaches the file name.
+    pub fn in_file(self, file: &Path) -> GltfError {
+        GltfError {
+            file: file.display().to_string(),
+            problem: self,
+        }
+    }
+}
+
+/// One skin of the file, as `ace inspect` reports it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SkinInfo {
+    pub name: String,
+    pub joints: usize,
+    /// Vertices of the meshes that use it.
+    pub vertices: usize,
+    /// Whether it is the one the creature was built from.
+    pub used: bool,
+}
+
+/// One animation clip of the file.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct AnimationInfo {
+    pub name: String,
+    pub duration_s: f32,
+    pub channels: usize,
+}
+
+/// A bone of the chosen skin as read from the file, in the character frame (z up, metres).
+#[derive(Clone, Debug)]
+pub struct Bone {
+    /// Node name (or `node<i>`).
+    pub name: String,
+    /// glTF node index.
+    pub node: usize,
+    /// Parent bone (index into [`Rig::bones`]); `None` for top-level joints.
+    pub parent: Option<usize>,
+    /// World pose at rest (rotation and translation; scale stripped).
+    pub rest: Isometry3<f32>,
+    /// Rotation of the node's own local transform at rest, in the file's frame.
+    pub local_rotation: UnitQuaternion<f32>,
+    /// Vertices it deforms (any weight > 0).
+    pub deforms: usize,
+}
+
+/// What [`read`] gets from a file: bones, their skinned vertices and their clips' rotations.
+#[derive(Clone, Debug)]
+pub struct Rig {
+    /// Bones in parent-first order.
+    pub bones: Vec<Bone>,
+    /// Skinned rest vertices in the character frame (m), with each vertex's bone weights.
+    pub vertices: Vec<(Point3<f32>, Vec<(usize, f32)>)>,
+    /// Per bone, local rotations sampled from the clips (file frame), one per keyframe.
+    pub clip_rotations: Vec<Vec<UnitQuaternion<f32>>>,
+    /// Metres per file unit applied.
+    pub scale: f32,
+    /// File frame → character frame rotation.
+    pub to_character: Rotation3<f32>,
+    pub skins: Vec<SkinInfo>,
+    pub animations: Vec<AnimationInfo>,
+    pub warnings: Vec<String>,
+}
+
+/// How the file's axes map to the character frame: which file axis the creature faces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum Forward {
+    /// +z (the glTF convention).
+    #[default]
+    #[serde(rename = "+z")]
+    PlusZ,
+    #[serde(rename = "-z")]
+    MinusZ,
+    #[serde(rename = "+x")]
+    PlusX,
+    #[serde(rename = "-x")]
+    MinusX,
+}
+
+impl Forward {
+    /// Rotation from the file frame (y up) to the character frame (z up, facing +x).
+    pub fn to_character(self) -> Rotation3<f32> {
+        // Rows: character x, y, z in file coordinates. Up is file +y; left = up × forward.
+        let f = match self {
+            Forward::PlusZ => Vector3::z(),
+            Forward::MinusZ => -Vector3::z(),
+            Forward::PlusX => Vector3::x(),
+            Forward::MinusX => -Vector3::x(),
+        };
+        let up = Vector3::y();
+        let left = up.cross(&f);
+        Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
+            f.transpose(),
+            left.transpose(),
+            up.transpose(),
+        ]))
+    }
+}
+
+fn name_of(node: &::gltf::Node) -> String {
+    node.name()
+        .map(str::to_owned)
+        .unwrap_or_else(|| format!("node{}", node.index()))
+}
+
+/// Reads the file and the bones of its main skin. `scale` (metres per file unit) overrides the
+/// unit detection; `forward` says which file axis the creature faces.
+pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, GltfError> {
+    let fail = |p: GltfProblem| p.in_file(path);
+    let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    if !meta.is_file() {
+        return Err(fail(GltfProblem::NotAFile));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(fail(GltfProblem::TooLarge(meta.len())));
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    let gltf =
+        ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
+    let doc = &gltf.document;
+    let buffers = read_buffers(doc, path, gltf.blob.clone())?;
+    let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
+
+    // Hierarchy: one parent per node, no cycles; world transforms in parent-first order.
+    let n = doc.nodes().count();
+    let names: Vec<String> = doc.nodes().map(|nd| name_of(&nd)).collect();
+    let mut parent = vec![None; n];
+    for nd in doc.nodes() {
+        for c in nd.children() {
+            let ci = c.index();
+            if ci == nd.index() {
+                return Err(fail(GltfProblem::SelfParent {
+                    node: ci,
+                    name: names[ci].clone(),
+                }));
+            }
+            if parent[ci].is_some() {
+                return Err(fail(GltfProblem::SeveralParents {
+                    node: ci,
+                    name: names[ci].clone(),
+                }));
+            }
+            parent[ci] = Some(nd.index());
+        }
+    }
+    let mut order = Vec::with_capacity(n);
+    let mut stack: Vec<usize> = (0..n).filter(|&i| parent[i].is_none()).collect();
+    let children: Vec<Vec<usize>> = doc
+        .nodes()
+        .map(|nd| nd.children().map(|c| c.index()).collect())
+        .collect();
+    while let Some(i) = stack.pop() {
+        order.push(i);
+        stack.extend(children[i].iter().rev());
+    }
+    if order.len() < n {
+        // Every node not reached from a root hangs in a cycle (each has exactly one parent).
+        let mut reached = vec![false; n];
+        order.iter().for_each(|&i| reached[i] = true);
+        let start = (0..n).find(|&i| !reached[i]).unwrap_or(0);
+        let mut cycle = vec![names[start].clone()];
+        let mut i = parent[start].unwrap_or(start);
+        while i != start && cycle.len() <= n {
+            cycle.push(names[i].clone());
+            i = parent[i].unwrap_or(start);
+        }
+        cycle.push(names[start].clone());
+        return Err(fail(GltfProblem::Cycle(cycle)));
+    }
+    let locals: Vec<Matrix4<f32>> = doc
+        .nodes()
+        .map(|nd| Matrix4::from(nd.transform().matrix()))
+        .collect();
+    let mut world = vec![Matrix4::identity(); n];
+    for &i in &order {
+        world[i] = match parent[i] {
+            Some(p) => world[p] * locals[i],
+            None => locals[i],
+        };
+        if !world[i].iter().all(|v| v.is_finite()) {
+            return Err(fail(GltfProblem::BadTransform(format!(
+                "node {i} (`{}`)",
+                names[i]
+            ))));
+        }
+    }
+
+    // Skins: vertices each deforms, with the weights checked on the way.
+    let mut skin_vertices = vec![0usize; doc.skins().count()];
+    for nd in doc.nodes() {
+        if let (Some(skin), Some(mesh)) = (nd.skin(), nd.mesh()) {
+            for p in mesh.primitives() {
+                let r = p.reader(get);
+                if r.read_joints(0).is_some() && r.read_weights(0).is_some() {
+                    skin_vertices[skin.index()] += r.read_positions().map_or(0, |it| it.len());
+                }
+            }
+        }
+    }
+    let Some(skin_index) =
+        (0..skin_vertices.len()).max_by_key(|&s| (skin_vertices[s], std::cmp::Reverse(s)))
+    else {
+        return Err(fail(GltfProblem::NoSkin));
+    };
+    let skin = doc.skins().nth(skin_index).expect("index in range");
+    let skins: Vec<SkinInfo> = doc
+        .skins()
+        .map(|s| SkinInfo {
+            name: s
+                .name()
+                .map(str::to_owned)
+                .unwrap_or_else(|| format!("skin{}", s.index())),
+            joints: s.joints().count(),
+            vertices: skin_vertices[s.index()],
+            used: s.index() == skin_index,
+        })
+        .collect();
+    let mut warnings = Vec::new();
+    if skins.len() > 1 {
+        warnings.push(format!(
+            "{} skins; the creature is built from `{}` ({} joints), which deforms the most vertices ({})",
+            skins.len(),
+            skins[skin_index].name,
+            skins[skin_index].joints,
+            skins[skin_index].vertices
+        ));
+    }
+    let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+    if joints.len() < 2 {
+        return Err(fail(GltfProblem::TooFewJoints {
+            skin: skin_index,
+            joints: joints.len(),
+        }));
+    }
+    if joints.len() > MAX_JOINTS {
+        return Err(fail(GltfProblem::TooManyJoints {
+            skin: skin_index,
+            joints: joints.len(),
+        }));
+    }
+    let mut slot = vec![None; n];
+    for (k, &j) in joints.iter().enumerate() {
+        if slot[j].is_some() {
+            return Err(fail(GltfProblem::DuplicateJoint {
+                skin: skin_index,
+                node: j,
+                name: names[j].clone(),
+            }));
+        }
+        slot[j] = Some(k);
+    }
+    if skin_vertices[skin_index] == 0 {
+        return Err(fail(GltfProblem::NoSkinnedMesh { skin: skin_index }));
+    }
+    let ibms: Vec<Matrix4<f32>> = match skin.reader(get).read_inverse_bind_matrices() {
+        Some(it) => it.map(Matrix4::from).collect(),
+        None => vec![Matrix4::identity(); joints.len()],
+    };
+    if ibms.len() < joints.len() {
+        return Err(fail(GltfProblem::Parse(format!(
+            "skin {skin_index} has {} inverse bind matrices for {} joints",
+            ibms.len(),
+            joints.len()
+        ))));
+    }
+
+    // Skinned rest vertices in file world coordinates.
+    let joint_mats: Vec<Matrix4<f32>> = joints
+        .iter()
+        .zip(&ibms)
+        .map(|(&j, ibm)| world[j] * ibm)
+        .collect();
+    let mut raw: Vec<(Point3<f32>, Vec<(usize, f32)>)> = Vec::new();
+    let mut deforms = vec![0usize; joints.len()];
+    for nd in doc.nodes() {
+        let (Some(s), Some(mesh)) = (nd.skin(), nd.mesh()) else {
+            continue;
+        };
+        if s.index() != skin_index {
+            continue;
+        }
+        for (pi, p) in mesh.primitives().enumerate() {
+            let r = p.reader(get);
+            let (Some(pos), Some(js), Some(ws)) =
+                (r.read_positions(), r.read_joints(0), r.read_weights(0))
+            else {
+                continue;
+            };
+            let bad = |vertex: usize, what: String| {
+                fail(GltfProblem::BadVertex {
+                    mesh: mesh.index(),
+                    primitive: pi,
+                    vertex,
+                    what,
+                })
+            };
+            for (vi, ((v, j), w)) in pos.zip(js.into_u16()).zip(ws.into_f32()).enumerate() {
+                let mut inf = Vec::with_capacity(4);
+                let mut total = 0.0;
+                for k in 0..4 {
+                    let (jk, wk) = (j[k] as usize, w[k]);
+                    if !wk.is_finite() || wk < 0.0 {
+                        return Err(bad(
+                            vi,
+                            format!("skin weight {wk} (weights must be finite and ≥ 0)"),
+                        ));
+                    }
+                    if wk == 0.0 {
+                        continue;
+                    }
+                    if jk >= joints.len() {
+                        return Err(bad(
+                            vi,
+                            format!("joint index {jk}, but the skin has {} joints", joints.len()),
+                        ));
+                    }
+                    if inf.iter().any(|&(o, _)| o == jk) {
+                        return Err(bad(
+                            vi,
+                            format!("joint index {jk} appears twice among its weights"),
+                        ));
+                    }
+                    inf.push((jk, wk));
+                    total += wk;
+                }
+                if !v.iter().all(|x| x.is_finite()) {
+                    return Err(bad(vi, "non-finite position".into()));
+                }
+                if total <= 0.0 {
+                    continue;
+                }
+                let mut m = Matrix4::zeros();
+                for &(jk, wk) in &inf {
+                    m += joint_mats[jk] * (wk / total);
+                    deforms[jk] += 1;
+                }
+                let p = m.transform_point(&Point3::from(v));
+                raw.push((p, inf.iter().map(|&(jk, wk)| (jk, wk / total)).collect()));
+            }
+        }
+    }
+
+    // Bones: the skin's joints in parent-first order, parents = nearest ancestor joint.
+    let mut bone_of = vec![None; n];
+    let mut bones_nodes = Vec::new();
+    for &i in &order {
+        if slot[i].is_some() {
+            bone_of[i] = Some(bones_nodes.len());
+            bones_nodes.push(i);
+        }
+    }
+    let to_character = forward.to_character();
+    // Units.
+    let mut bb_min = Vector3::repeat(f32::INFINITY);
+    let mut bb_max = Vector3::repeat(f32::NEG_INFINITY);
+    for (p, _) in &raw {
+        let q = to_character * p.coords;
+        bb_min = bb_min.inf(&q);
+        bb_max = bb_max.sup(&q);
+    }
+    let extent = (bb_max - bb_min).max();
+    let scale = match scale {
+        Some(s) => s,
+        None => {
+            let mut s = 1.0f32;
+            let mut unit = "metres";
+            for (f, u) in [(0.01, "centimetres"), (0.001, "millimetres")] {
+                if extent * s > MAX_PLAUSIBLE_SIZE {
+                    s = f;
+                    unit = u;
+                }
+            }
+            if s != 1.0 {
+                warnings.push(format!(
+                    "the model is {extent:.1} units across, implausible in metres; read as {unit} ({:.2} m). \
+                     Set `scale` (metres per file unit) in the profile to give its real size",
+                    extent * s
+                ));
+            }
+            s
+        }
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(fail(GltfProblem::BadTransform(format!(
+            "scale {scale} (must be finite and > 0)"
+        ))));
+    }
+    let to_char_iso = |m: &Matrix4<f32>| -> Option<Isometry3<f32>> {
+        let r = to_character.matrix() * m.fixed_view::<3, 3>(0, 0);
+        let t = to_character * m.fixed_view::<3, 1>(0, 3).into_owned() * scale;
+        let rot = polar_rotation(&r)?;
+        Some(Isometry3::from_parts(Translation3::from(t), rot))
+    };
+    let mut bones = Vec::with_capacity(bones_nodes.len());
+    for &node in &bones_nodes {
+        let mut p = parent[node];
+        while let Some(a) = p {
+            if bone_of[a].is_some() {
+                break;
+            }
+            p = parent[a];
+        }
+        let rest = to_char_iso(&world[node]).ok_or_else(|| {
+            fail(GltfProblem::BadTransform(format!(
+                "node {node} (`{}`) has a degenerate or mirrored rotation",
+                names[node]
+            )))
+        })?;
+        let (_, r, _) = doc
+            .nodes()
+            .nth(node)
+            .expect("node")
+            .transform()
+            .decomposed();
+        bones.push(Bone {
+            name: names[node].clone(),
+            node,
+            parent: p.and_then(|a| bone_of[a]),
+            rest,
+            local_rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                r[3], r[0], r[1], r[2],
+            )),
+            deforms: deforms[slot[node].expect("joint")],
+        });
+    }
+    // Bind pose check: joint world × inverse bind should be one common matrix for all deforming joints.
+    let deforming: Vec<usize> = (0..joints.len()).filter(|&k| deforms[k] > 0).collect();
+    if let Some(&k0) = deforming.first() {
+        let size = extent.max(1e-6);
+        let off = deforming
+            .iter()
+            .map(|&k| (joint_mats[k] - joint_mats[k0]).abs().max() * (1.0 + size))
+            .fold(0.0f32, f32::max);
+        if off > 1e-2 * (1.0 + size) {
+            warnings.push(
+                "the nodes' transforms are not the skin's bind pose; the rest pose is the nodes' transforms".into(),
+            );
+        }
+    }
+    let bone_index: Vec<usize> = (0..joints.len())
+        .map(|k| bone_of[joints[k]].expect("joint"))
+        .collect();
+    let vertices = raw
+        .into_iter()
+        .map(|(p, w)| {
+            (
+                Point3::from(to_character * p.coords * scale),
+                w.into_iter().map(|(k, wk)| (bone_index[k], wk)).collect(),
+            )
+        })
+        .collect();
+
+    // Clips: every rotation keyframe of every bone.
+    let mut clip_rotations = vec![Vec::new(); bones.len()];
+    let mut animations = Vec::new();
+    for a in doc.animations() {
+        let mut duration = 0.0f32;
+        let mut channels = 0;
+        for ch in a.channels() {
+            channels += 1;
+            let r = ch.reader(get);
+            if let Some(t) = r.read_inputs() {
+                duration = t.fold(duration, f32::max);
+            }
+            let Some(b) = bone_of[ch.target().node().index()] else {
+                continue;
+            };
+            if let Some(ReadOutputs::Rotations(rot)) = r.read_outputs() {
+                let cubic =
+                    ch.sampler().interpolation() == ::gltf::animation::Interpolation::CubicSpline;
+                for (i, q) in rot.into_f32().enumerate() {
+                    if cubic && i % 3 != 1 {
+                        continue;
+                    }
+                    let q = nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]);
+                    if q.norm() > 1e-6 && q.coords.iter().all(|v| v.is_finite()) {
+                        clip_rotations[b].push(UnitQuaternion::from_quaternion(q));
+                    }
+                }
+            }
+        }
+        animations.push(AnimationInfo {
+            name: a
+                .name()
+                .map(str::to_owned)
+                .unwrap_or_else(|| format!("animation{}", a.index())),
+            duration_s: duration,
+            channels,
+        });
+    }
+    Ok(Rig {
+        bones,
+        vertices,
+        clip_rotations,
+        scale,
+        to_character,
+        skins,
+        animations,
+        warnings,
+    })
+}
+
+/// Every buffer's bytes, with errors that name the buffer and its URI.
+fn read_buffers(
+    doc: &::gltf::Document,
+    path: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<Vec<u8>>, GltfError> {
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut out = Vec::new();
+    for b in doc.buffers() {
+        let index = b.index();
+        let (uri, data) = match b.source() {
+            ::gltf::buffer::Source::Bin => (
+                "the GLB binary chunk".to_owned(),
+                blob.take().unwrap_or_default(),
+            ),
+            ::gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let data = uri
+                    .split_once(";base64,")
+                    .map(|(_, d)| d)
+                    .ok_or_else(|| "only base64 data URIs are read".to_owned())
+                    .and_then(|d| decode_base64(d).ok_or_else(|| "invalid base64".to_owned()))
+                    .map_err(|reason| {
+                        GltfProblem::Buffer {
+                            index,
+                            uri: "a data URI".into(),
+                            reason,
+                        }
+                        .in_file(path)
+                    })?;
+                ("a data URI".to_owned(), data)
+            }
+            ::gltf::buffer::Source::Uri(uri) => {
+                let file = base.join(percent_decode(uri));
+                let err = |reason: String| {
+                    GltfProblem::Buffer {
+                        index,
+                        uri: uri.to_owned(),
+                        reason,
+                    }
+                    .in_file(path)
+                };
+                let meta = std::fs::metadata(&file)
+                    .map_err(|e| err(format!("{}: {e}", file.display())))?;
+                if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
+                    return Err(err(format!(
+                        "{}: not a regular file of at most {MAX_FILE_BYTES} bytes",
+                        file.display()
+                    )));
+                }
+                (
+                    uri.to_owned(),
+                    std::fs::read(&file).map_err(|e| err(format!("{}: {e}", file.display())))?,
+                )
+            }
+        };
+        if data.len() < b.length() {
+            return Err(GltfProblem::Buffer {
+                index,
+                uri,
+                reason: format!("{} bytes, but the file declares {}", data.len(), b.length()),
+            }
+            .in_file(path));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let Ok(v) = u8::from_str_radix(&s[i + 1..i + 3], 16) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn decode_base64(s: &str) -> Option<Vec<u8>> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => Some(c - b'A'),
+        b'a'..=b'z' => Some(c - b'a' + 26),
+        b'0'..=b'9' => Some(c - b'0' + 52),
+        b'+' | b'-' => Some(62),
+        b'/' | b'_' => Some(63),
+        _ => None,
+    };
+    let mut out = Vec::with_capacity(s.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for c in s.bytes().filter(|c| !c.is_ascii_whitespace() && *c != b'=') {
+        acc = (acc << 6) | u32::from(val(c)?);
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    Some(out)
+}
+
+/// The rotation nearest to `m` (its polar factor); `None` when `m` is degenerate or mirrors.
+pub fn polar_rotation(m: &Matrix3<f32>) -> Option<UnitQuaternion<f32>> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let svd = m.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    if svd.singular_values.min() <= 1e-9 * svd.singular_values.max().max(1e-30) {
+        return None;
+    }
+    let r = u * vt;
+    if r.determinant() <= 0.0 {
+        return None;
+    }
+    Some(UnitQuaternion::from_rotation_matrix(
+        &Rotation3::from_matrix_unchecked(r),
+    ))
+}
+
+/// A capsule around `points` (in the frame they are given in): axis along their principal direction,
+/// radius the 75th percentile of their distances from the axis (robust to a few stray vertices), caps
+/// reaching the extreme points along the axis. `None` for fewer than 4 points.
+pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
+    if points.len() < 4 {
+        return None;
+    }
+    let n = points.len() as f32;
+    let c = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let mut cov = Matrix3::zeros();
+    for p in points {
+        let d = p.coords - c;
+        cov += d * d.transpose();
+    }
+    let eig = (cov / n).symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let axis = eig.eigenvectors.column(k).into_owned().normalize();
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut radial: Vec<f32> = Vec::with_capacity(points.len());
+    for p in points {
+        let d = p.coords - c;
+        let t = d.dot(&axis);
+        lo = lo.min(t);
+        hi = hi.max(t);
+        radial.push((d - axis * t).norm());
+    }
+    radial.sort_by(f32::total_cmp);
+    let radius = radial[(radial.len() * 3 / 4).min(radial.len() - 1)].max(1e-4);
+    let length = ((hi - lo) - 2.0 * radius).max(0.0);
+    let centre = c + axis * (0.5 * (lo + hi));
+    let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f32::consts::PI)
+    });
+    Some(Geometry {
+        origin: Isometry3::from_parts(Translation3::from(centre), rot),
+        shape: Shape::Capsule { radius, length },
+    })
+}

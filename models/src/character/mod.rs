@@ -1,0 +1,84 @@
+//! Character sources other than URDF. A rigged glTF creature ([`gltf`], [`body_plan`]) becomes the same
+//! [`KinematicTree`] and [`Morphology`] a URDF robot does; [`crate::morphology::load_character`] picks
+//! the source from the file's extension.
+
+pub mod body_plan;
+pub mod gltf;
+
+use std::path::Path;
+
+use crate::kinematics::KinematicTree;
+use crate::morphology::{CharacterError, Morphology, Profile, ProfileError, ProfileProblem};
+
+pub use body_plan::BodyPlan;
+pub use gltf::{AnimationInfo, GltfError, SkinInfo};
+
+/// Whether `path` names a glTF file (`.glb` or `.gltf`, any case).
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"))
+}
+
+/// A rigged creature: its tree and morphology, and what the import found and decided.
+#[derive(Clone, Debug)]
+pub struct Creature {
+    pub tree: KinematicTree,
+    pub morphology: Morphology,
+    pub plan: BodyPlan,
+    pub skins: Vec<SkinInfo>,
+    pub animations: Vec<AnimationInfo>,
+    /// Metres per file unit.
+    pub scale: f32,
+}
+
+/// Loads a glTF creature with the profile beside it, if any (see [`Profile`]'s glTF keys).
+pub fn load_creature(path: &Path) -> Result<Creature, CharacterError> {
+    let profile = Profile::beside(path)?.unwrap_or_default();
+    load_creature_with(path, &profile)
+}
+
+/// Loads a glTF creature with `profile`.
+pub fn load_creature_with(path: &Path, profile: &Profile) -> Result<Creature, CharacterError> {
+    let rig = gltf::read(path, profile.scale, profile.forward.unwrap_or_default())?;
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "creature".into());
+    let ov = body_plan::Overrides {
+        feet: profile.feet.clone(),
+        manipulators: profile.manipulators.clone(),
+        head: profile.head.clone(),
+        animated: profile.animated.clone(),
+        at_rest: profile.at_rest.clone(),
+        dofs: profile.dofs.clone(),
+        limits: profile.limits.clone(),
+    };
+    let (mut tree, mut morphology, plan) =
+        body_plan::build(&rig, &name, &ov).map_err(|p| ProfileError {
+            file: profile
+                .source
+                .clone()
+                .unwrap_or_else(|| path.display().to_string()),
+            problem: ProfileProblem::Parse(p),
+        })?;
+    tree.source = Some(path.to_path_buf());
+    profile.apply_rest_pose(&mut tree)?;
+    for (name, o) in &profile.tip_offsets {
+        let l = tree.link_index(name).ok_or_else(|| ProfileError {
+            file: profile.source.clone().unwrap_or_default(),
+            problem: ProfileProblem::UnknownLink(name.clone()),
+        })?;
+        morphology
+            .tip_offsets
+            .insert(l, nalgebra::Vector3::from(*o));
+    }
+    Ok(Creature {
+        tree,
+        morphology,
+        plan,
+        skins: rig.skins,
+        animations: rig.animations,
+        scale: rig.scale,
+    })
+}

@@ -1,0 +1,515 @@
+//! Rigged glTF creatures as characters: import of the real creatures in `../shared/data/creatures`
+//! (set `ACE_ALLOW_MISSING_DATA=1` to skip those when absent), their body plans and rest poses, and the
+//! bad inputs of hand-made glTF files.
+
+mod common;
+use common::creatures;
+
+use std::path::{Path, PathBuf};
+
+use ace_models::character::gltf::GltfProblem;
+use ace_models::character::{Creature, load_creature};
+use ace_models::morphology::CharacterError;
+use nalgebra::{Matrix4, Point3, Vector3};
+
+/// The five shared creatures, their files and their leg counts.
+const SHARED: [(&str, usize); 5] = [
+    ("Fox/Fox.glb", 4),
+    ("Quaternius_Wolf/Wolf.gltf", 4),
+    ("Quaternius_Spider/Spider.glb", 8),
+    ("Quaternius_TRex/t-rex.glb", 2),
+    ("Quaternius_Snake/Snake.glb", 0),
+];
+
+fn load(path: &Path) -> Creature {
+    load_creature(path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn shared_creatures_import_with_their_legs() {
+    let Some(dir) = creatures() else { return };
+    for (file, legs) in SHARED {
+        let c = load(&dir.join(file));
+        let names = c.morphology.names(&c.tree);
+        assert_eq!(
+            c.morphology.feet.len(),
+            legs,
+            "{file}: feet {:?}",
+            names.feet
+        );
+        assert!(c.tree.dof() >= 6, "{file}: {} DoF", c.tree.dof());
+        assert!(
+            c.tree.dof() <= 80,
+            "{file}: {} DoF is not a sane default",
+            c.tree.dof()
+        );
+        assert!(names.head.is_some(), "{file}: no head");
+        for &f in &c.morphology.feet {
+            let stand = c
+                .tree
+                .forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+            let z = c.morphology.ee_point(f, &stand).z;
+            let low = c.tree.lowest_z(&stand);
+            assert!(
+                z - low < 0.05 * c.tree.standing_root_height().max(0.1),
+                "{file}: foot {} at {z} above {low}",
+                c.tree.links[f].name
+            );
+        }
+    }
+}
+
+#[test]
+fn body_plans_of_the_shared_creatures() {
+    let Some(dir) = creatures() else { return };
+    let fox = load(&dir.join("Fox/Fox.glb"));
+    let n = fox.morphology.names(&fox.tree);
+    assert_eq!(
+        n.feet,
+        [
+            "b_RightHand_08",
+            "b_LeftHand_011",
+            "b_LeftFoot02_018",
+            "b_RightFoot02_022"
+        ]
+    );
+    assert_eq!(n.head.as_deref(), Some("b_Head_05"));
+    assert!(n.manipulators.is_empty(), "{:?}", n.manipulators);
+    assert_eq!(fox.plan.tails, ["b_Tail03_014"]);
+    assert_eq!(fox.animations.len(), 3);
+    // The file is authored in centimetres: read as such, a fox of about 1.5 m nose to tail.
+    assert!((fox.scale - 0.01).abs() < 1e-6);
+
+    let wolf = load(&dir.join("Quaternius_Wolf/Wolf.gltf"));
+    let n = wolf.morphology.names(&wolf.tree);
+    // The paws are IK bones off the root: the feet are the bottoms of the leg chains.
+    assert_eq!(n.feet.len(), 4);
+    assert!(
+        n.feet.iter().all(|f| f.contains("LowerLeg")),
+        "{:?}",
+        n.feet
+    );
+    assert!(wolf.plan.helpers.iter().any(|h| h == "PoleTarget.L"));
+    assert!(wolf.plan.helpers.iter().any(|h| h == "FF.L"));
+    assert!(
+        wolf.plan.at_rest.iter().any(|b| b.starts_with("Ear")),
+        "ears move: {:?}",
+        wolf.plan.roles
+    );
+    assert!(
+        wolf.tree
+            .dof_names()
+            .iter()
+            .all(|d| !d.starts_with("Ear") && !d.starts_with("FF"))
+    );
+
+    let trex = load(&dir.join("Quaternius_TRex/t-rex.glb"));
+    let n = trex.morphology.names(&trex.tree);
+    assert_eq!(n.feet.len(), 2);
+    assert_eq!(
+        n.manipulators,
+        ["FrontFoot.R", "FrontFoot.L"],
+        "the small arms"
+    );
+    assert_eq!(n.head.as_deref(), Some("Head"));
+    assert_eq!(trex.plan.tails, ["Tail5"]);
+
+    let spider = load(&dir.join("Quaternius_Spider/Spider.glb"));
+    assert!(
+        spider
+            .morphology
+            .names(&spider.tree)
+            .feet
+            .iter()
+            .all(|f| f.contains("Leg3"))
+    );
+
+    let snake = load(&dir.join("Quaternius_Snake/Snake.glb"));
+    assert!(snake.morphology.feet.is_empty());
+    assert!(
+        snake.tree.warnings.iter().any(|w| w.contains("no feet")),
+        "{:?}",
+        snake.tree.warnings
+    );
+}
+
+/// World matrices of every node of a glTF file, from the file's own node transforms.
+fn node_worlds(path: &Path) -> (Vec<String>, Vec<Matrix4<f32>>) {
+    let g = gltf::Gltf::open(path).unwrap();
+    let n = g.nodes().count();
+    let mut world = vec![None; n];
+    let mut stack: Vec<(usize, Matrix4<f32>)> = Vec::new();
+    let mut is_child = vec![false; n];
+    for nd in g.nodes() {
+        for c in nd.children() {
+            is_child[c.index()] = true;
+        }
+    }
+    for i in (0..n).filter(|&i| !is_child[i]) {
+        stack.push((i, Matrix4::identity()));
+    }
+    let nodes: Vec<_> = g.nodes().collect();
+    while let Some((i, parent)) = stack.pop() {
+        let m = parent * Matrix4::from(nodes[i].transform().matrix());
+        world[i] = Some(m);
+        for c in nodes[i].children() {
+            stack.push((c.index(), m));
+        }
+    }
+    (
+        nodes
+            .iter()
+            .map(|n| n.name().unwrap_or_default().to_owned())
+            .collect(),
+        world.into_iter().map(Option::unwrap).collect(),
+    )
+}
+
+#[test]
+fn rest_pose_forward_kinematics_matches_the_files_node_transforms() {
+    let Some(dir) = creatures() else { return };
+    for (file, _) in SHARED {
+        let path = dir.join(file);
+        let c = load(&path);
+        let (names, world) = node_worlds(&path);
+        let fk = c
+            .tree
+            .forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+        // The root link is the character frame at the body root bone: upright, at the bone's origin.
+        let root = c.tree.links[0]
+            .name
+            .strip_suffix(":frame")
+            .unwrap()
+            .to_owned();
+        let root_node = names.iter().position(|n| *n == root).unwrap();
+        // Character frame: file (x, y, z) → (z, x, y), times the scale.
+        let to_char = |v: Vector3<f32>| Vector3::new(v[2], v[0], v[1]);
+        let origin = to_char(world[root_node].fixed_view::<3, 1>(0, 3).into_owned()) * c.scale;
+        let size = c.tree.aabb(&fk).half_extents().max() * 2.0;
+        let mut checked = 0;
+        for (l, link) in c.tree.links.iter().enumerate() {
+            let Some(node) = names.iter().position(|n| *n == link.name) else {
+                continue;
+            };
+            let want =
+                to_char(world[node].fixed_view::<3, 1>(0, 3).into_owned()) * c.scale - origin;
+            let got = fk[l].translation.vector;
+            assert!(
+                (want - got).norm() <= 1e-4 * size,
+                "{file}: {} at {got:?}, file says {want:?}",
+                link.name
+            );
+            // Orientation: each axis of the bone as the file has it (scale stripped).
+            for k in 0..3 {
+                let want_axis = to_char(world[node].fixed_view::<3, 1>(0, k).normalize());
+                let got_axis = fk[l].rotation * Vector3::ith(k, 1.0);
+                assert!(
+                    (want_axis - got_axis).norm() < 1e-3,
+                    "{file}: {} axis {k}: {got_axis:?}, file says {want_axis:?}",
+                    link.name
+                );
+            }
+            checked += 1;
+        }
+        assert!(checked >= 10, "{file}: only {checked} links checked");
+    }
+}
+
+// ---- Bad input: small hand-made glTF files -------------------------------------------------------
+
+fn b64(bytes: &[u8]) -> String {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = (u32::from(c[0]) << 16)
+            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
+            | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            if k <= c.len() {
+                out.push(A[((n >> (18 - 6 * k)) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A chain of `joints` bones along +y with one triangle skinned to the first two (weights `w`,
+/// joint indices `j` for every vertex); `edit` changes the JSON before it is written.
+fn rig(
+    dir: &Path,
+    name: &str,
+    joints: usize,
+    w: [f32; 4],
+    j: [u16; 4],
+    edit: impl FnOnce(&mut serde_json::Value),
+) -> PathBuf {
+    let mut bin = Vec::new();
+    let pos: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [0.1, 0.5, 0.0], [0.0, 1.0, 0.1]];
+    for p in pos {
+        p.iter().for_each(|v| bin.extend(v.to_le_bytes()));
+    }
+    for _ in 0..3 {
+        j.iter().for_each(|v| bin.extend(v.to_le_bytes()));
+    }
+    for _ in 0..3 {
+        w.iter().for_each(|v| bin.extend(v.to_le_bytes()));
+    }
+    let ibm_offset = bin.len();
+    for k in 0..joints {
+        let m = Matrix4::new_translation(&Vector3::new(0.0, -0.2 * k as f32, 0.0));
+        m.as_slice()
+            .iter()
+            .for_each(|v| bin.extend(v.to_le_bytes()));
+    }
+    let mut nodes = vec![serde_json::json!({"name": "mesh", "mesh": 0, "skin": 0})];
+    for k in 0..joints {
+        let mut n = serde_json::json!({"name": format!("bone{k}"), "translation": [0.0, if k == 0 { 0.0 } else { 0.2 }, 0.0]});
+        if k + 1 < joints {
+            n["children"] = serde_json::json!([k + 2]);
+        }
+        nodes.push(n);
+    }
+    let mut v = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2}}]}],
+        "skins": [{"joints": (1..=joints).collect::<Vec<_>>(), "inverseBindMatrices": 3}],
+        "buffers": [{"byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&bin))}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+            {"buffer": 0, "byteOffset": 60, "byteLength": 48},
+            {"buffer": 0, "byteOffset": ibm_offset, "byteLength": 64 * joints},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [0.1, 1.0, 0.1]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "VEC4"},
+            {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"},
+            {"bufferView": 3, "componentType": 5126, "count": joints, "type": "MAT4"},
+        ],
+    });
+    edit(&mut v);
+    let path = dir.join(name);
+    std::fs::write(&path, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+    path
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ace-creatures-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn problem(path: &Path) -> (String, GltfProblem) {
+    match load_creature(path) {
+        Err(CharacterError::Gltf(e)) => {
+            let msg = e.to_string();
+            assert!(
+                msg.contains(&path.display().to_string()),
+                "the error names the file: {msg}"
+            );
+            (msg, e.problem)
+        }
+        Err(e) => panic!("{}: another error: {e}", path.display()),
+        Ok(c) => panic!("{}: imported with {} DoF", path.display(), c.tree.dof()),
+    }
+}
+
+#[test]
+fn a_small_hand_made_rig_imports() {
+    let d = tmp("good");
+    let p = rig(&d, "ok.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |_| {});
+    let c = load(&p);
+    // Four bones: the tree has a link per bone (and their DoF links); the rest pose is the nodes'.
+    for k in 0..4 {
+        let l = c.tree.link_index(&format!("bone{k}")).unwrap();
+        let fk = c
+            .tree
+            .forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+        // File +y (up) is the character's +z.
+        assert!((fk[l].translation.vector - Vector3::new(0.0, 0.0, 0.2 * k as f32)).norm() < 1e-5);
+    }
+}
+
+#[test]
+fn bad_rigs_get_errors_that_name_the_file_and_the_problem() {
+    let d = tmp("bad");
+    let (m, p) = problem(&rig(
+        &d,
+        "noskin.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| {
+            v.as_object_mut().unwrap().remove("skins");
+            v["nodes"][0].as_object_mut().unwrap().remove("skin");
+        },
+    ));
+    assert_eq!(p, GltfProblem::NoSkin, "{m}");
+    let (m, p) = problem(&rig(
+        &d,
+        "one.gltf",
+        1,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |_| {},
+    ));
+    assert!(
+        matches!(p, GltfProblem::TooFewJoints { joints: 1, .. }),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "nan.gltf",
+        3,
+        [f32::NAN, 1.0, 0.0, 0.0],
+        [0, 1, 0, 0],
+        |_| {},
+    ));
+    assert!(
+        matches!(p, GltfProblem::BadVertex { vertex: 0, .. }) && m.contains("NaN"),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "neg.gltf",
+        3,
+        [1.5, -0.5, 0.0, 0.0],
+        [0, 1, 0, 0],
+        |_| {},
+    ));
+    assert!(
+        matches!(p, GltfProblem::BadVertex { .. }) && m.contains("-0.5"),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "dupweight.gltf",
+        3,
+        [0.5, 0.5, 0.0, 0.0],
+        [1, 1, 0, 0],
+        |_| {},
+    ));
+    assert!(
+        matches!(p, GltfProblem::BadVertex { .. }) && m.contains("twice"),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "dupjoint.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| v["skins"][0]["joints"] = serde_json::json!([1, 2, 1]),
+    ));
+    assert!(
+        matches!(p, GltfProblem::DuplicateJoint { node: 1, .. }),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "self.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| v["nodes"][2]["children"] = serde_json::json!([2, 3]),
+    ));
+    assert!(matches!(p, GltfProblem::SelfParent { node: 2, .. }), "{m}");
+    let (m, p) = problem(&rig(
+        &d,
+        "cycle.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| {
+            v["nodes"][3]["children"] = serde_json::json!([2]);
+            v["scenes"][0]["nodes"] = serde_json::json!([0]);
+            v["nodes"][1].as_object_mut().unwrap().remove("children");
+        },
+    ));
+    assert!(
+        matches!(p, GltfProblem::Cycle(_)) && m.contains("bone1 → bone2")
+            || m.contains("bone2 → bone1"),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "extbuf.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| v["buffers"][0]["uri"] = serde_json::json!("missing.bin"),
+    ));
+    assert!(
+        matches!(p, GltfProblem::Buffer { index: 0, .. }) && m.contains("missing.bin"),
+        "{m}"
+    );
+    let (m, p) = problem(&rig(
+        &d,
+        "many.gltf",
+        300,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |_| {},
+    ));
+    assert!(
+        matches!(p, GltfProblem::TooManyJoints { joints: 300, .. }),
+        "{m}"
+    );
+    let (m, p) = problem(&d.join("absent.glb"));
+    assert!(matches!(p, GltfProblem::Io(_)), "{m}");
+    std::fs::write(d.join("junk.glb"), b"glTF\x02\x00\x00\x00junk").unwrap();
+    let (m, p) = problem(&d.join("junk.glb"));
+    assert!(matches!(p, GltfProblem::Parse(_)), "{m}");
+}
+
+#[test]
+fn a_rig_without_feet_imports_with_a_warning() {
+    let d = tmp("nofeet");
+    let c = load(&rig(
+        &d,
+        "chain.gltf",
+        4,
+        [0.5, 0.5, 0.0, 0.0],
+        [0, 1, 0, 0],
+        |_| {},
+    ));
+    assert!(c.morphology.feet.is_empty());
+    assert!(
+        c.tree.warnings.iter().any(|w| w.contains("no feet")),
+        "{:?}",
+        c.tree.warnings
+    );
+    let _ = Point3::<f32>::origin();
+}
+
+#[test]
+#[ignore]
+fn debug_print() {
+    let dir = creatures().unwrap();
+    let f = std::env::var("CREATURE").unwrap();
+    let c = load(&dir.join(f));
+    let fk = c
+        .tree
+        .forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+    let low = c.tree.lowest_z(&fk);
+    for (i, l) in c.tree.links.iter().enumerate() {
+        if let Some(b) = l.aabb(&fk[i]) {
+            println!(
+                "{:24} z {:7.3} min {:7.3} ({:6.3} above ground) pos {:?}",
+                l.name,
+                fk[i].translation.vector.z,
+                b.min.z,
+                b.min.z - low,
+                fk[i].translation.vector
+            );
+        }
+    }
+    println!("{:#?}", c.plan);
+    println!("dof {} {:?}", c.tree.dof(), c.tree.dof_names());
+    println!("{:?}", c.tree.warnings);
+}
