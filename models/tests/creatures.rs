@@ -487,29 +487,48 @@ fn a_rig_without_feet_imports_with_a_warning() {
     let _ = Point3::<f32>::origin();
 }
 
+/// A creature's dataset of `frames` frames and its UFR.
+fn dataset(c: &Creature, frames: usize) -> (ace_models::dataset::MotionSet, ace_models::metrics::UfrRates) {
+    use ace_models::dataset::{DatasetConfig, generate};
+    use ace_models::metrics::{UfrConfig, ufr_episodes};
+    let set = generate(&c.tree, &c.morphology, &DatasetConfig { frames, seed: 21, ..DatasetConfig::default() }, &mut |_| {})
+        .unwrap_or_else(|e| panic!("{}: {e}", c.tree.name));
+    let poses: Vec<_> = (0..set.len()).map(|i| set.pose(i)).collect();
+    let ufr = ufr_episodes(&c.tree, &c.morphology, &poses, &set.episodes, set.fps, &UfrConfig::for_character(&c.tree, &c.morphology));
+    (set, ufr.rates)
+}
+
 #[test]
-#[ignore]
-fn debug_print() {
-    let dir = creatures().unwrap();
-    let f = std::env::var("CREATURE").unwrap();
-    let c = load(&dir.join(f));
-    let fk = c
-        .tree
-        .forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
-    let low = c.tree.lowest_z(&fk);
-    for (i, l) in c.tree.links.iter().enumerate() {
-        if let Some(b) = l.aabb(&fk[i]) {
-            println!(
-                "{:24} z {:7.3} min {:7.3} ({:6.3} above ground) pos {:?}",
-                l.name,
-                fk[i].translation.vector.z,
-                b.min.z,
-                b.min.z - low,
-                fk[i].translation.vector
-            );
+fn every_shared_creature_gets_a_motion_dataset_that_moves() {
+    let Some(dir) = creatures() else { return };
+    for (file, legs) in SHARED {
+        let c = load(&dir.join(file));
+        let (set, rates) = dataset(&c, 3000);
+        println!("{file}: {rates:?}");
+        assert_eq!(set.len(), 3000);
+        assert!(set.states.iter().all(|v| v.is_finite()), "{file}");
+        // The joints move: every DoF spans some of its range over the dataset.
+        let dof = c.tree.dof();
+        let still = (0..dof)
+            .filter(|&d| {
+                let (lo, hi) = (0..set.len()).map(|i| set.q[i * dof + d]).fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+                hi - lo < 0.02
+            })
+            .count();
+        assert!(still * 4 <= dof, "{file}: {still} of {dof} DoF never move");
+        if legs > 0 {
+            // Legged creatures walk: the root travels.
+            let first = set.pose(0).root.translation.vector;
+            let travel = (0..set.len()).map(|i| (set.pose(i).root.translation.vector - first).xy().norm()).fold(0.0, f32::max);
+            assert!(travel > 0.5 * c.tree.standing_root_height(), "{file}: the root moved {travel} m");
         }
     }
-    println!("{:#?}", c.plan);
-    println!("dof {} {:?}", c.tree.dof(), c.tree.dof_names());
-    println!("{:?}", c.tree.warnings);
+}
+
+#[test]
+fn the_foxs_dataset_is_clean_by_the_ufr_detectors() {
+    let Some(dir) = creatures() else { return };
+    let (_, rates) = dataset(&load(&dir.join("Fox/Fox.glb")), 6000);
+    assert!(rates.ufr <= 0.015, "UFR {:.3} % ({rates:?})", 100.0 * rates.ufr);
+    assert!(rates.sliding <= 0.005, "{rates:?}");
 }

@@ -9,12 +9,12 @@
 //! are all short chains of at most three bones reaching less than half as far as the limb, i.e. fingers
 //! or toes). A limb that ends at another branching bone is *spine*, and its branches are limbs in turn.
 //! Then, with `H` the creature's height, `S` its largest extent and `W` its width at rest:
-//! - **Feet**: limbs of two or more bones whose lowest capsule point (of the tip and its fingers/toes)
-//!   is within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
-//!   The foot point is that lowest point.
+//! - **Feet**: limbs of two or more bones whose lowest vertex (of the tip and its fingers/toes) is
+//!   within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
+//!   The foot point is that vertex, and the foot's collision shape the sphere resting on it.
 //! - **Head**: of the limbs whose tip is near the mid-plane (`|y| < 10 % W` from the body root) and
-//!   deforms at least 30 % as many vertices as the largest such tip (a head, not a tongue), the one
-//!   whose tip is farthest forward.
+//!   that deform at least 30 % as many vertices as the largest such limb (a head, not a tongue), the
+//!   one whose tip is farthest forward.
 //! - **Arms** (and wings): limbs of two or more bones whose tip is off the mid-plane with a mirror
 //!   image among the other limbs (within `0.15 S`), whose length is at least `S/10` and which do not
 //!   branch from the head's path close to the head (ears). Their end effector is the far end of the
@@ -29,9 +29,10 @@
 //! Moving bones get up to three revolute DoFs (see [`super::gltf`]). Leg bones use the leg's axes: the
 //! vertical, the knee hinge (the lateral axis for a leg that hangs below its hip, else the horizontal
 //! normal of the vertical plane through hip and foot) and the leg's outward direction. With clips in the
-//! file, each axis the clips turn by more than [`MIN_CLIP_RANGE`] is kept with limits of its range over
-//! every keyframe widened by 15 % + 3° ([`clip_limits`]); without keyframes for a bone, the role's
-//! defaults in [`default_limits`] apply. The profile overrides every choice.
+//! file, each axis of those the role turns about ([`default_limits`]: three at a hip, shoulder or the
+//! base of an arm, the hinge alone further down a limb, yaw and pitch along the spine, neck, head and
+//! tail) gets the role's default range, widened to the clips' range over every keyframe (plus 15 % + 3°,
+//! [`clip_limits`]) where the clips turn it further. The profile overrides every choice.
 
 use std::collections::BTreeMap;
 
@@ -42,18 +43,35 @@ use crate::geometry::{Aabb, Geometry, Shape};
 use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link};
 use crate::morphology::Morphology;
 
+/// Largest radius of a foot's contact sphere, as a fraction of the creature's height at rest.
+pub const FOOT_RADIUS: f32 = 0.01;
+
 /// Smallest range (rad) over a file's clips for which an axis becomes a DoF (5°).
 pub const MIN_CLIP_RANGE: f32 = 0.0873;
 
 /// What a moving bone is part of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Role {
     Leg { first: bool },
     Arm { first: bool },
     Head,
     Spine,
     Tail,
+}
+
+impl Role {
+    /// The role's name, as `ace inspect` shows it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Role::Leg { first: true } => "hip",
+            Role::Leg { first: false } => "leg",
+            Role::Arm { first: true } => "shoulder",
+            Role::Arm { first: false } => "arm",
+            Role::Head => "head",
+            Role::Spine => "spine",
+            Role::Tail => "tail",
+        }
+    }
 }
 
 /// The three axis names, in the order their DoFs are applied.
@@ -116,8 +134,8 @@ pub struct BodyPlan {
     pub body_root: String,
     /// Helper bones (outside the body): not DoFs.
     pub helpers: Vec<String>,
-    /// Moving bones and their roles.
-    pub roles: BTreeMap<String, Role>,
+    /// Moving bones and their roles ([`Role::label`]).
+    pub roles: BTreeMap<String, &'static str>,
     /// Body bones held at rest.
     pub at_rest: Vec<String>,
     /// Tail tips.
@@ -247,15 +265,9 @@ pub fn build(
             radius,
         ))
     };
+    // The lowest vertex a set of bones deforms: where a foot touches the ground.
     let lowest_point = |bones: &[usize]| -> Option<Point3<f32>> {
-        bones
-            .iter()
-            .filter_map(|&b| capsule_ends(b))
-            .map(|(a, e, r)| {
-                let p = if a.z < e.z { a } else { e };
-                Point3::new(p.x, p.y, p.z - r)
-            })
-            .min_by(|a, b| a.z.total_cmp(&b.z))
+        bones.iter().flat_map(|&b| owned[b].iter().copied()).min_by(|a, b| a.z.total_cmp(&b.z))
     };
     let mut bb = Aabb::empty();
     for &b in &body {
@@ -384,20 +396,21 @@ pub fn build(
     // Head.
     let root_x = pos(root).x;
     let dominant = |b: usize| owned[b].len();
-    // The head: the most forward of the mid-plane limbs whose tip is a substantial part of the body
-    // (at least 30 % of the vertices of the largest such tip: a head, not a tongue).
+    // The head: the most forward of the mid-plane limbs that are a substantial part of the body (at
+    // least 30 % of the vertices of the largest such limb: a head, not a tongue).
+    let flesh = |l: &Limb| l.path.iter().chain(&l.digits).map(|&b| dominant(b)).sum::<usize>();
     let mid: Vec<usize> = (0..limbs.len())
         .filter(|i| !foot_limbs.contains(i) && midline(&limbs[*i]))
         .collect();
     let most = mid
         .iter()
-        .map(|&i| dominant(tip_of(&limbs[i])))
+        .map(|&i| flesh(&limbs[i]))
         .max()
         .unwrap_or(0);
     let head_limb = mid
         .iter()
         .copied()
-        .filter(|&i| dominant(tip_of(&limbs[i])) * 10 >= most * 3)
+        .filter(|&i| flesh(&limbs[i]) * 10 >= most * 3)
         .max_by(|&a, &b| {
             pos(tip_of(&limbs[a]))
                 .x
@@ -651,7 +664,7 @@ pub fn build(
             parent_link = links.len() - 1;
         }
         link_of[b] = links.len() - 1;
-        plan.roles.insert(bone.name.clone(), role[&b]);
+        plan.roles.insert(bone.name.clone(), role[&b].label());
     }
     // Deforming helpers follow the body bone their vertices went to.
     for (&h, &host) in &helper_host {
@@ -673,6 +686,17 @@ pub fn build(
         morph.feet.push(l);
         let off = rig.bones[f].rest.inverse_transform_point(&p).coords;
         morph.tip_offsets.insert(l, off);
+        // A foot's collision shape is a small sphere resting on its contact, as a robot's foot is: leg IK
+        // places the foot point but leaves the paw's orientation free, and a long paw capsule (or a
+        // large sphere) tilting about its contact would dip into the ground.
+        if let Some(Shape::Capsule { radius, .. }) = capsules[f].as_ref().map(|g| g.shape.clone()) {
+            let radius = radius.min(0.5 * (pos(f).z - p.z).max(1e-3)).min(FOOT_RADIUS * height);
+            let centre = off + rig.bones[f].rest.inverse_transform_vector(&Vector3::z()) * radius;
+            tree.links[l].collisions = vec![Geometry {
+                origin: Isometry3::translation(centre.x, centre.y, centre.z),
+                shape: Shape::Sphere { radius },
+            }];
+        }
     }
     for &m in &manipulators {
         let l = link_of[m];
@@ -739,8 +763,9 @@ fn axis_limits(
     role: Role,
 ) -> [Option<(f32, f32)>; 3] {
     let keys = &rig.clip_rotations[b];
+    let defaults = default_limits(role);
     if keys.is_empty() {
-        return default_limits(role);
+        return defaults;
     }
     // D = R_P · (L(t) · L_rest⁻¹) · R_P⁻¹ in the character frame (R_P maps the parent's file axes to
     // the character frame), then in the bone's axes.
@@ -757,5 +782,17 @@ fn axis_limits(
             [yaw, pitch, roll]
         })
         .collect();
-    clip_limits(&angles)
+    // The clips set the ranges of the axes the role turns about (a knee stays a hinge even where an
+    // artist's clip twists it a little).
+    // Each of those axes gets at least the role's default range, so that the controllers can step and
+    // turn even where the clips only walk straight ahead.
+    let mut limits = clip_limits(&angles);
+    for (l, d) in limits.iter_mut().zip(defaults) {
+        *l = match (*l, d) {
+            (_, None) => None,
+            (None, d) => d,
+            (Some((a, b)), Some((c, e))) => Some((a.min(c), b.max(e))),
+        };
+    }
+    limits
 }

@@ -23,8 +23,9 @@
 //!   the character frame's z, y and x at rest. Which bones move and their limits: see [`super::body_plan`].
 //! - **Rest pose** (all q = 0) is the file's node transforms, which glTF exporters write as the bind
 //!   pose; a warning says so when the inverse bind matrices disagree.
-//! - **Geometry.** Each body bone gets a capsule fitted to the vertices it deforms most (see
-//!   [`fit_capsule`]); UFR, the cleanup and the controllers use it as they use URDF geometry.
+//! - **Geometry.** Each body bone gets a capsule for the core of the vertices it deforms most (see
+//!   [`fit_capsule`]); a foot gets the sphere of its contact instead. UFR, the cleanup and the
+//!   controllers use them as they use URDF geometry.
 
 use std::path::Path;
 
@@ -730,9 +731,11 @@ pub fn polar_rotation(m: &Matrix3<f32>) -> Option<UnitQuaternion<f32>> {
     ))
 }
 
-/// A capsule around `points` (in the frame they are given in): axis along their principal direction,
-/// radius the 75th percentile of their distances from the axis (robust to a few stray vertices), caps
-/// reaching the extreme points along the axis. `None` for fewer than 4 points.
+/// A capsule for the core of a bone's flesh around `points` (in the frame they are given in): axis along
+/// their principal direction, radius the median of their distances from the axis, caps reaching the 5th
+/// and 95th percentiles along it. A skinned mesh bulges and creases at the joints, so a proxy that
+/// covered every vertex would overlap its neighbours whenever a joint bends. `None` for fewer than 4
+/// points.
 pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
     if points.len() < 4 {
         return None;
@@ -747,17 +750,20 @@ pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
     let eig = (cov / n).symmetric_eigen();
     let k = eig.eigenvalues.imax();
     let axis = eig.eigenvectors.column(k).into_owned().normalize();
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut along: Vec<f32> = Vec::with_capacity(points.len());
     let mut radial: Vec<f32> = Vec::with_capacity(points.len());
     for p in points {
         let d = p.coords - c;
         let t = d.dot(&axis);
-        lo = lo.min(t);
-        hi = hi.max(t);
+        along.push(t);
         radial.push((d - axis * t).norm());
     }
-    radial.sort_by(f32::total_cmp);
-    let radius = radial[(radial.len() * 3 / 4).min(radial.len() - 1)].max(1e-4);
+    let quantile = |v: &mut Vec<f32>, q: f32| {
+        v.sort_by(f32::total_cmp);
+        v[((v.len() - 1) as f32 * q).round() as usize]
+    };
+    let radius = quantile(&mut radial, 0.5).max(1e-4);
+    let (lo, hi) = (quantile(&mut along, 0.05), quantile(&mut along, 0.95));
     let length = ((hi - lo) - 2.0 * radius).max(0.0);
     let centre = c + axis * (0.5 * (lo + hi));
     let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
