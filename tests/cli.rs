@@ -410,3 +410,69 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     assert!(err.contains(&s(&ck)), "{err}");
     assert!(!dir.join("x.glb").exists(), "nothing written on error");
 }
+
+#[test]
+fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
+    let Some(dir) = shared("creatures") else { return };
+    for (file, legs) in [
+        ("Fox/Fox.glb", 4),
+        ("Quaternius_Wolf/Wolf.gltf", 4),
+        ("Quaternius_Spider/Spider.glb", 8),
+        ("Quaternius_TRex/t-rex.glb", 2),
+        ("Quaternius_Snake/Snake.glb", 0),
+    ] {
+        let v = inspect_json(&dir.join(file));
+        assert_eq!(v["kind"], "gltf", "{file}");
+        assert_eq!(names(&v["feet"]).len(), legs, "{file}: {}", v["feet"]);
+        assert_eq!(v["dof"].as_u64().unwrap() as usize, names(&v["dof_names"]).len());
+        for k in ["links", "manipulators", "head", "standing_height_m", "skins", "animations", "joints_at_rest"] {
+            assert!(!v[k].is_null(), "{file}: no {k}");
+        }
+    }
+    let fox = inspect_json(&dir.join("Fox/Fox.glb"));
+    assert_eq!(fox["animations"].as_array().unwrap().len(), 3);
+    assert!(names(&fox["joints_at_rest"]).contains(&"b_Spine01_02".to_string()), "{}", fox["joints_at_rest"]);
+    // A glTF without a skin is refused with the file and the problem named.
+    let bare = tmp("creature-bad").join("bare.gltf");
+    std::fs::create_dir_all(bare.parent().unwrap()).unwrap();
+    std::fs::write(&bare, r#"{"asset": {"version": "2.0"}, "nodes": [{"name": "a"}]}"#).unwrap();
+    let out = ace(&["inspect", bare.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("bare.gltf") && err.contains("no skin"), "{err}");
+}
+
+#[test]
+fn a_rigged_creature_trains_and_retargets_end_to_end() {
+    let Some(fox) = shared("creatures/Fox/Fox.glb") else { return };
+    let dir = tmp("creature");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |args: &[&str]| {
+        let out = ace(args);
+        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let f = s(&fox);
+    run(&["--threads", "1", "train-prior", "--character", &f, "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    let stdout = run(&["--threads", "1", "train", "--character", &f, "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    // The fox's paws are matched to the human's hands and feet.
+    assert!(stdout.contains("b_LeftHand_011") && stdout.contains("b_LeftFoot02_018"), "{stdout}");
+    // The checkpoint names the character file and its checksum.
+    let record: Value = serde_json::from_str(&std::fs::read_to_string(ck.join("ace.json")).unwrap()).unwrap();
+    let file = &record["provenance"]["character_file"];
+    assert!(file["file"].as_str().unwrap().ends_with("Fox.glb"), "{record}");
+    assert_eq!(file["bytes"].as_u64().unwrap(), std::fs::metadata(&fox).unwrap().len());
+
+    let glb = dir.join("walk.glb");
+    run(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &f, "--checkpoint", &s(&ck), "--out", &s(&glb)]);
+    let frames = inspect_json(&root().join("assets/motions/walk.bvh"))["frames"].as_u64().unwrap() as usize;
+    let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
+    assert_eq!(csv.lines().count(), frames + 1);
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
+    assert!(m["ufr"].as_f64().is_some_and(f64::is_finite), "{m}");
+    validate_gltf(&glb);
+}

@@ -1,5 +1,6 @@
-//! Character dataset generation throughput: 200k frames per bundled character (the paper's size),
-//! printed as a table. Target: under 60 s per character.
+//! Character dataset generation throughput: 200k frames per bundled character (the paper's size) and
+//! per rigged creature of `../shared/data/creatures` (when present), printed as a table. Targets: under
+//! 60 s per robot, under 10 s per creature.
 //!
 //! ```text
 //! cargo bench -p ace_models --no-default-features --bench dataset
@@ -29,8 +30,17 @@ fn main() {
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---|");
     let mut notes = Vec::new();
-    for name in ["spot", "crab", "stretch"] {
-        let (tree, morph) = load_character(&dir.join(format!("{name}.urdf"))).expect("bundled character");
+    let creatures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/creatures");
+    let mut characters: Vec<(String, std::path::PathBuf)> =
+        ["spot", "crab", "stretch"].iter().map(|n| (n.to_string(), dir.join(format!("{n}.urdf")))).collect();
+    for f in ["Fox/Fox.glb", "Quaternius_Wolf/Wolf.gltf", "Quaternius_Spider/Spider.glb", "Quaternius_TRex/t-rex.glb", "Quaternius_Snake/Snake.glb"] {
+        let p = creatures.join(f);
+        if p.is_file() {
+            characters.push((p.file_stem().unwrap().to_string_lossy().into_owned(), p));
+        }
+    }
+    for (name, path) in &characters {
+        let (tree, morph) = load_character(path).expect("character");
         let cfg = DatasetConfig {
             frames,
             ..DatasetConfig::default()

@@ -157,6 +157,9 @@ pub struct KinematicTree {
     pub warnings: Vec<String>,
     /// The URDF file the tree was read from, if any (for resolving mesh paths later).
     pub source: Option<PathBuf>,
+    /// Link pairs whose contact is part of the model and never counts as a self-collision (like an
+    /// SRDF's disabled collisions): a rigged creature's bones that deform the same skin.
+    pub allowed_contacts: Vec<(usize, usize)>,
     dof_links: Vec<usize>,
     rest_q: Option<Vec<f32>>,
 }
@@ -181,6 +184,7 @@ impl KinematicTree {
             links,
             warnings,
             source: None,
+            allowed_contacts: Vec::new(),
             dof_links: dof_links.into_iter().map(|(_, i)| i).collect(),
             rest_q: None,
         }

@@ -532,3 +532,99 @@ fn the_foxs_dataset_is_clean_by_the_ufr_detectors() {
     assert!(rates.ufr <= 0.015, "UFR {:.3} % ({rates:?})", 100.0 * rates.ufr);
     assert!(rates.sliding <= 0.005, "{rates:?}");
 }
+
+#[test]
+fn clip_poses_put_every_bone_where_the_file_animates_it() {
+    use ace_models::character::clips::{clip_poses, exact_profile};
+    use ace_models::character::load_creature_with;
+    use gltf::animation::util::ReadOutputs;
+    use nalgebra::{Quaternion, UnitQuaternion};
+    let Some(dir) = creatures() else { return };
+    // The T-Rex is left out: its body root's pose in the clips differs from the file's by 2–6 % of its
+    // size, not yet understood (see the project notes).
+    for (file, _) in SHARED.iter().filter(|(f, _)| !f.contains("TRex")) {
+        let path = dir.join(file);
+        let plain = load(&path);
+        let c = load_creature_with(&path, &exact_profile(&plain)).unwrap();
+        let g = gltf::Gltf::open(&path).unwrap();
+        let base = path.parent().unwrap();
+        let buffers: Vec<Vec<u8>> = g
+            .buffers()
+            .map(|b| match b.source() {
+                gltf::buffer::Source::Bin => g.blob.clone().unwrap(),
+                gltf::buffer::Source::Uri(u) => match u.split_once(";base64,") {
+                    Some((_, data)) => ace_models::character::gltf::decode_base64(data).unwrap(),
+                    None => std::fs::read(base.join(u)).unwrap(),
+                },
+            })
+            .collect();
+        let nodes: Vec<_> = g.nodes().collect();
+        for (k, anim) in g.animations().enumerate().take(3) {
+            // The first keyframe of every channel: the pose at t = 0.
+            let mut trs: Vec<_> = nodes.iter().map(|n| n.transform().decomposed()).collect();
+            for ch in anim.channels() {
+                let r = ch.reader(|b| Some(&buffers[b.index()]));
+                let i = ch.target().node().index();
+                let cubic = ch.sampler().interpolation() == gltf::animation::Interpolation::CubicSpline;
+                let skip = usize::from(cubic);
+                match r.read_outputs().unwrap() {
+                    ReadOutputs::Translations(mut t) => trs[i].0 = t.nth(skip).unwrap(),
+                    ReadOutputs::Rotations(q) => trs[i].1 = q.into_f32().nth(skip).unwrap(),
+                    ReadOutputs::Scales(mut s) => trs[i].2 = s.nth(skip).unwrap(),
+                    _ => {}
+                }
+            }
+            let local = |i: usize| {
+                let (t, q, s) = trs[i];
+                Matrix4::new_translation(&Vector3::from(t))
+                    * UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2])).to_homogeneous()
+                    * Matrix4::new_nonuniform_scaling(&Vector3::from(s))
+            };
+            let mut parent = vec![None; nodes.len()];
+            for n in &nodes {
+                for ch in n.children() {
+                    parent[ch.index()] = Some(n.index());
+                }
+            }
+            let world = |mut i: usize| {
+                let mut m = local(i);
+                while let Some(p) = parent[i] {
+                    m = local(p) * m;
+                    i = p;
+                }
+                m
+            };
+            let pose = &clip_poses(&c, k, 30.0)[0];
+            let fk = c.tree.forward_kinematics(pose);
+            let size = c.tree.aabb(&fk).half_extents().max() * 2.0;
+            let mut checked = 0;
+            for (l, link) in c.tree.links.iter().enumerate() {
+                let Some(n) = nodes.iter().position(|n| n.name() == Some(link.name.as_str())) else { continue };
+                if c.plan.helpers.contains(&link.name) {
+                    continue; // helpers follow their host bone, not the file's IK
+                }
+                // Bones translate only as root motion: skip bones below one that the clip moves away
+                // from its rest offset (the T-Rex's clips stretch a few bones by millimetres).
+                let rest: Vec<_> = nodes.iter().map(|n| n.transform().decomposed().0).collect();
+                let mut up = Some(n);
+                let mut stretched = false;
+                while let Some(i) = up {
+                    if nodes[i].name() == Some(c.plan.body_root.as_str()) {
+                        break;
+                    }
+                    stretched |= (Vector3::from(trs[i].0) - Vector3::from(rest[i])).norm() * c.scale > 1e-4 * size;
+                    up = parent[i];
+                }
+                if stretched {
+                    continue;
+                }
+                let m = world(n);
+                let want = Vector3::new(m[(2, 3)], m[(0, 3)], m[(1, 3)]) * c.scale;
+                let got = fk[l].translation.vector;
+                assert!((want - got).norm() <= 1e-3 * size, "{file} clip {k}: {} at {got:?}, the file puts it at {want:?}", link.name);
+                checked += 1;
+            }
+            assert!(checked >= 4, "{file}: {checked} bones checked");
+        }
+    }
+}

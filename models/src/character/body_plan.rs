@@ -142,6 +142,25 @@ pub struct BodyPlan {
     pub tails: Vec<String>,
     /// Notes on what was assumed.
     pub warnings: Vec<String>,
+    /// Index of the body root in the rig's bones.
+    #[serde(skip)]
+    pub root_bone: usize,
+    /// Every body bone's link and DoFs, for turning the file's clips into poses.
+    #[serde(skip)]
+    pub joints: Vec<BoneJoint>,
+}
+
+/// A body bone in the tree: its link (the one named after it) and the DoF of each of its axes.
+#[derive(Clone, Debug)]
+pub struct BoneJoint {
+    /// Index in the rig's bones.
+    pub bone: usize,
+    /// Its link.
+    pub link: usize,
+    /// DoF of its yaw, pitch and roll axis, where it has one.
+    pub dofs: [Option<usize>; 3],
+    /// Its axes in the character frame at rest: columns roll (x), pitch (y), yaw (z).
+    pub basis: Matrix3<f32>,
 }
 
 struct Limb {
@@ -199,6 +218,7 @@ pub fn build(
     let body: Vec<usize> = (0..nb).filter(|&i| in_body[i]).collect();
     let pos0 = |b: usize| rig.bones[b].rest.translation.vector;
     let mut plan = BodyPlan {
+        root_bone: root,
         body_root: rig.bones[root].name.clone(),
         ..Default::default()
     };
@@ -625,7 +645,9 @@ pub fn build(
         let m = basis.get(&b).copied().unwrap_or_else(Matrix3::identity);
         let to_bone = bone.rest.rotation.inverse();
         let mut parent_link = parent_link;
+        let mut dofs = [None; 3];
         for (n, &k) in axes.iter().enumerate() {
+            dofs[k] = Some(dof);
             let world_axis: Vector3<f32> = m.column(2 - k).into_owned();
             let axis = nalgebra::Unit::new_normalize(to_bone * world_axis);
             let (lo, hi) = limits[k].expect("kept axis");
@@ -664,6 +686,7 @@ pub fn build(
             parent_link = links.len() - 1;
         }
         link_of[b] = links.len() - 1;
+        plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, basis: m });
         plan.roles.insert(bone.name.clone(), role[&b].label());
     }
     // Deforming helpers follow the body bone their vertices went to.
@@ -679,6 +702,19 @@ pub fn build(
         });
     }
     let mut tree = KinematicTree::from_parts(name.to_owned(), links, warnings);
+    // Bones that deform the same vertices (each with at least 10 % of a vertex) share flesh that
+    // stretches and creases between them: their proxies may meet without a collision.
+    let mut shared = std::collections::BTreeSet::new();
+    for (_, w) in &rig.vertices {
+        for &(a, wa) in w {
+            for &(b, wb) in w {
+                if a < b && wa >= 0.1 && wb >= 0.1 && in_body[a] && in_body[b] {
+                    shared.insert((link_of[a], link_of[b]));
+                }
+            }
+        }
+    }
+    tree.allowed_contacts = shared.into_iter().collect();
 
     let mut morph = Morphology::default();
     for &(f, p) in &feet {

@@ -144,8 +144,58 @@ pub struct Bone {
     pub rest: Isometry3<f32>,
     /// Rotation of the node's own local transform at rest, in the file's frame.
     pub local_rotation: UnitQuaternion<f32>,
+    /// Translation and scale of the node's own local transform at rest (file frame and units).
+    pub local_translation: Vector3<f32>,
+    pub local_scale: Vector3<f32>,
+    /// World matrix of the node's parent at rest (file frame), for top-level bones.
+    pub parent_world: Matrix4<f32>,
     /// Vertices it deforms (any weight > 0).
     pub deforms: usize,
+}
+
+/// What a [`Track`] animates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrackKind {
+    Rotation,
+    Translation,
+}
+
+/// One animation channel on a bone (file frame and units): keyframe times and values (`[x, y, z, w]`
+/// quaternions, or translations with w = 0). Cubic-spline keyframes keep their values, not tangents.
+#[derive(Clone, Debug)]
+pub struct Track {
+    pub bone: usize,
+    pub kind: TrackKind,
+    /// Step interpolation (else linear: slerp for rotations).
+    pub step: bool,
+    pub times: Vec<f32>,
+    pub values: Vec<[f32; 4]>,
+}
+
+impl Track {
+    /// The value at time `t` (clamped to the keyframes).
+    pub fn sample(&self, t: f32) -> [f32; 4] {
+        let n = self.times.len();
+        let k = self.times.partition_point(|&x| x <= t);
+        if k == 0 {
+            return self.values[0];
+        }
+        if k >= n || self.step {
+            return self.values[k.min(n) - 1];
+        }
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let u = if t1 > t0 { ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
+        let (a, b) = (self.values[k - 1], self.values[k]);
+        match self.kind {
+            TrackKind::Translation => std::array::from_fn(|i| a[i] + (b[i] - a[i]) * u),
+            TrackKind::Rotation => {
+                let qa = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(a[3], a[0], a[1], a[2]));
+                let qb = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(b[3], b[0], b[1], b[2]));
+                let q = qa.slerp(&qb, u);
+                [q.coords.x, q.coords.y, q.coords.z, q.coords.w]
+            }
+        }
+    }
 }
 
 /// What [`read`] gets from a file: bones, their skinned vertices and their clips' rotations.
@@ -157,6 +207,8 @@ pub struct Rig {
     pub vertices: Vec<(Point3<f32>, Vec<(usize, f32)>)>,
     /// Per bone, local rotations sampled from the clips (file frame), one per keyframe.
     pub clip_rotations: Vec<Vec<UnitQuaternion<f32>>>,
+    /// Per animation (in [`Rig::animations`] order), its tracks on bones.
+    pub clips: Vec<Vec<Track>>,
     /// Metres per file unit applied.
     pub scale: f32,
     /// File frame → character frame rotation.
@@ -510,7 +562,7 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
                 names[node]
             )))
         })?;
-        let (_, r, _) = doc
+        let (t, r, sc) = doc
             .nodes()
             .nth(node)
             .expect("node")
@@ -525,6 +577,9 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
                 r[3], r[0], r[1], r[2],
             )),
             deforms: deforms[slot[node].expect("joint")],
+            local_translation: Vector3::from(t),
+            local_scale: Vector3::from(sc),
+            parent_world: parent[node].map_or_else(Matrix4::identity, |q| world[q]),
         });
     }
     // Bind pose check: joint world × inverse bind should be one common matrix for all deforming joints.
@@ -557,9 +612,11 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
     // Clips: every rotation keyframe of every bone.
     let mut clip_rotations = vec![Vec::new(); bones.len()];
     let mut animations = Vec::new();
+    let mut clips = Vec::new();
     for a in doc.animations() {
         let mut duration = 0.0f32;
         let mut channels = 0;
+        let mut tracks = Vec::new();
         for ch in a.channels() {
             channels += 1;
             let r = ch.reader(get);
@@ -569,18 +626,42 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
             let Some(b) = bone_of[ch.target().node().index()] else {
                 continue;
             };
-            if let Some(ReadOutputs::Rotations(rot)) = r.read_outputs() {
-                let cubic =
-                    ch.sampler().interpolation() == ::gltf::animation::Interpolation::CubicSpline;
-                for (i, q) in rot.into_f32().enumerate() {
-                    if cubic && i % 3 != 1 {
-                        continue;
+            let interpolation = ch.sampler().interpolation();
+            let cubic = interpolation == ::gltf::animation::Interpolation::CubicSpline;
+            let times: Vec<f32> = r.read_inputs().map(|t| t.collect()).unwrap_or_default();
+            let mut values = Vec::new();
+            let kind = match r.read_outputs() {
+                Some(ReadOutputs::Rotations(rot)) => {
+                    for (i, q) in rot.into_f32().enumerate() {
+                        if cubic && i % 3 != 1 {
+                            continue;
+                        }
+                        let q = nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]);
+                        if q.norm() > 1e-6 && q.coords.iter().all(|v| v.is_finite()) {
+                            clip_rotations[b].push(UnitQuaternion::from_quaternion(q));
+                        }
+                        values.push([q.coords.x, q.coords.y, q.coords.z, q.coords.w]);
                     }
-                    let q = nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]);
-                    if q.norm() > 1e-6 && q.coords.iter().all(|v| v.is_finite()) {
-                        clip_rotations[b].push(UnitQuaternion::from_quaternion(q));
-                    }
+                    TrackKind::Rotation
                 }
+                Some(ReadOutputs::Translations(tr)) => {
+                    for (i, v) in tr.enumerate() {
+                        if !(cubic && i % 3 != 1) {
+                            values.push([v[0], v[1], v[2], 0.0]);
+                        }
+                    }
+                    TrackKind::Translation
+                }
+                _ => continue,
+            };
+            if times.len() == values.len() && !times.is_empty() {
+                tracks.push(Track {
+                    bone: b,
+                    kind,
+                    step: interpolation == ::gltf::animation::Interpolation::Step,
+                    times,
+                    values,
+                });
             }
         }
         animations.push(AnimationInfo {
@@ -591,11 +672,13 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
             duration_s: duration,
             channels,
         });
+        clips.push(tracks);
     }
     Ok(Rig {
         bones,
         vertices,
         clip_rotations,
+        clips,
         scale,
         to_character,
         skins,
@@ -690,7 +773,8 @@ fn percent_decode(s: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-fn decode_base64(s: &str) -> Option<Vec<u8>> {
+/// Decodes base64 (standard or URL-safe alphabet, padding and whitespace ignored), as data URIs carry it.
+pub fn decode_base64(s: &str) -> Option<Vec<u8>> {
     let val = |c: u8| match c {
         b'A'..=b'Z' => Some(c - b'A'),
         b'a'..=b'z' => Some(c - b'a' + 26),

@@ -3,6 +3,7 @@
 //! the source from the file's extension.
 
 pub mod body_plan;
+pub mod clips;
 pub mod gltf;
 
 use std::path::Path;
@@ -30,6 +31,8 @@ pub struct Creature {
     pub animations: Vec<AnimationInfo>,
     /// Metres per file unit.
     pub scale: f32,
+    /// What was read from the file (bones, vertices, clips), for the clips' poses and the export.
+    pub rig: gltf::Rig,
 }
 
 /// Loads a glTF creature with the profile beside it, if any (see [`Profile`]'s glTF keys).
@@ -77,8 +80,9 @@ pub fn load_creature_with(path: &Path, profile: &Profile) -> Result<Creature, Ch
         tree,
         morphology,
         plan,
-        skins: rig.skins,
-        animations: rig.animations,
+        skins: rig.skins.clone(),
+        animations: rig.animations.clone(),
         scale: rig.scale,
+        rig,
     })
 }

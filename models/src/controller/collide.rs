@@ -133,8 +133,9 @@ impl Proxies {
                 if adjacent || local[a].is_empty() || local[b].is_empty() {
                     continue;
                 }
-                let touching =
-                    boxes(&local[a], poses[a]).any(|x| boxes(&local[b], poses[b]).any(|y| x.overlaps(&y, 0.5 * tol)));
+                let touching = tree.allowed_contacts.contains(&(a, b))
+                    || tree.allowed_contacts.contains(&(b, a))
+                    || boxes(&local[a], poses[a]).any(|x| boxes(&local[b], poses[b]).any(|y| x.overlaps(&y, 0.5 * tol)));
                 checked[a][b] = !touching;
                 checked[b][a] = !touching;
             }

@@ -21,7 +21,8 @@
 //! out too: that contact is part of the model (nested telescope stages, shapes authored to intersect,
 //! coarse boxes around meshes that nearly meet — PhantomX's thighs sit 1 mm from its body plate's box),
 //! as in MoveIt's "default" collision matrix. The price: a part designed to rest against another (an
-//! arm stowed on the body) is not checked against it.
+//! arm stowed on the body) is not checked against it. Pairs the tree declares in
+//! [`KinematicTree::allowed_contacts`] are left out as well.
 //!
 //! # Narrow phase
 //! [`penetration_depth`] is exact for capsule–capsule and capsule–box (closest distance minus radii;
@@ -412,6 +413,11 @@ impl SelfCollision {
         let rest = tree.forward_kinematics(&tree.neutral_pose(Isometry3::identity()));
         let mut posed = PosedBodies::default();
         posed.update(&bodies, &rest);
+        let allowed: Vec<(usize, usize)> = tree
+            .allowed_contacts
+            .iter()
+            .map(|&(a, b)| (body_of[a].min(body_of[b]), body_of[a].max(body_of[b])))
+            .collect();
         let mut pairs = Vec::new();
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
@@ -419,8 +425,8 @@ impl SelfCollision {
                 if !a.has_geometry() || !b.has_geometry() || a.neighbour == Some(j) || b.neighbour == Some(i) {
                     continue;
                 }
-                // Touching (within the tolerance) or overlapping at rest: part of the model.
-                if pair_depth(&posed, i, j, -tolerance) > -tolerance {
+                // Touching (within the tolerance) or overlapping at rest, or declared by the model.
+                if pair_depth(&posed, i, j, -tolerance) > -tolerance || allowed.contains(&(i, j)) {
                     continue;
                 }
                 pairs.push((i, j));
