@@ -134,11 +134,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         None => retarget::default_checkpoint(&args.character)?,
     };
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
+    // (The human clip folder is read too, but only for `.bvh` files, which eval never writes.)
     let mut outputs = Outputs::new();
     outputs.input(&dir, "the checkpoint directory");
-    if let Some(h) = &args.humans {
-        outputs.input(h, "the human clip folder");
-    }
     for f in ["eval.md", "eval.csv", "eval.json", "eval.png"] {
         outputs.check(&out.join(f))?;
     }

@@ -81,7 +81,13 @@ pub fn text(v: &Value) -> String {
 pub fn run(path: &Path, as_json: bool, mapping: Option<&Path>) -> Result<()> {
     let v = match kind_of(path)? {
         "bvh" => bvh_summary(path, mapping)?.1,
-        _ => urdf_summary(path)?.2,
+        _ => {
+            let (tree, _, v) = urdf_summary(path)?;
+            for w in &tree.warnings {
+                eprintln!("warning: {}: {w}", path.display());
+            }
+            v
+        }
     };
     if as_json {
         println!("{}", serde_json::to_string_pretty(&v)?);

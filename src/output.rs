@@ -134,7 +134,8 @@ impl Outputs {
             .parent()
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+        fs::create_dir_all(parent)
+            .with_context(|| format!("{}: cannot create its folder {}", out.display(), parent.display()))?;
         remove_stale_temporaries(parent);
         let name = out
             .file_name()
@@ -158,7 +159,8 @@ impl Outputs {
     /// files of `dir` it did not write.
     pub fn stage_dir(&mut self, dir: &Path) -> Result<PathBuf> {
         let tmp = self.stage(dir)?;
-        fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        fs::create_dir_all(&tmp)
+            .with_context(|| format!("{}: cannot create the folder {}", dir.display(), tmp.display()))?;
         Ok(tmp)
     }
 
@@ -167,7 +169,11 @@ impl Outputs {
     pub fn commit(mut self) -> Result<()> {
         while !self.staged.is_empty() {
             let (tmp, out) = self.staged.remove(0);
-            let moved = if tmp.is_dir() { merge_dir(&tmp, &out) } else { fs::rename(&tmp, &out) };
+            let moved = if tmp.is_dir() {
+                merge_dir(&tmp, &out)
+            } else {
+                fs::rename(&tmp, &out)
+            };
             if tmp.is_dir() {
                 let _ = fs::remove_dir_all(&tmp);
             }

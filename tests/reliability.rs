@@ -491,6 +491,12 @@ fn urdf_warnings_are_surfaced() {
         &format!("<link name=\"world\"/>\n  <joint name=\"world_anchor\" type=\"floating\"><parent link=\"world\"/><child link=\"{base}\"/></joint>\n  <link name=\""),
         1,
     );
+    // … and give one link a collision mesh that is not there.
+    let anchored = anchored.replacen(
+        "<collision>",
+        "<collision><geometry><mesh filename=\"missing_part.stl\"/></geometry></collision>\n    <collision>",
+        1,
+    );
     std::fs::write(&urdf, anchored).unwrap();
     let o = ace(&["inspect", &s(&urdf), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -503,10 +509,16 @@ fn urdf_warnings_are_surfaced() {
             .contains("`world_anchor` is Floating; it is treated as fixed")),
         "{v}"
     );
+    let missing = "not found or not readable as STL/OBJ (they have no extent): missing_part.stl";
+    assert!(warnings.iter().any(|w| w.as_str().unwrap().contains(missing)), "{v}");
+    let e = stderr(&o);
     assert!(
-        stderr(&o).contains(&format!("warning: {}: joint `world_anchor`", urdf.display())),
-        "{}",
-        stderr(&o)
+        e.contains(&format!("warning: {}: joint `world_anchor`", urdf.display())),
+        "{e}"
+    );
+    assert!(
+        e.contains(&format!("warning: {}: 1 mesh file(s) not found", urdf.display())),
+        "{e}"
     );
 }
 

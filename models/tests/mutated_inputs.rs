@@ -27,9 +27,37 @@ enum Edit {
 }
 
 const TOKENS: &[&str] = &[
-    "{", "}", "\n", " ", "JOINT X", "End Site", "OFFSET", "CHANNELS 99", "MOTION", "Frames: 0", "nan", "inf", "-",
-    "1e30", "-1e30", "1e-30", "0", "99999999999999999999", "<", ">", "</link>", "<joint", "\"", "&", "\u{feff}",
-    "\u{0}", "é", "=", "[", "]", "[[x]]",
+    "{",
+    "}",
+    "\n",
+    " ",
+    "JOINT X",
+    "End Site",
+    "OFFSET",
+    "CHANNELS 99",
+    "MOTION",
+    "Frames: 0",
+    "nan",
+    "inf",
+    "-",
+    "1e30",
+    "-1e30",
+    "1e-30",
+    "0",
+    "99999999999999999999",
+    "<",
+    ">",
+    "</link>",
+    "<joint",
+    "\"",
+    "&",
+    "\u{feff}",
+    "\u{0}",
+    "é",
+    "=",
+    "[",
+    "]",
+    "[[x]]",
 ];
 
 fn edit() -> impl Strategy<Value = Edit> {
@@ -75,7 +103,9 @@ fn apply(text: &str, edits: &[Edit]) -> String {
                 let a = boundary(&s, at);
                 if let Some(k) = s[a..].find(|c: char| c.is_ascii_digit()) {
                     let start = a + k;
-                    let end = s[start..].find(|c: char| !(c.is_ascii_digit() || c == '.')).map_or(s.len(), |e| start + e);
+                    let end = s[start..]
+                        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+                        .map_or(s.len(), |e| start + e);
                     s.replace_range(start..end, token);
                 }
             }
@@ -85,7 +115,11 @@ fn apply(text: &str, edits: &[Edit]) -> String {
 }
 
 fn cases(n: u32) -> ProptestConfig {
-    ProptestConfig { cases: n, failure_persistence: None, ..ProptestConfig::default() }
+    ProptestConfig {
+        cases: n,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    }
 }
 
 proptest! {
@@ -152,7 +186,8 @@ fn checkpoint_files() -> &'static BTreeMap<String, Vec<u8>> {
 }
 
 proptest! {
-    #![proptest_config(cases(300))]
+    // Each load builds the networks: a few dozen cases keep this in seconds; `fuzz/` goes further.
+    #![proptest_config(cases(40))]
     #[test]
     fn checkpoint_loading_never_panics(file in 0..4usize, flips in prop::collection::vec((any::<usize>(), any::<u8>()), 1..8), cut in prop::option::of(any::<usize>())) {
         let mut files = checkpoint_files().clone();
