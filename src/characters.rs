@@ -42,6 +42,10 @@ pub fn character_path(arg: &str) -> Result<PathBuf> {
 pub fn load(arg: &str) -> Result<(PathBuf, KinematicTree, Morphology)> {
     let path = character_path(arg)?;
     let (tree, morph) = load_character(&path)?;
+    // What the importer changed or could not read (a frozen anchor joint, a missing mesh) is said.
+    for w in &tree.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     Ok((path, tree, morph))
 }
 

@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ace::models::dataset::{DatasetConfig, generate};
+use ace::models::dataset::{DatasetConfig, check_config, generate};
 use anyhow::{Context, Result};
 
+use crate::output::Outputs;
 use crate::{characters, metrics, progress, report};
 
 /// Options of `ace dataset`.
@@ -22,9 +23,12 @@ pub struct DatasetArgs {
 /// Runs `ace dataset`.
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let (path, tree, morph) = characters::load(&args.character)?;
+    let mut outputs = Outputs::new();
+    outputs.input(&path, "the character's URDF");
     let mut cfg = match &args.config {
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            outputs.input(p, "the dataset configuration");
+            let text = crate::train::read_text(p)?;
             toml::from_str::<DatasetConfig>(&text).with_context(|| format!("{}: invalid dataset configuration", p.display()))?
         }
         None => DatasetConfig::default(),
@@ -34,6 +38,15 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     }
     if let Some(s) = args.seed {
         cfg.seed = s;
+    }
+    // Bounds and outputs are checked before any work.
+    check_config(&cfg).with_context(|| match &args.config {
+        Some(p) => format!("{} (with the command-line options)", p.display()),
+        None => "the command-line options".to_string(),
+    })?;
+    outputs.check(&args.out)?;
+    if let Some(dir) = &args.report {
+        outputs.check(dir)?;
     }
     println!(
         "character {} ({}): {} DoF, {} feet, {} manipulators, {} wheels",
@@ -49,7 +62,16 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     let set = generate(&tree, &morph, &cfg, &mut |done| bar.set_position(done as u64))?;
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f32();
-    set.save(&args.out)?;
+    // The dataset and its report appear together, after both are written.
+    let tmp = outputs.stage(&args.out)?;
+    set.save(&tmp).with_context(|| format!("writing {}", args.out.display()))?;
+    if let Some(dir) = &args.report {
+        let m = metrics::dataset_metrics(&tree, &morph, &set, None);
+        println!("{m}");
+        let staged = outputs.stage_dir(dir)?;
+        report::write(&staged, &tree, &morph, &set, &m).with_context(|| format!("writing the report into {}", dir.display()))?;
+    }
+    outputs.commit()?;
     println!(
         "wrote {}: {} frames in {} episodes, x^r of {} values, seed {}, generated in {:.1} s",
         args.out.display(),
@@ -60,9 +82,6 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         seconds
     );
     if let Some(dir) = &args.report {
-        let m = metrics::dataset_metrics(&tree, &morph, &set, None);
-        println!("{m}");
-        report::write(dir, &tree, &morph, &set, &m)?;
         println!("report in {}", dir.display());
     }
     Ok(())

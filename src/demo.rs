@@ -8,14 +8,14 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use ace::models::human::{HumanClip, ImportOptions};
-use ace::models::human_set::PROJECT_FPS;
+use ace::models::human::HumanClip;
 use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::MetricsReport;
 use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 use serde_json::json;
 
+use crate::output::Outputs;
 use crate::scoring::Scorer;
 use crate::{characters, picture, retarget};
 
@@ -34,26 +34,79 @@ fn bundled_clips() -> Result<Vec<PathBuf>> {
     Ok(clips)
 }
 
-/// Runs the demo for `characters` (bundled names) and `clips` (BVH files; the bundled ones when empty),
-/// writing into `out`.
-pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path) -> Result<()> {
-    let clips = if clips.is_empty() { bundled_clips()? } else { clips.to_vec() };
-    let import = ImportOptions { fps: Some(PROJECT_FPS), mapping: None };
-    let humans: Vec<HumanClip> = clips
+/// Names of the clips' outputs: each file stem, with `-2`, `-3`, … added to the second and later of
+/// clips that share a stem (`a/walk.bvh` and `b/walk.bvh` must not write the same files).
+pub fn unique_names(clips: &[PathBuf]) -> Vec<String> {
+    let mut used = std::collections::HashSet::new();
+    clips
         .iter()
-        .map(|p| HumanClip::from_bvh_file(p, &import).map_err(anyhow::Error::from))
-        .collect::<Result<_>>()?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let mut rows: Vec<(String, String, MetricsReport, PathBuf)> = Vec::new();
+        .map(|p| {
+            let stem = p.file_stem().map_or_else(|| "clip".to_string(), |s| s.to_string_lossy().into_owned());
+            let mut name = stem.clone();
+            let mut k = 1;
+            while !used.insert(name.clone()) {
+                k += 1;
+                name = format!("{stem}-{k}");
+            }
+            name
+        })
+        .collect()
+}
+
+/// Runs the demo for `characters` (bundled names) and `clips` (BVH files; the bundled ones when empty),
+/// writing into `out`; `mapping` is a joint-mapping file for every clip.
+pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Option<&Path>) -> Result<()> {
+    let clips = if clips.is_empty() { bundled_clips()? } else { clips.to_vec() };
+    let import = retarget::import_options(mapping)?;
+    let names = unique_names(&clips);
+    let mut outputs = Outputs::new();
+    for p in &clips {
+        outputs.input(p, "an input clip");
+    }
+    if let Some(m) = mapping {
+        outputs.input(m, "the joint-mapping file");
+    }
+    let mut loaded = Vec::new();
     for name in characters_arg {
-        let (_, tree, morph) = characters::load(name)?;
+        let (urdf, tree, morph) = characters::load(name)?;
         let dir = retarget::default_checkpoint(name)?;
-        let retargeter = Retargeter::load(&dir, ace::models::learn::default_device())
+        outputs.input(&urdf, "a character's URDF").input(&dir, "a shipped checkpoint");
+        loaded.push((name, tree, morph, dir));
+    }
+    // Every output path is checked against every input before any work.
+    let planned = loaded.iter().flat_map(|(_, tree, ..)| {
+        let per_clip = names.iter().flat_map(|n| retarget::output_paths(&out.join(&tree.name).join(format!("{n}.glb"))));
+        per_clip.chain([out.join(format!("{}.png", tree.name))]).collect::<Vec<_>>()
+    });
+    for p in planned.chain([out.join("report.md"), out.join("report.json")]) {
+        outputs.check(&p)?;
+    }
+    let mut humans: Vec<HumanClip> = Vec::with_capacity(clips.len());
+    for (p, name) in clips.iter().zip(&names) {
+        let mut clip = HumanClip::from_bvh_file(p, &import)?;
+        if let Some(w) = clip.posture_warning() {
+            eprintln!("warning: {w}");
+        }
+        if *name != clip.name {
+            eprintln!("note: {} is written as `{name}`: another clip has the same file name", p.display());
+        }
+        clip.name = name.clone();
+        humans.push(clip);
+    }
+    // Everything is written into a staging folder beside `out`, moved into place at the end.
+    let staging = outputs.stage_dir(out)?;
+    let mut rows: Vec<(String, String, MetricsReport, PathBuf)> = Vec::new();
+    for (name, tree, morph, dir) in &loaded {
+        let retargeter = Retargeter::load(dir, ace::models::learn::default_device())
             .with_context(|| format!("the shipped checkpoint of `{name}`"))?;
-        let scorer = Scorer::new(&retargeter, &dir)?;
+        let scorer = Scorer::new(&retargeter, dir)?;
         for (k, clip) in humans.iter().enumerate() {
-            let glb = out.join(&tree.name).join(format!("{}.glb", clip.name));
-            let w = retarget::retarget(&retargeter, &scorer, &tree, &morph, clip, &glb, true)?;
+            let rel = Path::new(&tree.name).join(format!("{}.glb", clip.name));
+            let r = retarget::retarget_and_score(&retargeter, &scorer, tree, morph, clip)?;
+            let mut files = Outputs::new();
+            let w = retarget::write(&r, tree, clip, &staging.join(&rel), true, &mut files)?;
+            files.commit()?;
+            let glb = out.join(&rel);
             println!(
                 "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  UFR {:5.2} %  → {}",
                 tree.name,
@@ -64,18 +117,21 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path) -> Result<(
                 glb.display()
             );
             if k == 0 {
-                picture_of(&tree, &w.poses, clip, &out.join(format!("{}.png", tree.name)))?;
+                picture_of(tree, &w.poses, clip, &staging.join(format!("{}.png", tree.name)))?;
             }
             rows.push((tree.name.clone(), clip.name.clone(), w.report, glb));
         }
     }
     let (md, json_path) = (out.join("report.md"), out.join("report.json"));
-    std::fs::write(&md, report_markdown(&rows)).with_context(|| format!("writing {}", md.display()))?;
+    let md_tmp = staging.join("report.md");
+    std::fs::write(&md_tmp, report_markdown(&rows)).with_context(|| format!("writing {}", md.display()))?;
     let v: Vec<_> = rows
         .iter()
         .map(|(c, clip, r, glb)| json!({ "character": c, "clip": clip, "glb": glb, "metrics": r }))
         .collect();
-    std::fs::write(&json_path, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", json_path.display()))?;
+    std::fs::write(staging.join("report.json"), serde_json::to_string_pretty(&v)?)
+        .with_context(|| format!("writing {}", json_path.display()))?;
+    outputs.commit()?;
     println!("wrote {} retargeted clips under {}, {} and {}", rows.len(), out.display(), md.display(), json_path.display());
     Ok(())
 }

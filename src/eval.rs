@@ -38,6 +38,7 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
 use crate::baselines::{self, Baseline};
+use crate::output::Outputs;
 use crate::scoring::{FidSplit, Scorer};
 use crate::{characters, humans, progress, retarget, train};
 
@@ -133,6 +134,12 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         None => retarget::default_checkpoint(&args.character)?,
     };
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
+    // (The human clip folder is read too, but only for `.bvh` files, which eval never writes.)
+    let mut outputs = Outputs::new();
+    outputs.input(&dir, "the checkpoint directory");
+    for f in ["eval.md", "eval.csv", "eval.json", "eval.png"] {
+        outputs.check(&out.join(f))?;
+    }
     let mut args = args.clone();
     if args.quick {
         args.max_clips = Some(args.max_clips.unwrap_or(QUICK_CLIPS));
@@ -145,7 +152,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         Vec::new()
     };
     let eval = evaluate(&args, &dir, &tree, &morph, &systems)?;
-    write(&eval, &out)?;
+    // The four files appear together or not at all.
+    let staged = outputs.stage_dir(&out)?;
+    write(&eval, &staged).with_context(|| format!("writing the evaluation into {}", out.display()))?;
+    outputs.commit()?;
     print!("{}", markdown(&eval));
     println!("wrote {}/eval.md, eval.csv, eval.json and eval.png", out.display());
     Ok(())

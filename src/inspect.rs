@@ -2,15 +2,16 @@
 
 use std::path::Path;
 
-use ace::models::human::{HumanClip, ImportOptions};
+use ace::models::human::{HumanClip, ImportOptions, JointMapping};
 use ace::models::kinematics::KinematicTree;
 use ace::models::morphology::{Morphology, load_character};
 use anyhow::{Result, bail};
 use serde_json::{Value, json};
 
-/// A BVH file's summary.
-pub fn bvh_summary(path: &Path) -> Result<(HumanClip, Value)> {
-    let clip = HumanClip::from_bvh_file(path, &ImportOptions::default())?;
+/// A BVH file's summary; `mapping` is a joint-mapping file for its skeleton.
+pub fn bvh_summary(path: &Path, mapping: Option<&Path>) -> Result<(HumanClip, Value)> {
+    let mapping = mapping.map(JointMapping::from_file).transpose()?;
+    let clip = HumanClip::from_bvh_file(path, &ImportOptions { fps: None, mapping })?;
     let mapping: serde_json::Map<String, Value> = ace::models::human::Joint::ALL
         .iter()
         .map(|j| (j.name().to_string(), Value::from(clip.source_joints[j.index()].clone())))
@@ -26,6 +27,7 @@ pub fn bvh_summary(path: &Path) -> Result<(HumanClip, Value)> {
         "unit": clip.unit,
         "canonical_joints": clip.mapped_joints,
         "joint_mapping": mapping,
+        "warnings": clip.posture_warning().into_iter().collect::<Vec<_>>(),
     });
     Ok((clip, v))
 }
@@ -46,6 +48,7 @@ pub fn urdf_summary(path: &Path) -> Result<(KinematicTree, Morphology, Value)> {
         "wheels": names(&morphology.wheels),
         "head": morphology.head.map(|h| tree.links[h].name.clone()),
         "standing_height_m": tree.standing_root_height(),
+        "warnings": tree.warnings.clone(),
     });
     Ok((tree, morphology, v))
 }
@@ -105,12 +108,24 @@ pub fn text(v: &Value) -> String {
     out
 }
 
-/// `ace inspect FILE [--json]`.
-pub fn run(path: &Path, as_json: bool) -> Result<()> {
+/// `ace inspect FILE [--json] [--mapping FILE]`.
+pub fn run(path: &Path, as_json: bool, mapping: Option<&Path>) -> Result<()> {
     let v = match kind_of(path)? {
-        "bvh" => bvh_summary(path)?.1,
-        "gltf" => gltf_summary(path)?,
-        _ => urdf_summary(path)?.2,
+        "bvh" => bvh_summary(path, mapping)?.1,
+        "gltf" => {
+            let v = gltf_summary(path)?;
+            for w in v["warnings"].as_array().into_iter().flatten() {
+                eprintln!("warning: {}: {}", path.display(), w.as_str().unwrap_or_default());
+            }
+            v
+        }
+        _ => {
+            let (tree, _, v) = urdf_summary(path)?;
+            for w in &tree.warnings {
+                eprintln!("warning: {}: {w}", path.display());
+            }
+            v
+        }
     };
     if as_json {
         println!("{}", serde_json::to_string_pretty(&v)?);

@@ -12,7 +12,7 @@ use clap::{Parser, Subcommand};
 struct Cli {
     /// Threads libtorch may use [default: libtorch's choice, one per core]. On a machine shared with
     /// other heavy jobs, 1 is often much faster.
-    #[arg(long, global = true)]
+    #[arg(long, global = true, value_parser = clap::value_parser!(i32).range(1..=ace::limits::MAX_THREADS))]
     threads: Option<i32>,
     #[command(subcommand)]
     command: Command,
@@ -48,6 +48,10 @@ enum Command {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+        /// A joint-mapping file (TOML) for a BVH skeleton the automatic matching cannot read
+        /// [default: `<clip>.mapping.toml` beside the clip, when there is one].
+        #[arg(long)]
+        mapping: Option<PathBuf>,
     },
     /// The main job on the bundled defaults: retarget the bundled human clips onto the bundled
     /// characters with their shipped checkpoints; writes a glTF binary, the robot command trajectory
@@ -62,6 +66,10 @@ enum Command {
         /// Output folder.
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
+        /// A joint-mapping file (TOML) for every clip [default: `<clip>.mapping.toml` beside each
+        /// clip, when there is one].
+        #[arg(long)]
+        mapping: Option<PathBuf>,
     },
     /// Generate a character motion dataset by rolling out its kinematic controllers under random
     /// commands (the data the motion prior learns from).
@@ -70,7 +78,7 @@ enum Command {
         #[arg(long)]
         character: String,
         /// Frames to generate [default: 200000, or the config's].
-        #[arg(long)]
+        #[arg(long, value_parser = ace::limits::frames)]
         frames: Option<usize>,
         /// Seed of the random commands [default: 0, or the config's].
         #[arg(long)]
@@ -91,7 +99,7 @@ enum Command {
         #[command(flatten)]
         opts: TrainOpts,
         /// Frames of the generated dataset [default: 200000].
-        #[arg(long)]
+        #[arg(long, value_parser = ace::limits::frames)]
         frames: Option<usize>,
         /// Seed of the generated dataset [default: 0].
         #[arg(long)]
@@ -125,6 +133,10 @@ enum Command {
         /// Write the networks' raw output: no foot locking, no collision guard.
         #[arg(long)]
         no_cleanup: bool,
+        /// A joint-mapping file (TOML) for a BVH skeleton the automatic matching cannot read
+        /// [default: `<clip>.mapping.toml` beside the clip, when there is one].
+        #[arg(long)]
+        mapping: Option<PathBuf>,
     },
     /// Evaluate a checkpoint on the human clips it never saw: DIV, FID, L_fea and UFR of the dataset,
     /// ACE and the prior driven by random latents (with --baselines also NKN and ACE without either
@@ -146,10 +158,10 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         seed: u64,
         /// Length of the stability rollouts in seconds.
-        #[arg(long, default_value_t = 60.0)]
+        #[arg(long, default_value_t = 60.0, value_parser = ace::limits::seconds)]
         seconds: f32,
         /// Evaluate at most this many held-out clips [default: all].
-        #[arg(long)]
+        #[arg(long, value_parser = ace::limits::at_least_one)]
         max_clips: Option<usize>,
         /// Also score the paper's baselines (NKN, ACE without the feature loss, ACE without the
         /// adversarial loss), training those missing with the checkpoint's data and budget first.
@@ -181,12 +193,13 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    ace::output::install_signal_cleanup();
     if let Some(n) = cli.threads {
         ace::models::learn::set_threads(n);
     }
     let result = match cli.command {
-        Command::Inspect { file, json } => inspect::run(&file, json),
-        Command::Demo { characters, clip, out } => demo::run(&characters, &clip, &out),
+        Command::Inspect { file, json, mapping } => inspect::run(&file, json, mapping.as_deref()),
+        Command::Demo { characters, clip, out, mapping } => demo::run(&characters, &clip, &out, mapping.as_deref()),
         Command::Dataset { character, frames, seed, config, out, report } => dataset::run(&dataset::DatasetArgs {
             character,
             frames,
@@ -197,9 +210,17 @@ fn main() -> ExitCode {
         }),
         Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, no_human, no_cleanup } => {
-            retarget::run(&clip, &character, checkpoint.as_deref(), &out, !no_human, !no_cleanup)
-        }
+        Command::Retarget { clip, character, checkpoint, out, no_human, no_cleanup, mapping } => retarget::run(
+            &retarget::RetargetArgs {
+                clip,
+                character,
+                checkpoint,
+                out,
+                with_human: !no_human,
+                cleanup: !no_cleanup,
+                mapping,
+            },
+        ),
         Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick } => eval::run(&eval::EvalArgs {
             character,
             checkpoint,

@@ -8,15 +8,14 @@ use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, c
 use ace::models::kinematics::KinematicTree;
 use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
 use ace::models::morphology::Morphology;
-use anyhow::Result;
+use anyhow::{Result, bail};
 
 use crate::characters;
 
 /// Runs `ace metrics FILE [--character C] [--reference DATASET] [--json]`.
 pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json: bool) -> Result<()> {
     let set = MotionSet::load(file)?;
-    let name = character.unwrap_or(&set.character);
-    let (urdf, tree, morph) = characters::load(name)?;
+    let (urdf, tree, morph) = characters::load(&character_of(&set, character)?)?;
     characters::check_dataset(&set, file, &tree, &urdf)?;
     let reference = match reference {
         Some(r) => {
@@ -33,6 +32,30 @@ pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json:
         println!("{} ({} on {})\n{report}", file.display(), set.character, urdf.display());
     }
     Ok(())
+}
+
+/// The `--character` value for a motion set: the one given, else the bundled character of its name,
+/// else the URDF it recorded being made from.
+pub fn character_of(set: &MotionSet, given: Option<&str>) -> Result<String> {
+    if let Some(c) = given {
+        return Ok(c.to_string());
+    }
+    if characters::BUNDLED.contains(&set.character.as_str()) {
+        return Ok(set.character.clone());
+    }
+    match &set.character_source {
+        Some(urdf) if Path::new(urdf).is_file() => Ok(urdf.clone()),
+        Some(urdf) => bail!(
+            "the motion file was made for `{}` from {urdf}, which is not a file from here; pass --character URDF",
+            set.character
+        ),
+        None => bail!(
+            "the motion file was made for `{}`, which is not a bundled character ({}), and it does not record \
+             its URDF; pass --character URDF",
+            set.character,
+            characters::BUNDLED.join(", ")
+        ),
+    }
 }
 
 /// Ψ of every frame of a motion set, with the by-side end-effector mapping.

@@ -8,7 +8,7 @@ use ace::models::cleanup::Cleanup;
 use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
 use ace::models::export::trajectory::CommandTrajectory;
 use ace::models::features::human_body_length;
-use ace::models::human::{HumanClip, ImportOptions, Joint};
+use ace::models::human::{HumanClip, ImportOptions, Joint, JointMapping};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
@@ -18,6 +18,7 @@ use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 
 use crate::characters;
+use crate::output::Outputs;
 use crate::scoring::Scorer;
 
 /// Where a bundled character's shipped checkpoint lives.
@@ -44,23 +45,61 @@ pub struct Written {
     pub poses: Vec<CharacterPose>,
 }
 
+/// Options of `ace retarget`.
+pub struct RetargetArgs {
+    pub clip: PathBuf,
+    pub character: String,
+    pub checkpoint: Option<PathBuf>,
+    pub out: PathBuf,
+    pub with_human: bool,
+    pub cleanup: bool,
+    /// A joint-mapping file for the clip's skeleton.
+    pub mapping: Option<PathBuf>,
+}
+
+/// The import options of a clip retargeted at the project frame rate, with `--mapping` when given.
+pub fn import_options(mapping: Option<&Path>) -> Result<ImportOptions> {
+    let mapping = mapping.map(JointMapping::from_file).transpose()?;
+    Ok(ImportOptions { fps: Some(PROJECT_FPS), mapping })
+}
+
 /// Runs `ace retarget`.
-pub fn run(clip: &Path, character: &str, checkpoint: Option<&Path>, out: &Path, with_human: bool, cleanup: bool) -> Result<()> {
-    let (_, tree, morph) = characters::load(character)?;
-    let dir = match checkpoint {
-        Some(d) => d.to_path_buf(),
-        None => default_checkpoint(character)?,
+pub fn run(a: &RetargetArgs) -> Result<()> {
+    let (urdf, tree, morph) = characters::load(&a.character)?;
+    let dir = match &a.checkpoint {
+        Some(d) => d.clone(),
+        None => default_checkpoint(&a.character)?,
     };
+    // Every output is checked against every input before any work.
+    let mut outputs = Outputs::new();
+    outputs.input(&a.clip, "the input clip").input(&dir, "the checkpoint directory").input(&urdf, "the character's URDF");
+    if let Some(m) = &a.mapping {
+        outputs.input(m, "the joint-mapping file");
+    }
+    for p in output_paths(&a.out) {
+        outputs.check(&p)?;
+    }
     let mut retargeter = Retargeter::load(&dir, ace::models::learn::default_device())?;
-    if !cleanup {
+    if !a.cleanup {
         retargeter.set_cleanup(Cleanup::NONE);
     }
-    let clip = HumanClip::from_bvh_file(clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })?;
+    let clip = HumanClip::from_bvh_file(&a.clip, &import_options(a.mapping.as_deref())?)?;
+    if let Some(w) = clip.posture_warning() {
+        eprintln!("warning: {w}");
+    }
     let scorer = Scorer::new(&retargeter, &dir)?;
-    let w = retarget(&retargeter, &scorer, &tree, &morph, &clip, out, with_human)?;
+    let r = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
+    let w = write(&r, &tree, &clip, &a.out, a.with_human, &mut outputs)?;
+    outputs.commit()?;
     println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);
     println!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display());
     Ok(())
+}
+
+/// The files [`write`] makes for `out`: the glTF binary, the trajectory (`.json`, `.csv`) and the
+/// metrics (`.metrics.json`).
+pub fn output_paths(out: &Path) -> [PathBuf; 4] {
+    [out.to_path_buf(), out.with_extension("json"), out.with_extension("csv"), out.with_extension("metrics.json")]
 }
 
 /// One clip retargeted and scored.
@@ -100,11 +139,16 @@ pub fn retarget_and_score(
 
 /// Writes a retargeted clip: `out` (.glb, the character's animation, with the human skeleton beside
 /// it when `with_human`), the robot command trajectory beside it (`.json`, `.csv`) and its metrics
-/// (`.metrics.json`).
-pub fn write(r: &Retargeted, tree: &KinematicTree, clip: &HumanClip, out: &Path, with_human: bool) -> Result<Written> {
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
-    }
+/// (`.metrics.json`), each staged in `outputs` (they appear when it is committed).
+pub fn write(
+    r: &Retargeted,
+    tree: &KinematicTree,
+    clip: &HumanClip,
+    out: &Path,
+    with_human: bool,
+    outputs: &mut Outputs,
+) -> Result<Written> {
+    let [glb_path, json, csv, metrics] = output_paths(out);
     // The human walks beside the character: its first pelvis position is put 1.2 m to its left.
     let first = clip.frames.first().context("the clip has no frames")?.positions[Joint::Pelvis.index()];
     let offset = Vector3::new(-first.x, 1.2 - first.y, 0.0);
@@ -113,21 +157,22 @@ pub fn write(r: &Retargeted, tree: &KinematicTree, clip: &HumanClip, out: &Path,
         ..GltfOptions::default()
     };
     let motion = &r.motion;
-    let glb = write_glb(out, tree, &motion.poses, motion.fps, &opts)?;
+    let glb = write_glb(&outputs.stage(&glb_path)?, tree, &motion.poses, motion.fps, &opts)?;
     for w in &glb.warnings {
         eprintln!("warning: {w}");
     }
     let trajectory = CommandTrajectory::from_poses(tree, &motion.poses, motion.fps)?;
-    let (json, csv) = (out.with_extension("json"), out.with_extension("csv"));
-    trajectory.write_json(&json)?;
-    trajectory.write_csv(&csv)?;
-    let metrics = out.with_extension("metrics.json");
-    std::fs::write(&metrics, serde_json::to_string_pretty(&r.report)?).with_context(|| format!("writing {}", metrics.display()))?;
-    Ok(Written { glb: out.to_path_buf(), json, csv, metrics, report: r.report.clone(), poses: motion.poses.clone() })
+    trajectory.write_json(&outputs.stage(&json)?)?;
+    trajectory.write_csv(&outputs.stage(&csv)?)?;
+    let metrics_tmp = outputs.stage(&metrics)?;
+    std::fs::write(&metrics_tmp, serde_json::to_string_pretty(&r.report)?)
+        .with_context(|| format!("writing {}", metrics.display()))?;
+    Ok(Written { glb: glb_path, json, csv, metrics, report: r.report.clone(), poses: motion.poses.clone() })
 }
 
 /// Retargets one clip (already at the project frame rate) and writes it ([`retarget_and_score`],
-/// [`write`]).
+/// [`write`]) into `outputs`.
+#[allow(clippy::too_many_arguments)]
 pub fn retarget(
     retargeter: &Retargeter,
     scorer: &Scorer,
@@ -136,7 +181,8 @@ pub fn retarget(
     clip: &HumanClip,
     out: &Path,
     with_human: bool,
+    outputs: &mut Outputs,
 ) -> Result<Written> {
     let r = retarget_and_score(retargeter, scorer, tree, morph, clip)?;
-    write(&r, tree, clip, out, with_human)
+    write(&r, tree, clip, out, with_human, outputs)
 }

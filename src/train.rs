@@ -25,7 +25,9 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde_json::{Value, json};
 
+use ace::models::learn::checkpoint::LearnError;
 use ace::plot::{Figure, LineChart, Series};
+use crate::output::Outputs;
 use crate::{characters, humans, progress};
 
 /// The file beside the weights with the dataset's Ψ fit (for FID).
@@ -49,14 +51,47 @@ pub fn default_dir(character_arg: &str, tree: &KinematicTree) -> PathBuf {
     PathBuf::from("out/checkpoints").join(name)
 }
 
-fn read_config<T: DeserializeOwned + Default>(path: Option<&Path>, paper: impl FnOnce() -> T, use_paper: bool) -> Result<T> {
+/// The text of a configuration file: a regular file, UTF-8 (a UTF-16 file gets a hint).
+pub fn read_text(path: &Path) -> Result<String> {
+    let meta = std::fs::metadata(path).with_context(|| format!("reading {}", path.display()))?;
+    if !meta.is_file() {
+        bail!("{}: not a regular file (a directory, FIFO or device)", path.display());
+    }
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+        bail!("{}: the file is UTF-16 encoded; save it as UTF-8", path.display());
+    }
+    String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{}: not UTF-8 text ({e}); save it as UTF-8", path.display()))
+}
+
+/// The configuration `--config` gives (over the defaults, or the paper's with `--paper`), checked
+/// with `check` before any work; errors name the file and the field.
+fn read_config<T: DeserializeOwned + Default>(
+    path: Option<&Path>,
+    paper: impl FnOnce() -> T,
+    use_paper: bool,
+    check: impl Fn(&T) -> Result<(), LearnError>,
+) -> Result<T> {
     let base = if use_paper { paper() } else { T::default() };
     let Some(path) = path else { return Ok(base) };
     if use_paper {
         bail!("--paper and --config both set the network sizes; put `paper` sizes in the config instead");
     }
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("{}: invalid configuration", path.display()))
+    let text = read_text(path)?;
+    let cfg: T = toml::from_str(&text).with_context(|| format!("{}: invalid configuration", path.display()))?;
+    check(&cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(cfg)
+}
+
+/// Fails when a file this stage writes into `dir` is one of its inputs (`--config`, `--dataset`).
+fn check_outputs(dir: &Path, files: &[&str], inputs: &[(Option<&Path>, &str)]) -> Result<()> {
+    let mut outputs = Outputs::new();
+    for (p, what) in inputs {
+        if let Some(p) = p {
+            outputs.input(p, what);
+        }
+    }
+    files.iter().try_for_each(|f| outputs.check(&dir.join(f)))
 }
 
 /// Loads `--dataset` or generates the dataset with `cfg` (progress bar).
@@ -122,7 +157,12 @@ pub fn prior_dataset_config(prior: &PriorCheckpoint) -> Result<DatasetConfig> {
 pub fn prior(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper)?;
+    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper, PriorConfig::check)?;
+    check_outputs(
+        &dir,
+        &["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
+        &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
+    )?;
     let mut data_cfg = DatasetConfig::default();
     if let Some(n) = args.frames {
         data_cfg.frames = n;
@@ -153,7 +193,12 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
 pub fn ace(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper)?;
+    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, AceConfig::check)?;
+    check_outputs(
+        &dir,
+        &["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", REFERENCE_FILE],
+        &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
+    )?;
     let device = ace::models::learn::default_device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;

@@ -311,7 +311,17 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, s
         let out = absolute(&state.export);
         let written = load_character(&session.urdf)
             .map_err(anyhow::Error::from)
-            .and_then(|(tree, _)| ace::retarget::write(&result.retargeted, &tree, &result.clip, &out, true));
+            .and_then(|(tree, _)| {
+                // The export never overwrites what the session reads, and appears as a whole or not at all.
+                let mut outputs = ace::output::Outputs::new();
+                outputs
+                    .input(&result.inputs.clip, "the input clip")
+                    .input(&result.inputs.checkpoint, "the checkpoint directory")
+                    .input(&session.urdf, "the character's URDF");
+                let w = ace::retarget::write(&result.retargeted, &tree, &result.clip, &out, true, &mut outputs)?;
+                outputs.commit()?;
+                Ok(w)
+            });
         state.message = Some(match written {
             Ok(w) => format!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display()),
             Err(e) => format!("export failed: {e:#}"),

@@ -27,7 +27,7 @@
 //! | `contacts` | U8    | `[N, F]` | 1 when the foot is in stance, in [`Morphology::feet`] order     |
 //!
 //! `__metadata__` (all values strings): `format` = `ace_motion_set`, `format_version` = `1`,
-//! `character` (robot name), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
+//! `character` (robot name), optionally `character_source` (the URDF path it was read from), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
 //! (`{"dof", "end_effectors", "dim"}` as JSON), `dof_names` and `end_effector_links` (JSON arrays; the
 //! first `n_feet` end effectors are the feet), `n_feet`.
 //!
@@ -123,6 +123,9 @@ fn file_error(path: &Path, problem: impl Into<String>) -> DatasetError {
 pub struct MotionSet {
     /// Robot name.
     pub character: String,
+    /// The URDF the character was read from, as it was given, when it came from a file (so that the
+    /// dataset can be scored without naming the character again).
+    pub character_source: Option<String>,
     /// Frame rate.
     pub fps: f32,
     /// Seed it was generated with.
@@ -186,6 +189,7 @@ pub fn generate(
 
     let mut set = MotionSet {
         character: tree.name.clone(),
+        character_source: tree.source.as_ref().map(|p| p.display().to_string()),
         fps: cfg.fps,
         seed: cfg.seed,
         config: cfg.clone(),
@@ -244,13 +248,21 @@ pub fn generate(
     Ok(set)
 }
 
-fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
+/// Most frames a dataset may have: 25 times the paper's 200k, a few GB of states and poses. Checked
+/// before anything is allocated.
+pub const MAX_FRAMES: usize = 5_000_000;
+
+/// Checks that every value of `cfg` is in range; errors name the field and the valid range.
+pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
     let bad = |m: String| Err(DatasetError::Config(m));
-    if cfg.frames == 0 {
-        return bad("frames must be at least 1".into());
+    if !(1..=MAX_FRAMES).contains(&cfg.frames) {
+        return bad(format!(
+            "`frames` = {} is out of range: expected 1 to {MAX_FRAMES}",
+            cfg.frames
+        ));
     }
-    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
-        return bad(format!("fps must be positive, not {}", cfg.fps));
+    if !(cfg.fps.is_finite() && (1.0..=1000.0).contains(&cfg.fps)) {
+        return bad(format!("`fps` = {} is out of range: expected 1 to 1000", cfg.fps));
     }
     let [a, b] = cfg.episode_seconds;
     if !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b) {
@@ -389,6 +401,9 @@ impl MotionSet {
         put("format", FORMAT.into());
         put("format_version", FORMAT_VERSION.to_string());
         put("character", self.character.clone());
+        if let Some(source) = &self.character_source {
+            put("character_source", source.clone());
+        }
         put("fps", self.fps.to_string());
         put("seed", self.seed.to_string());
         put("config", config);
@@ -563,6 +578,7 @@ impl MotionSet {
             .collect();
         Ok(MotionSet {
             character: get("character")?.clone(),
+            character_source: meta.get("character_source").cloned(),
             fps: number("fps")? as f32,
             seed: get("seed")?
                 .parse()

@@ -210,7 +210,7 @@ impl EndEffectorMapping {
 
 /// Per-block weights of the feature loss (the editor's per-feature sliders). Default 1 each.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct FeatureWeights {
     pub root_height: f32,
     pub root_orientation: f32,
@@ -232,6 +232,21 @@ impl Default for FeatureWeights {
 }
 
 impl FeatureWeights {
+    /// `Err` naming the first weight that is negative or not finite (a negative weight would reward
+    /// the generator for moving away from the human).
+    pub fn check(&self) -> Result<(), String> {
+        for b in FeatureBlock::ALL {
+            let w = self.weight(b);
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(format!(
+                    "`feature_weights.{}` = {w} is out of range: expected a finite weight ≥ 0",
+                    b.name()
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The weight of `block`.
     pub fn weight(&self, block: FeatureBlock) -> f32 {
         let mut w = *self;

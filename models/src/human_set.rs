@@ -377,19 +377,30 @@ fn import_all(
         .collect()
 }
 
-/// Every `.bvh` file (any case) below `dir`, recursively.
+/// Every `.bvh` file (any case) below `dir`, in every subfolder. Iterative, and each folder is
+/// visited once: a symlink loop must neither recurse forever nor list the same clip twice.
 fn find_bvh(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), HumanSetError> {
-    let err = |source| HumanSetError::Folder {
-        path: dir.to_path_buf(),
-        source,
-    };
-    for entry in fs::read_dir(dir).map_err(err)? {
-        let path = entry.map_err(err)?.path();
-        if path.is_dir() {
-            find_bvh(&path, out)?;
-        } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) {
-            out.push(path);
+    let mut pending = vec![dir.to_path_buf()];
+    let mut seen = std::collections::HashSet::new();
+    while let Some(dir) = pending.pop() {
+        let err = |source| HumanSetError::Folder {
+            path: dir.clone(),
+            source,
+        };
+        if !seen.insert(fs::canonicalize(&dir).map_err(err)?) {
+            continue;
         }
+        let mut subdirs = Vec::new();
+        for entry in fs::read_dir(&dir).map_err(err)? {
+            let path = entry.map_err(err)?.path();
+            if path.is_dir() {
+                subdirs.push(path);
+            } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) {
+                out.push(path);
+            }
+        }
+        // Reversed onto the stack, so folders are walked in the order listed, as before.
+        pending.extend(subdirs.into_iter().rev());
     }
     Ok(())
 }

@@ -6,9 +6,11 @@
 //! - Links are ordered depth-first from the root, children in the order their joints appear in the
 //!   file; movable joints get DoF indices in that link order.
 //! - `floating` and `planar` joints are treated as **fixed** with a warning in
-//!   [`KinematicTree::warnings`]: the character root is already free (see
-//!   [`crate::kinematics::CharacterPose::root`]), and such joints are nearly always a `world → base`
-//!   anchor. `spherical` and any other type are errors.
+//!   [`KinematicTree::warnings`] when they anchor the robot to a root link without geometry (a
+//!   `world → base` anchor: the character root is already free, see
+//!   [`crate::kinematics::CharacterPose::root`]). Anywhere else freezing them would change the robot,
+//!   so they are errors, as are `spherical` and any other type. Inverted limits (lower > upper) are
+//!   errors.
 //! - `<mimic>` joints get no DoF of their own: their position is `multiplier · q[target] + offset`.
 //!   A mimic whose target is fixed or itself a mimic joint is an error.
 //! - The axis of fixed joints is ignored (files often write `0 0 0` there); a movable joint with a zero
@@ -71,6 +73,17 @@ pub enum UrdfProblem {
     NonFinite(String),
     #[error("joint `{0}` is movable but its axis is zero")]
     ZeroAxis(String),
+    #[error(
+        "joint `{joint}` has inverted limits: lower {lower} > upper {upper}; the lower limit must not exceed the upper"
+    )]
+    InvertedLimits { joint: String, lower: f64, upper: f64 },
+    #[error(
+        "joint `{joint}` is {kind} between links `{parent}` and `{child}`: ACE would have to freeze it, which changes \
+         what the robot can do; a {kind} joint is accepted only as the anchor of the robot to a root link \
+         without geometry (e.g. `world` → `base`). Use revolute, continuous, prismatic or fixed joints inside \
+         the body"
+    )]
+    FreeJointInBody { joint: String, kind: String, parent: String, child: String },
     #[error("joint `{joint}` mimics `{target}`, which is not a movable joint with its own DoF")]
     BadMimic { joint: String, target: String },
 }
@@ -97,7 +110,10 @@ pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<Kine
     {
         return Err(UrdfProblem::UnknownJointType { joint, kind }.in_file(file));
     }
-    let robot = urdf_rs::read_from_string(xml).map_err(|e| UrdfProblem::Parse(e.to_string()).in_file(file))?;
+    let robot = urdf_rs::read_from_string(xml).map_err(|e| {
+        let where_ = unbalanced_tag(xml).map_or(String::new(), |w| format!(" ({w})"));
+        UrdfProblem::Parse(format!("{e}{where_}")).in_file(file)
+    })?;
     let mut tree = robot_to_tree(&robot).map_err(|p| p.in_file(file))?;
     if let Some(dir) = base_dir {
         load_mesh_bounds(&mut tree, dir);
@@ -108,7 +124,22 @@ pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<Kine
 /// Reads and converts a URDF file; errors name the file.
 pub fn read_urdf_file(path: &Path) -> Result<KinematicTree, UrdfError> {
     let file = path.display().to_string();
-    let xml = std::fs::read_to_string(path).map_err(|e| UrdfProblem::Io(e.to_string()).in_file(&file))?;
+    let io = |e: std::io::Error| UrdfProblem::Io(e.to_string()).in_file(&file);
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(UrdfProblem::Io("not a regular file (a directory, FIFO or device)".into()).in_file(&file));
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+        return Err(UrdfProblem::Io("the file is UTF-16 encoded; save it as UTF-8".into()).in_file(&file));
+    }
+    let xml = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        let line = bytes[..at].iter().filter(|&&b| b == b'\n').count() + 1;
+        UrdfProblem::Io(format!("not UTF-8 text (invalid byte at line {line}, byte offset {at}); save it as UTF-8"))
+            .in_file(&file)
+    })?;
     let mut tree = parse_urdf(&xml, &file, path.parent())?;
     tree.source = Some(path.to_path_buf());
     Ok(tree)
@@ -147,6 +178,77 @@ fn scan_joint_types(xml: &str) -> Vec<(String, String)> {
         }
     }
     out
+}
+
+/// Where the tags of `xml` stop balancing, when they do: an end tag that closes nothing or another
+/// element, or elements still open at the end of the file (a truncated file). The XML reader's own
+/// message gives no position for those.
+fn unbalanced_tag(xml: &str) -> Option<String> {
+    let line_col = |at: usize| {
+        let before = &xml[..at];
+        let line = before.matches('\n').count() + 1;
+        let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+        (line, col)
+    };
+    let mut open: Vec<(&str, usize)> = Vec::new();
+    let mut at = 0;
+    while let Some(i) = xml[at..].find('<') {
+        let start = at + i;
+        let rest = &xml[start..];
+        let skip = if rest.starts_with("<!--") {
+            Some("-->")
+        } else if rest.starts_with("<![CDATA[") {
+            Some("]]>")
+        } else if rest.starts_with("<?") || rest.starts_with("<!") {
+            Some(">")
+        } else {
+            None
+        };
+        if let Some(end) = skip {
+            match rest.find(end) {
+                Some(e) => at = start + e + end.len(),
+                None => {
+                    let (l, c) = line_col(start);
+                    return Some(format!("the file ends inside the construct opened at line {l}, column {c}"));
+                }
+            }
+            continue;
+        }
+        let Some(e) = rest.find('>') else {
+            let (l, c) = line_col(start);
+            return Some(format!("the file ends inside the tag opened at line {l}, column {c}"));
+        };
+        let tag = &rest[1..e];
+        at = start + e + 1;
+        let name_of = |t: &str| t.split(|c: char| c.is_whitespace() || c == '/').next().unwrap_or("").to_string();
+        if let Some(closing) = tag.strip_prefix('/') {
+            let name = closing.trim();
+            match open.pop() {
+                Some((o, _)) if o == name => {}
+                Some((o, ol)) => {
+                    let (l, c) = line_col(start);
+                    let (l2, c2) = line_col(ol);
+                    return Some(format!(
+                        "`</{name}>` at line {l}, column {c} does not close `<{o}>` opened at line {l2}, column {c2}"
+                    ));
+                }
+                None => {
+                    let (l, c) = line_col(start);
+                    return Some(format!("`</{name}>` at line {l}, column {c} closes no element"));
+                }
+            }
+        } else if !tag.ends_with('/') {
+            let name = name_of(tag);
+            let name_start = start + 1;
+            open.push((&xml[name_start..name_start + name.len()], start));
+        }
+    }
+    let (o, ol) = open.last()?;
+    let (l, c) = line_col(*ol);
+    let (el, ec) = line_col(xml.len());
+    Some(format!(
+        "the file ends at line {el}, column {ec} with `<{o}>` (line {l}, column {c}) still open: is it truncated?"
+    ))
 }
 
 /// Value of attribute `name` in the inside of a start tag.
@@ -321,6 +423,13 @@ pub fn convert_joint(j: &urdf_rs::Joint) -> Result<(JointSpec, Option<String>), 
             effort: given(l.effort),
         }),
         JointKind::Revolute | JointKind::Prismatic => {
+            if l.lower > l.upper {
+                return Err(UrdfProblem::InvertedLimits {
+                    joint: j.name.clone(),
+                    lower: l.lower,
+                    upper: l.upper,
+                });
+            }
             if l.lower == 0.0 && l.upper == 0.0 {
                 warning = Some(format!(
                     "joint `{}` has lower = upper = 0 (or no <limit>); it cannot move",
@@ -439,6 +548,22 @@ pub fn robot_to_tree(robot: &urdf_rs::Robot) -> Result<KinematicTree, UrdfProble
         let mut link = Link::try_from(&robot.links[l])?;
         if let Some(ji) = parent_joint[l] {
             let j = &robot.joints[ji];
+            if matches!(j.joint_type, urdf_rs::JointType::Floating | urdf_rs::JointType::Planar) {
+                // Only an anchor from a root link without geometry (a `world` link) may be frozen: below
+                // a body link, freezing a free joint changes the robot.
+                let p = link_ix[j.parent.link.as_str()];
+                let anchor = parent_joint[p].is_none()
+                    && robot.links[p].visual.is_empty()
+                    && robot.links[p].collision.is_empty();
+                if !anchor {
+                    return Err(UrdfProblem::FreeJointInBody {
+                        joint: j.name.clone(),
+                        kind: format!("{:?}", j.joint_type).to_lowercase(),
+                        parent: j.parent.link.clone(),
+                        child: j.child.link.clone(),
+                    });
+                }
+            }
             let (mut spec, warning) = convert_joint(j)?;
             warnings.extend(warning);
             link.parent = Some(new_ix[link_ix[j.parent.link.as_str()]]);

@@ -2,9 +2,19 @@
 //!
 //! Errors carry the line number and say what was expected; nothing here panics on bad input.
 
+use std::collections::HashMap;
+
 use nalgebra::Vector3;
 
 use super::error::HumanImportError;
+
+/// Most channels a joint may declare (6 is the usual maximum: three positions, three rotations).
+pub const MAX_CHANNELS_PER_JOINT: usize = 12;
+
+/// Range of `Frame Time:` accepted, seconds: 1000 frames per second down to one frame per 10 s.
+/// Outside it the clip's timing is not mocap timing (`Frame Time: 1e-9` would squeeze a clip into
+/// one frame when resampled).
+pub const FRAME_TIME_RANGE: (f32, f32) = (1e-3, 10.0);
 
 /// A coordinate axis of the file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,6 +110,7 @@ impl Bvh {
             tokens: &tokens,
             pos: 0,
             joints: Vec::new(),
+            names: HashMap::new(),
             channels: 0,
             file,
         };
@@ -169,12 +180,25 @@ impl Bvh {
                     .parse::<f32>()
                     .ok()
                     .filter(|t| t.is_finite() && *t > 0.0);
-                t.ok_or_else(|| {
+                let t = t.ok_or_else(|| {
                     err(
                         i + 1,
                         format!("`Frame Time:` `{}` is not a positive number", rest.trim()),
                     )
-                })?
+                })?;
+                let (lo, hi) = FRAME_TIME_RANGE;
+                if !(lo..=hi).contains(&t) {
+                    return Err(err(
+                        i + 1,
+                        format!(
+                            "`Frame Time: {}` is {:.4} frames per second; expected {lo} to {hi} seconds per frame \
+                             (1000 down to 0.1 frames per second)",
+                            rest.trim(),
+                            1.0 / t
+                        ),
+                    ));
+                }
+                t
             }
             None => {
                 return Err(err(
@@ -190,12 +214,25 @@ impl Bvh {
             ));
         }
 
-        let mut values = Vec::with_capacity(frame_count * channel_count);
+        // The header alone never sizes an allocation: a value takes at least two bytes of text.
+        let declared = frame_count.saturating_mul(channel_count);
+        let mut values = Vec::with_capacity(declared.min(text.len() / 2 + 1));
         let mut found = 0;
         let mut last = frames_line + 1;
         for (i, line) in lines {
             if found == frame_count {
-                break; // trailing lines beyond the declared count are ignored
+                if line.trim().is_empty() {
+                    continue;
+                }
+                return Err(err(
+                    i + 1,
+                    format!(
+                        "more motion lines than `Frames: {frame_count}` declares (line {} is frame {}); \
+                         correct the `Frames:` count",
+                        i + 1,
+                        frame_count + 1
+                    ),
+                ));
             }
             last = i + 1;
             let before = values.len();
@@ -301,6 +338,8 @@ struct HierarchyParser<'t, 'a> {
     tokens: &'t [(&'a str, usize)],
     pos: usize,
     joints: Vec<BvhJoint>,
+    /// Index of each joint by name, to refuse duplicates.
+    names: HashMap<String, usize>,
     channels: usize,
     file: &'t str,
 }
@@ -352,14 +391,9 @@ impl<'a> HierarchyParser<'_, 'a> {
         Ok(())
     }
 
-    /// Parse a joint after its `ROOT`/`JOINT` keyword at `line`.
-    fn parse_joint(
-        &mut self,
-        parent: Option<usize>,
-        line: usize,
-        end_line: usize,
-    ) -> Result<(), HumanImportError> {
-        // The name is every token on the keyword's line up to `{` (names may contain spaces).
+    /// The joint name after a `ROOT`/`JOINT` keyword at `line`: every token on that line up to `{`
+    /// (names may contain spaces).
+    fn joint_name(&mut self, line: usize) -> Result<String, HumanImportError> {
         let mut name_parts = Vec::new();
         while let Some(&(t, l)) = self.tokens.get(self.pos) {
             if l != line || t == "{" || t == "}" {
@@ -371,7 +405,28 @@ impl<'a> HierarchyParser<'_, 'a> {
         if name_parts.is_empty() {
             return Err(self.err(line, "joint without a name".into()));
         }
-        let name = name_parts.join(" ");
+        Ok(name_parts.join(" "))
+    }
+
+    /// Opens a joint after its `ROOT`/`JOINT` keyword at `line`: reads its name and `{` and pushes it.
+    fn open_joint(
+        &mut self,
+        parent: Option<usize>,
+        line: usize,
+        end_line: usize,
+        open: &mut Vec<OpenJoint>,
+    ) -> Result<(), HumanImportError> {
+        let name = self.joint_name(line)?;
+        if let Some(&first) = self.names.get(&name) {
+            return Err(self.err(
+                line,
+                format!(
+                    "duplicate joint name `{name}` (first defined at line {}); joint names must be unique",
+                    self.joints[first].line
+                ),
+            ));
+        }
+        self.names.insert(name.clone(), self.joints.len());
         let (t, l) = self.next(end_line, "`{`")?;
         if t != "{" {
             return Err(self.err(
@@ -379,9 +434,12 @@ impl<'a> HierarchyParser<'_, 'a> {
                 format!("expected `{{` after joint `{name}`, found `{t}`"),
             ));
         }
-        let index = self.joints.len();
+        open.push(OpenJoint {
+            index: self.joints.len(),
+            has_offset: false,
+        });
         self.joints.push(BvhJoint {
-            name: name.clone(),
+            name,
             parent,
             offset: Vector3::zeros(),
             channels: Vec::new(),
@@ -389,31 +447,62 @@ impl<'a> HierarchyParser<'_, 'a> {
             end_sites: Vec::new(),
             line,
         });
-        let mut has_offset = false;
-        loop {
+        Ok(())
+    }
+
+    /// Parse a joint (and everything below it) after its `ROOT` keyword at `line`. Iterative, with
+    /// an explicit stack of open joints: the file decides the depth, so it must not decide the depth
+    /// of the call stack.
+    fn parse_joint(
+        &mut self,
+        parent: Option<usize>,
+        line: usize,
+        end_line: usize,
+    ) -> Result<(), HumanImportError> {
+        let mut open: Vec<OpenJoint> = Vec::new();
+        self.open_joint(parent, line, end_line, &mut open)?;
+        while let Some(&OpenJoint { index, .. }) = open.last() {
             let Some(&(t, l)) = self.tokens.get(self.pos) else {
+                let j = &self.joints[index];
                 return Err(self.err(
                     end_line,
                     format!(
-                        "unbalanced braces: `{{` of joint `{name}` (line {line}) is never closed"
+                        "unbalanced braces: `{{` of joint `{}` (line {}) is never closed",
+                        j.name, j.line
                     ),
                 ));
             };
             self.pos += 1;
+            let name = self.joints[index].name.clone();
             if t == "}" {
-                break;
+                let closed = open.pop().expect("non-empty");
+                if !closed.has_offset {
+                    let j = &self.joints[closed.index];
+                    return Err(self.err(j.line, format!("joint `{}` has no OFFSET", j.name)));
+                }
             } else if t.eq_ignore_ascii_case("OFFSET") {
                 let mut o = Vector3::zeros();
                 for k in 0..3 {
                     o[k] = self.number(end_line, "an OFFSET coordinate")?;
                 }
                 self.joints[index].offset = o;
-                has_offset = true;
+                if let Some(top) = open.last_mut() {
+                    top.has_offset = true;
+                }
             } else if t.eq_ignore_ascii_case("CHANNELS") {
                 let (n, nl) = self.next(end_line, "the channel count")?;
                 let n: usize = n
                     .parse()
-                    .map_err(|_| self.err(nl, format!("channel count `{n}` is not an integer")))?;
+                    .ok()
+                    .filter(|&n| n <= MAX_CHANNELS_PER_JOINT)
+                    .ok_or_else(|| {
+                        self.err(
+                            nl,
+                            format!(
+                                "channel count `{n}` of joint `{name}` is not an integer from 0 to {MAX_CHANNELS_PER_JOINT}"
+                            ),
+                        )
+                    })?;
                 if !self.joints[index].channels.is_empty() {
                     return Err(self.err(nl, format!("joint `{name}` has two CHANNELS lines")));
                 }
@@ -427,7 +516,7 @@ impl<'a> HierarchyParser<'_, 'a> {
                 self.joints[index].first_channel = self.channels;
                 self.channels += n;
             } else if t.eq_ignore_ascii_case("JOINT") {
-                self.parse_joint(Some(index), l, end_line)?;
+                self.open_joint(Some(index), l, end_line, &mut open)?;
             } else if t.eq_ignore_ascii_case("End") {
                 let (s, sl) = self.next(end_line, "`Site`")?;
                 if !s.eq_ignore_ascii_case("Site") {
@@ -471,11 +560,14 @@ impl<'a> HierarchyParser<'_, 'a> {
                 return Err(self.err(l, format!("unexpected `{t}` in joint `{name}`")));
             }
         }
-        if !has_offset {
-            return Err(self.err(line, format!("joint `{name}` has no OFFSET")));
-        }
         Ok(())
     }
+}
+
+/// A joint whose `{` is open while its block is read.
+struct OpenJoint {
+    index: usize,
+    has_offset: bool,
 }
 
 fn parse_channel(c: &str) -> Option<Channel> {

@@ -80,14 +80,23 @@ pub struct HumanClip {
 }
 
 impl HumanClip {
-    /// Import a BVH file. The clip is named after the file stem.
+    /// Import a BVH file. The clip is named after the file stem. Without a mapping in `opts`, a
+    /// joint-mapping file beside the clip ([`mapping_path_beside`]) is used when there is one.
     pub fn from_bvh_file(path: &Path, opts: &ImportOptions) -> Result<HumanClip, HumanImportError> {
         let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| HumanImportError::Io {
-            file: file.clone(),
-            source,
-        })?;
-        let text = String::from_utf8_lossy(&bytes);
+        let bytes = read_regular_file(path)?;
+        let text = decode_text(&bytes, &file)?;
+        let beside;
+        let opts = match &opts.mapping {
+            None if mapping_path_beside(path).is_file() => {
+                beside = ImportOptions {
+                    fps: opts.fps,
+                    mapping: Some(JointMapping::from_file(&mapping_path_beside(path))?),
+                };
+                &beside
+            }
+            _ => opts,
+        };
         let mut clip = super::import::import(&text, &file, opts)?;
         clip.name = path
             .file_stem()
@@ -102,6 +111,32 @@ impl HumanClip {
         opts: &ImportOptions,
     ) -> Result<HumanClip, HumanImportError> {
         super::import::import(text, name, opts)
+    }
+
+    /// Fraction of frames whose pelvis is upright: its up axis within 60° of vertical.
+    pub fn upright_fraction(&self) -> f32 {
+        let upright = self
+            .frames
+            .iter()
+            .filter(|f| (f.root_rotation * Vector3::z()).z >= 0.5)
+            .count();
+        upright as f32 / self.frames.len().max(1) as f32
+    }
+
+    /// A warning when most of the clip's frames have the pelvis far from upright (a person lying or
+    /// crawling): the human state is read in the pelvis' heading frame, and a character trained on
+    /// upright humans turns such a clip into motion the user did not intend.
+    pub fn posture_warning(&self) -> Option<String> {
+        let f = self.upright_fraction();
+        (f < 0.5).then(|| {
+            format!(
+                "{}: the pelvis is upright (within 60° of vertical) in only {:.0} % of the frames; \
+                 ACE is trained on upright humans, so a lying or crawling clip may drive the character \
+                 in unintended ways (e.g. walking backwards)",
+                self.name,
+                100.0 * f
+            )
+        })
     }
 
     /// Seconds from the first to the last frame.
@@ -151,4 +186,54 @@ impl HumanClip {
             source_joints: self.source_joints.clone(),
         }
     }
+}
+
+/// The joint-mapping file read with a clip when no mapping is given: `walk.mapping.toml` beside
+/// `walk.bvh`.
+pub fn mapping_path_beside(clip: &Path) -> std::path::PathBuf {
+    let stem = clip
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    clip.with_file_name(format!("{stem}.mapping.toml"))
+}
+
+/// The bytes of `path`, which must be a regular file (a FIFO or device named `.bvh` would block the
+/// reader or never end).
+pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, HumanImportError> {
+    let file = path.display().to_string();
+    let io = |source| HumanImportError::Io {
+        file: file.clone(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(HumanImportError::Skeleton {
+            file: file.clone(),
+            message: "not a regular file (a directory, FIFO or device); give a BVH file".into(),
+        });
+    }
+    std::fs::read(path).map_err(io)
+}
+
+/// BVH text from file bytes: UTF-8 (invalid bytes replaced, as in names from Latin-1 exporters),
+/// but UTF-16 is refused with a hint rather than read as NUL-riddled garbage.
+pub fn decode_text<'a>(
+    bytes: &'a [u8],
+    file: &str,
+) -> Result<std::borrow::Cow<'a, str>, HumanImportError> {
+    let utf16_bom = bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]);
+    let head = &bytes[..bytes.len().min(64)];
+    let nul_every_other = head.len() >= 4
+        && (head.iter().step_by(2).all(|&b| b == 0)
+            || head.iter().skip(1).step_by(2).all(|&b| b == 0));
+    if utf16_bom || nul_every_other {
+        return Err(HumanImportError::Parse {
+            file: file.to_string(),
+            line: 1,
+            message: "the file is UTF-16 encoded; save it as UTF-8 or ASCII (e.g. `iconv -f UTF-16 -t UTF-8`)"
+                .into(),
+        });
+    }
+    Ok(String::from_utf8_lossy(bytes))
 }

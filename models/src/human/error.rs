@@ -30,9 +30,10 @@ pub enum HumanImportError {
     /// Some canonical joints could not be matched to BVH joints.
     #[error(
         "{file}: unknown skeleton: could not map canonical joint(s) {}; BVH joints available: {}. \
-         Name them in a joint-mapping file (e.g. `left_hand = \"MyLeftWrist\"`).",
+         Name them in a joint-mapping file (e.g. `left_hand = \"MyLeftWrist\"`), passed with --mapping FILE \
+         or saved as `<clip>.mapping.toml` beside the clip.",
         missing.join(", "),
-        available.join(", ")
+        short_list(available)
     )]
     Unmapped {
         file: String,
@@ -45,4 +46,19 @@ pub enum HumanImportError {
     /// The skeleton or motion is unusable (degenerate bones, no frames, implausible geometry).
     #[error("{file}: {message}")]
     Skeleton { file: String, message: String },
+}
+
+/// Names joined by commas; past 60, the first 60 and how many more (a 100,000-joint file must not
+/// make a 2 MB message).
+pub fn short_list(names: &[String]) -> String {
+    const SHOWN: usize = 60;
+    if names.len() <= SHOWN {
+        names.join(", ")
+    } else {
+        format!(
+            "{}, … and {} more",
+            names[..SHOWN].join(", "),
+            names.len() - SHOWN
+        )
+    }
 }

@@ -23,6 +23,19 @@ pub const LEG_FRACTION_OF_HEIGHT: f32 = 0.491;
 /// Percentile of the per-frame lowest foot point taken as the floor (robust to jumps and glitches).
 pub const FLOOR_PERCENTILE: f32 = 0.05;
 
+/// Farthest a joint may be from the clip's origin after conversion to metres. Mocap volumes are tens
+/// of metres; anything beyond this is a corrupt value (1e30 in an OFFSET or a position channel), and
+/// letting it through would poison every statistic computed from the clip.
+pub const MAX_DISTANCE_M: f32 = 10_000.0;
+
+/// Largest OFFSET component or position value accepted in the file's own units: 10 km in
+/// millimetres, the smallest unit files use. Checked before anything is inferred from the skeleton.
+pub const MAX_FILE_LENGTH: f32 = 1e7;
+
+/// Largest rotation channel value accepted, degrees (about 2,800 turns: a spinning root accumulating
+/// its yaw stays far below it).
+pub const MAX_ROTATION_DEG: f32 = 1e6;
+
 /// What the importer detected about a file, for diagnostics and user-facing reports.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImportReport {
@@ -67,6 +80,7 @@ pub fn import_with_report(
     opts: &ImportOptions,
 ) -> Result<(HumanClip, ImportReport), HumanImportError> {
     let bvh = Bvh::parse(text, file)?;
+    check_values(&bvh, file)?;
     let user = opts.mapping.as_ref();
     let map = SkeletonMap::build(&bvh, user, file)?;
     let convention = conventions::detect(&bvh).unwrap_or(
@@ -133,6 +147,7 @@ pub fn import_with_report(
             }
         })
         .collect();
+    check_positions(&frames, &map.source_names(&bvh), dropped, &unit, file)?;
     let source_fps = snap_fps(1.0 / bvh.frame_time);
     let height_m = height_units * scale;
     let mut clip = HumanClip {
@@ -164,6 +179,109 @@ pub fn import_with_report(
         height_m,
     };
     Ok((clip, report))
+}
+
+/// Refuses skeletons without geometry and absurd rotation values, before any inference on them.
+fn check_values(bvh: &Bvh, file: &str) -> Result<(), HumanImportError> {
+    let no_length = bvh
+        .joints
+        .iter()
+        .skip(1)
+        .all(|j| j.offset.norm() == 0.0 && j.end_sites.iter().all(|e| e.norm() == 0.0));
+    if no_length {
+        return Err(HumanImportError::Skeleton {
+            file: file.to_string(),
+            message: format!(
+                "every OFFSET below the root is zero: the skeleton ({} joints) has no bone lengths, so its \
+                 shape, unit and up axis cannot be read",
+                bvh.joints.len()
+            ),
+        });
+    }
+    let implausible = |message: String| HumanImportError::Skeleton {
+        file: file.to_string(),
+        message: format!("implausible motion: {message}"),
+    };
+    for joint in &bvh.joints {
+        let lengths = std::iter::once(&joint.offset).chain(&joint.end_sites);
+        if let Some(o) = lengths.clone().find(|o| !(o.amax() <= MAX_FILE_LENGTH)) {
+            return Err(implausible(format!(
+                "joint `{}` (line {}) has an OFFSET of {:e} file units; lengths beyond {MAX_FILE_LENGTH:e} \
+                 (10 km in millimetres) are not a human skeleton",
+                joint.name,
+                joint.line,
+                o.amax()
+            )));
+        }
+    }
+    for (j, joint) in bvh.joints.iter().enumerate() {
+        for (k, ch) in joint.channels.iter().enumerate() {
+            let col = joint.first_channel + k;
+            let value = |f: usize| bvh.values[f * bvh.channel_count + col];
+            if matches!(ch, super::bvh::Channel::Position(_)) {
+                if let Some(f) = (0..bvh.frame_count).find(|&f| value(f).abs() > MAX_FILE_LENGTH) {
+                    return Err(implausible(format!(
+                        "position channel {} of joint `{}` (line {}) is {:e} file units in frame {}; positions \
+                         beyond {MAX_FILE_LENGTH:e} (10 km in millimetres) are not mocap",
+                        k + 1,
+                        joint.name,
+                        joint.line,
+                        value(f),
+                        f + 1
+                    )));
+                }
+                continue;
+            }
+            if let Some(f) = (0..bvh.frame_count)
+                .find(|&f| bvh.values[f * bvh.channel_count + col].abs() > MAX_ROTATION_DEG)
+            {
+                return Err(HumanImportError::Skeleton {
+                    file: file.to_string(),
+                    message: format!(
+                        "implausible motion: rotation channel {} of joint `{}` (line {}) is {:e}° in frame {}; \
+                         rotations beyond ±{MAX_ROTATION_DEG:e}° are not mocap",
+                        k + 1,
+                        bvh.joints[j].name,
+                        joint.line,
+                        bvh.values[f * bvh.channel_count + col],
+                        f + 1
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a clip with a joint farther than [`MAX_DISTANCE_M`] from the origin (in metres, after unit
+/// detection): a finite but absurd value in the file.
+fn check_positions(
+    frames: &[HumanFrame],
+    sources: &[String; JOINT_COUNT],
+    dropped: usize,
+    unit: &str,
+    file: &str,
+) -> Result<(), HumanImportError> {
+    for (t, f) in frames.iter().enumerate() {
+        if let Some(j) = Joint::ALL
+            .iter()
+            .find(|j| !(f.positions[j.index()].amax() <= MAX_DISTANCE_M))
+        {
+            return Err(HumanImportError::Skeleton {
+                file: file.to_string(),
+                message: format!(
+                    "implausible motion: {} (BVH joint `{}`) is {:e} m from the origin in frame {} \
+                     (unit {unit}); a human clip stays within {MAX_DISTANCE_M} m: check the file's OFFSET \
+                     and position values",
+                    j.name(),
+                    sources[j.index()],
+                    f.positions[j.index()].amax(),
+                    t + dropped + 1
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 pub(super) fn import(

@@ -273,6 +273,47 @@ impl<'a> Matcher<'a> {
             .map(|j| j.name().to_string())
             .collect();
         if !missing.is_empty() {
+            // A skeleton whose arms are named but one of whose legs is not is missing that leg, not
+            // in an unknown naming convention: say so. (A rig of generic names gets `Unmapped`.)
+            let arms_named = (0..self.bvh.joints.len()).any(|j| {
+                matches!(self.info[j].side, Side::Left | Side::Right)
+                    && matches!(
+                        self.info[j].part(),
+                        Part::Hand | Part::Forearm | Part::UpperArm
+                    )
+            });
+            let sides = if arms_named {
+                &[(Side::Left, "left"), (Side::Right, "right")][..]
+            } else {
+                &[]
+            };
+            for &(side, label) in sides {
+                let leg = (0..self.bvh.joints.len()).any(|j| {
+                    self.info[j].side == side
+                        && matches!(
+                            self.info[j].part(),
+                            Part::Foot | Part::Shin | Part::Thigh | Part::Toe
+                        )
+                });
+                let user_named = user.is_some_and(|u| {
+                    Joint::ALL.iter().any(|j| {
+                        u.joints[j.index()].is_some()
+                            && j.name().starts_with(label)
+                            && matches!(j.name().split('_').nth(1), Some("foot" | "shin" | "thigh"))
+                    })
+                });
+                if !leg && !user_named {
+                    return Err(HumanImportError::Skeleton {
+                        file: file.to_string(),
+                        message: format!(
+                            "the skeleton has no {label} leg: no joint is named like a {label} thigh, shin, foot or toe \
+                             (BVH joints: {}); ACE needs both legs. If the leg is there under other names, \
+                             name them in a joint-mapping file (--mapping FILE or `<clip>.mapping.toml` beside the clip)",
+                            super::error::short_list(&self.names())
+                        ),
+                    });
+                }
+            }
             return Err(HumanImportError::Unmapped {
                 file: file.to_string(),
                 missing,

@@ -151,18 +151,16 @@ impl AceConfig {
 
     /// Checks that every value is in range.
     pub fn check(&self) -> Result<(), LearnError> {
+        use super::limits::{self, in_range};
         let bad = |m: String| Err(LearnError::Config(m));
-        if self.batch_size == 0 || self.window == 0 || self.checkpoint_every == 0 {
-            return bad("batch_size, window and checkpoint_every must be at least 1".into());
-        }
-        if self
-            .generator_hidden
-            .iter()
-            .chain(&self.discriminator_hidden)
-            .any(|&w| w == 0)
-        {
-            return bad("hidden layer widths must be at least 1".into());
-        }
+        in_range("batch_size", self.batch_size, 1, limits::BATCH_SIZE)?;
+        in_range("window", self.window, 1, limits::WINDOW)?;
+        in_range("steps", self.steps, 1, limits::STEPS)?;
+        in_range("checkpoint_every", self.checkpoint_every, 1, limits::STEPS)?;
+        in_range("discriminator_steps", self.discriminator_steps, 0, 1_000)?;
+        limits::widths("generator_hidden", &self.generator_hidden)?;
+        limits::widths("discriminator_hidden", &self.discriminator_hidden)?;
+        self.feature_weights.check().map_err(LearnError::Config)?;
         for (name, v) in [
             ("generator_lr", self.generator_lr),
             ("discriminator_lr", self.discriminator_lr),

@@ -229,6 +229,17 @@ pub(crate) fn load_weights(
                 t.dtype()
             )));
         }
+        let bad = t
+            .data()
+            .chunks_exact(4)
+            .filter(|b| !f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
+            .count();
+        if bad > 0 {
+            return Err(corrupt(format!(
+                "tensor `{name}` holds {bad} non-finite value(s) (NaN or infinity): the {network} weights are \
+                 damaged (a diverged training run?); retrain or restore them"
+            )));
+        }
     }
     record.verify(path, &bytes, described_in)?;
     tch::no_grad(|| -> Result<(), LearnError> {

@@ -99,3 +99,37 @@ mod tests {
         assert!(e.to_string().contains("width 92") && e.to_string().contains("[4, 5]"), "{e}");
     }
 }
+
+/// Upper bounds of the training configurations' sizes, checked before any work (a `batch_size` of 10⁹
+/// would otherwise ask libtorch for gigabytes and abort the process).
+pub mod limits {
+    /// Windows or transitions per optimiser step.
+    pub const BATCH_SIZE: usize = 65_536;
+    /// Width of a hidden layer.
+    pub const HIDDEN_WIDTH: usize = 16_384;
+    /// Hidden layers per network.
+    pub const HIDDEN_LAYERS: usize = 64;
+    /// Frames per training window or rollout.
+    pub const WINDOW: usize = 1_024;
+    /// Optimiser steps.
+    pub const STEPS: usize = 100_000_000;
+    /// Latent dimensions and experts.
+    pub const LATENT: usize = 4_096;
+
+    /// `Err` naming `field`, its value and the valid range unless `lo ≤ v ≤ hi`.
+    pub fn in_range(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), super::checkpoint::LearnError> {
+        if (lo..=hi).contains(&v) {
+            Ok(())
+        } else {
+            Err(super::checkpoint::LearnError::Config(format!(
+                "`{field}` = {v} is out of range: expected {lo} to {hi}"
+            )))
+        }
+    }
+
+    /// [`in_range`] for each width of a hidden-layer list, and for their count.
+    pub fn widths(field: &str, w: &[usize]) -> Result<(), super::checkpoint::LearnError> {
+        in_range(&format!("{field} (number of layers)"), w.len(), 0, HIDDEN_LAYERS)?;
+        w.iter().try_for_each(|&v| in_range(field, v, 1, HIDDEN_WIDTH))
+    }
+}

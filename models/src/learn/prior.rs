@@ -72,7 +72,9 @@ const HEADER: &str = "step,total,reconstruction,kl,sampling_probability,seconds"
 const SECONDS_COLUMN: usize = 5;
 
 /// Where training and inference run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+///
+/// Written `"auto"`, `"cpu"`, `"cuda"` (device 0), `"cuda:N"` or `{ cuda = N }`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DeviceChoice {
     /// The first CUDA device when libtorch sees one, else the CPU.
@@ -82,6 +84,45 @@ pub enum DeviceChoice {
     Cpu,
     /// CUDA device `n`.
     Cuda(usize),
+}
+
+impl<'de> Deserialize<'de> for DeviceChoice {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        const EXPECTED: &str = "\"auto\", \"cpu\", \"cuda\", \"cuda:N\" or { cuda = N }";
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = DeviceChoice;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str(EXPECTED)
+            }
+            fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<DeviceChoice, E> {
+                match s {
+                    "auto" => Ok(DeviceChoice::Auto),
+                    "cpu" => Ok(DeviceChoice::Cpu),
+                    "cuda" => Ok(DeviceChoice::Cuda(0)),
+                    _ => s
+                        .strip_prefix("cuda:")
+                        .and_then(|n| n.parse().ok())
+                        .map(DeviceChoice::Cuda)
+                        .ok_or_else(|| E::custom(format!("unknown device `{s}`: expected {EXPECTED}"))),
+                }
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, mut m: A) -> Result<DeviceChoice, A::Error> {
+                let key: String = m
+                    .next_key()?
+                    .ok_or_else(|| serde::de::Error::custom(format!("empty device table: expected {EXPECTED}")))?;
+                if key != "cuda" {
+                    return Err(serde::de::Error::custom(format!("unknown device `{key}`: expected {EXPECTED}")));
+                }
+                let n: usize = m.next_value()?;
+                if let Some(k) = m.next_key::<String>()? {
+                    return Err(serde::de::Error::custom(format!("unexpected `{k}` in the device table: expected {EXPECTED}")));
+                }
+                Ok(DeviceChoice::Cuda(n))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl DeviceChoice {
@@ -218,22 +259,18 @@ impl PriorConfig {
 
     /// Checks that every value is in range.
     pub fn check(&self) -> Result<(), LearnError> {
+        use super::limits::{self, in_range};
         let bad = |m: String| Err(LearnError::Config(m));
         let s = &self.sampling;
-        if self.latent == 0 || self.experts == 0 || self.batch_size == 0 || self.rollout == 0 {
-            return bad("latent, experts, batch_size and rollout must be at least 1".into());
-        }
-        if self.checkpoint_every == 0 {
-            return bad("checkpoint_every must be at least 1".into());
-        }
-        let mut widths = self
-            .encoder_hidden
-            .iter()
-            .chain(&self.decoder_hidden)
-            .chain(&self.gating_hidden);
-        if widths.any(|&w| w == 0) {
-            return bad("hidden layer widths must be at least 1".into());
-        }
+        in_range("latent", self.latent, 1, limits::LATENT)?;
+        in_range("experts", self.experts, 1, 256)?;
+        in_range("batch_size", self.batch_size, 1, limits::BATCH_SIZE)?;
+        in_range("rollout", self.rollout, 1, limits::WINDOW)?;
+        in_range("steps", self.steps, 1, limits::STEPS)?;
+        in_range("checkpoint_every", self.checkpoint_every, 1, limits::STEPS)?;
+        limits::widths("encoder_hidden", &self.encoder_hidden)?;
+        limits::widths("decoder_hidden", &self.decoder_hidden)?;
+        limits::widths("gating_hidden", &self.gating_hidden)?;
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
             return bad(format!(
                 "learning_rate must be positive, not {}",

@@ -34,6 +34,10 @@ use crate::human_set::{HumanRow, PROJECT_FPS};
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 
+/// Largest ratio between a character's body length and the one its checkpoint was trained with
+/// ([`Retargeter::check_character`]).
+pub const BODY_LENGTH_TOLERANCE: f32 = 1.25;
+
 /// A retargeted motion: one state and one pose per human frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RetargetedMotion {
@@ -127,9 +131,27 @@ impl Retargeter {
 
     /// Fails with [`LearnError::WrongCharacter`] unless `tree` and `morph` are the checkpoint's
     /// character.
+    /// Also fails when the character's body length differs from the one recorded in training by more
+    /// than [`BODY_LENGTH_TOLERANCE`]: the same joints at another scale (a URDF scaled ×10) are another
+    /// character to the prior, whose states are in metres.
     pub fn check_character(&self, tree: &KinematicTree, morph: &Morphology) -> Result<(), LearnError> {
         self.prior
-            .check_character(&self.dir, &CharacterInfo::of_character(tree, morph))
+            .check_character(&self.dir, &CharacterInfo::of_character(tree, morph))?;
+        let recorded = self.ace.record.body_lengths.character;
+        let measured = crate::features::character_body_length(tree, morph);
+        let ratio = measured / recorded;
+        if !(ratio.is_finite() && (1.0 / BODY_LENGTH_TOLERANCE..=BODY_LENGTH_TOLERANCE).contains(&ratio)) {
+            return Err(LearnError::WrongCharacter {
+                path: self.dir.join(super::ace::ACE_FILE),
+                problem: format!(
+                    "it was trained for `{}` with a body length of {recorded:.3} m; this `{}` measures {measured:.3} m \
+                     (×{ratio:.2}, more than ×{BODY_LENGTH_TOLERANCE} apart): the same joints at another size are \
+                     another character to the prior; train a checkpoint for it",
+                    self.prior.character.name, tree.name
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// The normalised x^r of the character standing at rest (the standing pose, zero velocities).

@@ -157,6 +157,7 @@ pub fn train_ace(
     place_prior(prior, run_dir)?;
 
     let human_stats = inputs.humans.train_statistics();
+    check_human_stats(inputs.humans, &human_stats)?;
     let psi = Psi::new(
         &prior.character.layout,
         &inputs.correspondence.mapping,
@@ -622,6 +623,30 @@ fn start_or_resume(
 
 /// Shared inputs of the ACE tests: the bundled clips as a human set and a small ACE run on the small
 /// Spot prior of [`super::prior::test_support`], trained once per test process.
+/// Largest plausible |mean| or standard deviation of an x^h entry (metres, m/s, rad/s, unit
+/// quaternion components): far above any human motion, far below what one corrupt clip produces.
+pub const MAX_HUMAN_STAT: f32 = 1e3;
+
+/// Refuses human normalisation statistics that no human motion gives, naming the clip with the most
+/// extreme value of the offending entry, before anything is trained or saved with them.
+fn check_human_stats(humans: &HumanSet, stats: &HumanStats) -> Result<(), LearnError> {
+    let bad = (0..stats.mean.len()).find(|&k| {
+        !(stats.mean[k].abs() <= MAX_HUMAN_STAT && stats.std[k] <= MAX_HUMAN_STAT)
+    });
+    let Some(k) = bad else { return Ok(()) };
+    let worst = humans
+        .train_clips()
+        .map(|c| (c, c.states.iter().map(|s| s[k].abs()).fold(0.0f32, |a, b| if b.is_nan() || b > a { b } else { a })))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    Err(LearnError::Data(format!(
+        "the human clips' x^h entry {k} has mean {} and standard deviation {} (at most {MAX_HUMAN_STAT} is plausible){}; \
+         nothing was trained or saved",
+        stats.mean[k],
+        stats.std[k],
+        worst.map_or(String::new(), |(c, v)| format!(": {} reaches {v}", c.path.display()))
+    )))
+}
+
 #[cfg(test)]
 pub(crate) mod test_support {
     use std::path::PathBuf;

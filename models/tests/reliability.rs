@@ -1,0 +1,419 @@
+//! Hostile and broken input to the readers: nothing panics, overflows the stack or allocates from a
+//! header, nothing absurd is accepted silently, and every error names the file and the problem.
+
+use std::path::{Path, PathBuf};
+
+use ace_models::human::{HumanClip, HumanImportError, ImportOptions};
+use ace_models::kinematics::KinematicTree;
+use ace_models::urdf::parse_urdf;
+
+fn asset(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
+}
+
+fn walk() -> String {
+    std::fs::read_to_string(asset("assets/motions/walk.bvh")).unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("reliability").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn import_err(text: &str) -> String {
+    HumanClip::from_bvh_str(text, "bad.bvh", &ImportOptions::default())
+        .map(|c| format!("imported {} frames", c.frames.len()))
+        .unwrap_err()
+        .to_string()
+}
+
+/// The walk clip with its first motion line's values replaced by `f(k, v)`.
+fn walk_with_first_frame(f: impl Fn(usize, f32) -> f32) -> String {
+    let text = walk();
+    let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+    let mut lines = motion.lines();
+    let first: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .enumerate()
+        .map(|(k, v)| f(k, v.parse().unwrap()).to_string())
+        .collect();
+    let rest: Vec<&str> = lines.collect();
+    format!("{head}Frame Time: 0.033333\n{}\n{}\n", first.join(" "), rest.join("\n"))
+}
+
+#[test]
+fn a_huge_frame_count_in_the_header_is_not_allocated() {
+    // 78 KB of text declaring 10^12 frames: the reader must find the file truncated, not abort
+    // allocating 10^12 × channels values first.
+    let text = walk().replace("Frames: 150", "Frames: 1000000000000");
+    let e = import_err(&text);
+    assert!(
+        e.contains("bad.bvh") && e.contains("truncated") && e.contains("Frames: 1000000000000"),
+        "{e}"
+    );
+    assert!(e.contains("only 150"), "{e}");
+}
+
+#[test]
+fn more_motion_lines_than_declared_is_an_error() {
+    let text = walk().replace("Frames: 150", "Frames: 149");
+    let e = import_err(&text);
+    // Line 134 + 149 frames: the 150th frame sits on line 284.
+    assert!(
+        e.contains("bad.bvh, line 284") && e.contains("more motion lines than `Frames: 149`"),
+        "{e}"
+    );
+    // Trailing blank lines are not frames.
+    let ok = HumanClip::from_bvh_str(&format!("{}\n\n\n", walk()), "ok.bvh", &ImportOptions::default()).unwrap();
+    assert_eq!(ok.frames.len(), 150);
+}
+
+#[test]
+fn an_absurd_frame_time_is_an_error() {
+    for t in ["1e-9", "0.00001", "100"] {
+        let e = import_err(&walk().replace("Frame Time: 0.033333", &format!("Frame Time: {t}")));
+        assert!(
+            e.contains("bad.bvh, line 134") && e.contains(&format!("`Frame Time: {t}`")),
+            "{e}"
+        );
+        assert!(e.contains("expected 0.001 to 10 seconds per frame"), "{e}");
+    }
+}
+
+/// A chain of `depth` joints below a root, one frame.
+fn deep_chain(depth: usize) -> String {
+    let mut s = String::from("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n");
+    for k in 0..depth {
+        s.push_str(&format!("JOINT J{k}\n{{\nOFFSET 0 1 0\nCHANNELS 1 Zrotation\n"));
+    }
+    s.push_str("End Site\n{\nOFFSET 0 1 0\n}\n");
+    for _ in 0..=depth {
+        s.push_str("}\n");
+    }
+    s.push_str("MOTION\nFrames: 1\nFrame Time: 0.033333\n0 0 0");
+    s.push_str(&" 0".repeat(depth));
+    s.push('\n');
+    s
+}
+
+#[test]
+fn deep_joint_chains_do_not_overflow_the_stack() {
+    // Run on a thread with a small stack: the reader must not recurse on the file's depth.
+    let handle = std::thread::Builder::new()
+        .stack_size(256 * 1024)
+        .spawn(|| {
+            let mut out = Vec::new();
+            for depth in [30_000, 100_000] {
+                let text = deep_chain(depth);
+                let bvh = ace_models::human::bvh::Bvh::parse(&text, "deep.bvh").unwrap();
+                assert_eq!(bvh.joints.len(), depth + 1);
+                assert_eq!(bvh.joints[depth].parent, Some(depth - 1));
+                out.push(import_err(&text));
+            }
+            out
+        })
+        .unwrap();
+    for e in handle.join().expect("no stack overflow") {
+        // Generic names: an unknown skeleton, with a bounded list of joints.
+        assert!(e.starts_with("bad.bvh: unknown skeleton") && e.contains("J58, … and"), "{e}");
+        assert!(
+            e.len() < 2_000,
+            "the message lists a bounded number of joints ({} bytes)",
+            e.len()
+        );
+    }
+}
+
+#[test]
+fn duplicate_joint_names_are_an_error_naming_both_lines() {
+    // Two joints called `LeftArm`: matching would otherwise map right_upper_arm to the clavicle.
+    let text = walk().replace("JOINT RightShoulder", "JOINT LeftArm");
+    let e = import_err(&text);
+    assert!(
+        e.contains("bad.bvh, line 56") && e.contains("duplicate joint name `LeftArm` (first defined at line 36)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_skeleton_without_legs_or_bone_lengths_is_said_to_be_so() {
+    // No legs: drop everything from the left hip on.
+    let text = walk();
+    let cut = text.find("  JOINT LeftUpLeg").unwrap();
+    let motion = text.find("MOTION").unwrap();
+    let channels_kept = 6 + 3 * 13; // root + the 13 upper-body joints with channels
+    let values: Vec<String> = text[motion..]
+        .lines()
+        .skip(3)
+        .map(|l| l.split_whitespace().take(channels_kept).collect::<Vec<_>>().join(" "))
+        .collect();
+    let legless = format!(
+        "{}}}\nMOTION\nFrames: 150\nFrame Time: 0.033333\n{}\n",
+        &text[..cut],
+        values.join("\n")
+    );
+    let e = import_err(&legless);
+    assert!(e.contains("bad.bvh: the skeleton has no left leg"), "{e}");
+    assert!(!e.contains("unknown skeleton"), "{e}");
+
+    // All-zero offsets.
+    let mut zero = String::new();
+    for line in text[..motion].lines() {
+        if line.trim_start().starts_with("OFFSET") {
+            zero.push_str("OFFSET 0 0 0\n");
+        } else {
+            zero.push_str(line);
+            zero.push('\n');
+        }
+    }
+    zero.push_str(&text[motion..]);
+    let e = import_err(&zero);
+    assert!(e.contains("bad.bvh: every OFFSET below the root is zero"), "{e}");
+}
+
+#[test]
+fn absurd_finite_values_are_refused_after_unit_detection() {
+    // 1e30 in the root's position channel of frame 1.
+    let e = import_err(&walk_with_first_frame(|k, v| if k == 1 { 1e30 } else { v }));
+    assert!(
+        e.contains(
+            "bad.bvh: implausible motion: position channel 2 of joint `Hips` (line 2) is 1e30 file units in frame 1"
+        ),
+        "{e}"
+    );
+    // 5e6 cm passes as a file value but is 50 km once the unit is known.
+    let e = import_err(&walk_with_first_frame(|k, v| if k == 1 { 5e6 } else { v }));
+    assert!(
+        e.contains("bad.bvh: implausible motion") && e.contains("m from the origin in frame 1 (unit cm)"),
+        "{e}"
+    );
+    // 1e30 in the root's OFFSET (was detected as inches before), and in a bone's.
+    for (from, line) in [("OFFSET 0.0000 95.0000 0.0000", 2), ("OFFSET 0.0000 10.0000 0.0000", 6)] {
+        let e = import_err(&walk().replacen(from, "OFFSET 0.0000 1e30 0.0000", 1));
+        assert!(
+            e.contains(&format!("bad.bvh: implausible motion: joint"))
+                && e.contains(&format!("(line {line}) has an OFFSET of 1e30")),
+            "{e}"
+        );
+    }
+    // A rotation of 1e30 degrees.
+    let e = import_err(&walk_with_first_frame(|k, v| if k == 10 { 1e30 } else { v }));
+    assert!(
+        e.contains("bad.bvh: implausible motion: rotation channel") && e.contains("frame 1"),
+        "{e}"
+    );
+}
+
+#[test]
+fn utf16_files_get_an_encoding_hint_and_fifos_are_refused() {
+    let dir = scratch("encoding");
+    let path = dir.join("walk16.bvh");
+    let mut bytes = vec![0xFF, 0xFE];
+    bytes.extend(walk().encode_utf16().flat_map(|u| u.to_le_bytes()));
+    std::fs::write(&path, bytes).unwrap();
+    let e = HumanClip::from_bvh_file(&path, &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("walk16.bvh") && e.contains("UTF-16 encoded; save it as UTF-8"),
+        "{e}"
+    );
+
+    let fifo = dir.join("pipe.bvh");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    // A FIFO would block the reader forever: it must be refused without opening it.
+    let (tx, rx) = std::sync::mpsc::channel();
+    let f = fifo.clone();
+    std::thread::spawn(move || {
+        let _ = tx.send(
+            HumanClip::from_bvh_file(&f, &ImportOptions::default())
+                .map(|_| ())
+                .unwrap_err()
+                .to_string(),
+        );
+    });
+    let e = rx
+        .recv_timeout(std::time::Duration::from_secs(20))
+        .expect("the reader hung on a FIFO");
+    assert!(e.contains("pipe.bvh") && e.contains("not a regular file"), "{e}");
+    let e = ace_models::urdf::read_urdf_file(&fifo).unwrap_err().to_string();
+    assert!(e.contains("pipe.bvh") && e.contains("not a regular file"), "{e}");
+}
+
+#[test]
+fn a_mapping_file_beside_the_clip_is_read() {
+    let dir = scratch("mapping");
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let clip = dir.join("rig.bvh");
+    std::fs::copy(data.join("unknown_rig.bvh"), &clip).unwrap();
+    let err = HumanClip::from_bvh_file(&clip, &ImportOptions::default()).unwrap_err();
+    assert!(matches!(err, HumanImportError::Unmapped { .. }), "{err}");
+    assert!(err.to_string().contains("--mapping FILE"), "{err}");
+    std::fs::copy(data.join("unknown_rig.toml"), dir.join("rig.mapping.toml")).unwrap();
+    let clip = HumanClip::from_bvh_file(&clip, &ImportOptions::default()).unwrap();
+    assert_eq!(clip.convention, "user-mapping");
+    assert_eq!(clip.mapped_joints, 17);
+    // A broken mapping beside the clip is reported, naming that file.
+    std::fs::write(dir.join("rig.mapping.toml"), "pelvis = 3\n").unwrap();
+    let e = HumanClip::from_bvh_file(&dir.join("rig.bvh"), &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("rig.mapping.toml") && e.contains("`pelvis` must be a string"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_lying_clip_gets_a_posture_warning() {
+    let clip = HumanClip::from_bvh_str(&walk(), "walk", &ImportOptions::default()).unwrap();
+    assert_eq!(clip.posture_warning(), None);
+    assert!(clip.upright_fraction() > 0.99);
+    // The same clip turned 90° about the y axis: the person lies on the floor.
+    let turn = ace_models::nalgebra::UnitQuaternion::from_axis_angle(&ace_models::nalgebra::Vector3::y_axis(), 1.5708);
+    let mut lying = clip.clone();
+    for f in &mut lying.frames {
+        f.root_rotation = turn * f.root_rotation;
+        for p in f.positions.iter_mut() {
+            *p = turn * *p;
+        }
+    }
+    let w = lying.posture_warning().expect("a warning");
+    assert!(
+        w.starts_with("walk: the pelvis is upright (within 60° of vertical) in only 0 % of the frames"),
+        "{w}"
+    );
+}
+
+const ROBOT: &str = r#"<robot name="r">
+  <link name="world"/>
+  <link name="base"><collision><geometry><box size="0.4 0.2 0.1"/></geometry></collision></link>
+  <link name="leg"><collision><geometry><box size="0.05 0.05 0.3"/></geometry></collision></link>
+  <joint name="anchor" type="JOINT_TYPE"><parent link="world"/><child link="base"/></joint>
+  <joint name="hip" type="revolute"><parent link="base"/><child link="leg"/><axis xyz="0 1 0"/>
+    <limit lower="LOWER" upper="UPPER" effort="1" velocity="1"/></joint>
+</robot>"#;
+
+fn robot(anchor: &str, lower: &str, upper: &str) -> String {
+    ROBOT
+        .replace("JOINT_TYPE", anchor)
+        .replace("LOWER", lower)
+        .replace("UPPER", upper)
+}
+
+#[test]
+fn urdf_inverted_limits_and_free_joints_in_the_body_are_errors() {
+    let e = parse_urdf(&robot("fixed", "1.0", "-1.0"), "inv.urdf", None)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "inv.urdf: joint `hip` has inverted limits: lower 1 > upper -1; the lower limit must not exceed the upper"
+    );
+    // A floating anchor from a geometry-less root link is frozen with a warning the CLI prints.
+    for kind in ["floating", "planar"] {
+        let tree: KinematicTree = parse_urdf(&robot(kind, "-1", "1"), "anchor.urdf", None).unwrap();
+        assert!(
+            tree.warnings
+                .iter()
+                .any(|w| w.contains("`anchor`") && w.contains("treated as fixed")),
+            "{:?}",
+            tree.warnings
+        );
+    }
+    // A planar joint inside the body would be frozen silently: refused.
+    let body = robot("fixed", "-1", "1").replace(r#"name="hip" type="revolute""#, r#"name="hip" type="planar""#);
+    let e = parse_urdf(&body, "body.urdf", None).unwrap_err().to_string();
+    assert!(
+        e.starts_with("body.urdf: joint `hip` is planar between links `base` and `leg`"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_truncated_urdf_error_gives_a_position() {
+    let full = robot("fixed", "-1", "1");
+    let cut = &full[..full.find("<link name=\"leg\">").unwrap() + 17];
+    let e = parse_urdf(cut, "cut.urdf", None).unwrap_err().to_string();
+    assert!(e.starts_with("cut.urdf: malformed URDF/XML"), "{e}");
+    assert!(
+        e.contains("the file ends at line 4") && e.contains("`<link>` (line 4, column 3) still open"),
+        "{e}"
+    );
+}
+
+#[test]
+fn training_configurations_are_bounded_and_strict() {
+    use ace_models::learn::ace::AceConfig;
+    use ace_models::learn::prior::{DeviceChoice, PriorConfig};
+    let ace = |s: &str| toml::from_str::<AceConfig>(s);
+    let check = |s: &str| ace(s).unwrap().check().unwrap_err().to_string();
+    assert_eq!(
+        check("batch_size = 1000000000"),
+        "invalid configuration: `batch_size` = 1000000000 is out of range: expected 1 to 65536"
+    );
+    assert_eq!(
+        check("steps = 0"),
+        "invalid configuration: `steps` = 0 is out of range: expected 1 to 100000000"
+    );
+    assert_eq!(
+        check("generator_hidden = [100000]"),
+        "invalid configuration: `generator_hidden` = 100000 is out of range: expected 1 to 16384"
+    );
+    assert_eq!(
+        check("[feature_weights]\nroot_height = -1.0"),
+        "invalid configuration: `feature_weights.root_height` = -1 is out of range: expected a finite weight ≥ 0"
+    );
+    let e = ace("[feature_weights]\nroot_heigth = 2.0").unwrap_err().to_string();
+    assert!(e.contains("unknown field `root_heigth`"), "{e}");
+    let prior = |s: &str| {
+        toml::from_str::<PriorConfig>(s)
+            .unwrap()
+            .check()
+            .unwrap_err()
+            .to_string()
+    };
+    assert_eq!(
+        prior("batch_size = 0"),
+        "invalid configuration: `batch_size` = 0 is out of range: expected 1 to 65536"
+    );
+    // `device = "cuda"` is the first CUDA device; an unknown one lists what is valid.
+    assert_eq!(ace("device = \"cuda\"").unwrap().device, DeviceChoice::Cuda(0));
+    assert_eq!(ace("device = \"cuda:1\"").unwrap().device, DeviceChoice::Cuda(1));
+    assert_eq!(ace("device = { cuda = 2 }").unwrap().device, DeviceChoice::Cuda(2));
+    assert_eq!(ace("device = \"cpu\"").unwrap().device, DeviceChoice::Cpu);
+    let e = ace("device = \"tpu\"").unwrap_err().to_string();
+    assert!(
+        e.contains("unknown device `tpu`: expected \"auto\", \"cpu\", \"cuda\", \"cuda:N\" or { cuda = N }"),
+        "{e}"
+    );
+    // The stored form reads back.
+    let json = serde_json::to_string(&DeviceChoice::Cuda(3)).unwrap();
+    assert_eq!(
+        serde_json::from_str::<DeviceChoice>(&json).unwrap(),
+        DeviceChoice::Cuda(3)
+    );
+}
+
+#[test]
+fn dataset_frames_are_bounded_before_allocation() {
+    use ace_models::dataset::{DatasetConfig, MAX_FRAMES, check_config};
+    let cfg = DatasetConfig {
+        frames: 1_000_000_000_000,
+        ..DatasetConfig::default()
+    };
+    assert_eq!(
+        check_config(&cfg).unwrap_err().to_string(),
+        format!("invalid dataset configuration: `frames` = 1000000000000 is out of range: expected 1 to {MAX_FRAMES}")
+    );
+}

@@ -1,0 +1,323 @@
+//! How every command writes: never over a file it read, and its outputs as a set.
+//!
+//! - [`Outputs::input`] records each file or directory a command reads (the clip, the checkpoint
+//!   directory, the config, the character); [`Outputs::check`] refuses an output path that is one of
+//!   them (same file, also through a symlink or a hard link) or lies inside an input directory.
+//! - [`Outputs::stage`] and [`Outputs::stage_dir`] hand out a temporary sibling of each output
+//!   (`.<name>.ace-tmp-<pid>`); the command writes there, and [`Outputs::commit`] renames every one of
+//!   them into place only after all were written. On an error, dropping the [`Outputs`] removes the
+//!   temporaries: nothing new is left and the previous outputs stay as they were.
+//! - [`install_signal_cleanup`] removes the live temporaries on SIGINT and SIGTERM; temporaries of
+//!   runs killed harder (SIGKILL, power loss) are removed by the next run that writes beside them
+//!   ([`remove_stale_temporaries`]).
+
+use std::collections::BTreeSet;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::{Context, Result, bail};
+
+/// Temporaries of this process not yet renamed into place, for the signal handler.
+static LIVE: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
+
+/// The marker of this module's temporaries in a file name.
+const TMP_MARK: &str = ".ace-tmp-";
+
+/// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries and exits with
+/// status 130. Call once, at start-up.
+pub fn install_signal_cleanup() {
+    let _ = ctrlc::set_handler(|| {
+        remove_live_temporaries();
+        eprintln!("interrupted: temporary outputs removed, previous outputs left as they were");
+        std::process::exit(130);
+    });
+}
+
+/// Removes the live temporaries and, beside them, those of the writers underneath (named with this
+/// process' id, see [`remove_stale_temporaries`]).
+fn remove_live_temporaries() {
+    let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+    let me = std::process::id();
+    for p in live.iter() {
+        let _ = if p.is_dir() {
+            fs::remove_dir_all(p)
+        } else {
+            fs::remove_file(p)
+        };
+        let Some(dir) = p.parent() else { continue };
+        for e in fs::read_dir(dir).into_iter().flatten().flatten() {
+            if temporary_pid(&e.file_name().to_string_lossy()) == Some(me) {
+                let q = e.path();
+                let _ = if q.is_dir() {
+                    fs::remove_dir_all(&q)
+                } else {
+                    fs::remove_file(&q)
+                };
+            }
+        }
+    }
+}
+
+/// An input a command read.
+#[derive(Debug)]
+struct Input {
+    path: PathBuf,
+    canonical: PathBuf,
+    is_dir: bool,
+    what: String,
+}
+
+/// The inputs a command read and the outputs it is writing (see the module docs).
+#[derive(Debug, Default)]
+pub struct Outputs {
+    inputs: Vec<Input>,
+    /// (temporary, final) pairs, in the order staged.
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Outputs {
+    /// No inputs and no outputs yet.
+    pub fn new() -> Outputs {
+        Outputs::default()
+    }
+
+    /// Records that the command reads `path` (a file or a directory; `what` names it in errors, e.g.
+    /// "the input clip"). A path that does not exist is ignored.
+    pub fn input(&mut self, path: &Path, what: &str) -> &mut Outputs {
+        if let Ok(canonical) = fs::canonicalize(path) {
+            self.inputs.push(Input {
+                path: path.to_path_buf(),
+                is_dir: canonical.is_dir(),
+                canonical,
+                what: what.to_string(),
+            });
+        }
+        self
+    }
+
+    /// Fails, naming both, when writing `out` would overwrite an input or write inside an input
+    /// directory.
+    pub fn check(&self, out: &Path) -> Result<()> {
+        let target = resolve(out)?;
+        for i in &self.inputs {
+            let same = target == i.canonical || same_file(&target, &i.canonical);
+            if same {
+                bail!(
+                    "{}: refusing to write there: it is {} ({}) this command reads; choose another output path",
+                    out.display(),
+                    i.what,
+                    i.path.display()
+                );
+            }
+            if i.is_dir && target.starts_with(&i.canonical) {
+                bail!(
+                    "{}: refusing to write there: it is inside {} ({}) this command reads, whose files it \
+                     would overwrite; choose an output path outside it",
+                    out.display(),
+                    i.what,
+                    i.path.display()
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The temporary sibling to write `out` into (checked with [`Outputs::check`]; its folder is
+    /// created, and stale temporaries of killed runs in it are removed).
+    pub fn stage(&mut self, out: &Path) -> Result<PathBuf> {
+        self.check(out)?;
+        if self.staged.iter().any(|(_, f)| f == out) {
+            bail!("{}: written twice by the same command", out.display());
+        }
+        let parent = out
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        fs::create_dir_all(parent)
+            .with_context(|| format!("{}: cannot create its folder {}", out.display(), parent.display()))?;
+        remove_stale_temporaries(parent);
+        let name = out
+            .file_name()
+            .with_context(|| format!("{}: not a file name", out.display()))?;
+        let mut tmp_name = std::ffi::OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(format!("{TMP_MARK}{}", std::process::id()));
+        let tmp = parent.join(tmp_name);
+        LIVE.lock().unwrap_or_else(|e| e.into_inner()).insert(tmp.clone());
+        if tmp.is_dir() {
+            let _ = fs::remove_dir_all(&tmp);
+        } else {
+            let _ = fs::remove_file(&tmp);
+        }
+        self.staged.push((tmp.clone(), out.to_path_buf()));
+        Ok(tmp)
+    }
+
+    /// [`Outputs::stage`] for a folder: the command writes the folder's files into the returned
+    /// (created, empty) temporary folder; [`Outputs::commit`] moves each of them into `dir`, keeping the
+    /// files of `dir` it did not write.
+    pub fn stage_dir(&mut self, dir: &Path) -> Result<PathBuf> {
+        let tmp = self.stage(dir)?;
+        fs::create_dir_all(&tmp)
+            .with_context(|| format!("{}: cannot create the folder {}", dir.display(), tmp.display()))?;
+        Ok(tmp)
+    }
+
+    /// Renames every staged output into place, in the order staged. (Renames within a folder do not
+    /// fail for want of space; should one fail, the outputs not yet renamed are removed.)
+    pub fn commit(mut self) -> Result<()> {
+        while !self.staged.is_empty() {
+            let (tmp, out) = self.staged.remove(0);
+            let moved = if tmp.is_dir() {
+                merge_dir(&tmp, &out)
+            } else {
+                fs::rename(&tmp, &out)
+            };
+            if tmp.is_dir() {
+                let _ = fs::remove_dir_all(&tmp);
+            }
+            LIVE.lock().unwrap_or_else(|e| e.into_inner()).remove(&tmp);
+            moved.with_context(|| format!("moving {} into place as {}", tmp.display(), out.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Outputs {
+    /// Removes the temporaries of outputs never committed (the command failed).
+    fn drop(&mut self) {
+        let mut live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+        for (tmp, _) in &self.staged {
+            let _ = if tmp.is_dir() {
+                fs::remove_dir_all(tmp)
+            } else {
+                fs::remove_file(tmp)
+            };
+            live.remove(tmp);
+        }
+    }
+}
+
+/// Moves the files of `from` into `to` (created when missing), subfolders recursively.
+fn merge_dir(from: &Path, to: &Path) -> std::io::Result<()> {
+    // Iterative: the depth is our own outputs' (a folder or two), but a walk never needs the stack.
+    let mut pending = vec![(from.to_path_buf(), to.to_path_buf())];
+    while let Some((src, dst)) = pending.pop() {
+        fs::create_dir_all(&dst)?;
+        for e in fs::read_dir(&src)? {
+            let e = e?;
+            let target = dst.join(e.file_name());
+            if e.file_type()?.is_dir() {
+                pending.push((e.path(), target));
+            } else {
+                fs::rename(e.path(), &target)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `path` made absolute with symlinks resolved as far as it exists (the rest appended as given).
+fn resolve(path: &Path) -> Result<PathBuf> {
+    let abs = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .context("reading the current directory")?
+            .join(path)
+    };
+    let mut rest = Vec::new();
+    let mut base = abs.as_path();
+    loop {
+        if let Ok(c) = fs::canonicalize(base) {
+            let mut p = c;
+            for part in rest.iter().rev() {
+                p.push(part);
+            }
+            return Ok(p);
+        }
+        match (base.parent(), base.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                base = parent;
+            }
+            _ => return Ok(abs),
+        }
+    }
+}
+
+/// Whether two existing paths are the same file (hard links included).
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (fs::metadata(a), fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a, b);
+        false
+    }
+}
+
+/// Removes temporaries left in `dir` by runs that no longer exist (killed with SIGKILL, say): files
+/// and folders named `.<name>.ace-tmp-<pid>`, and the writers' own `.<name>.tmp-<pid>`,
+/// `.<name>.<pid>.tmp[.ext]`, whose process is gone. Only where processes can be looked up (`/proc`).
+pub fn remove_stale_temporaries(dir: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = fs::read_dir(dir) else { return };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = temporary_pid(&name) else { continue };
+        if pid == std::process::id() || Path::new(&format!("/proc/{pid}")).exists() {
+            continue;
+        }
+        let p = e.path();
+        let _ = if p.is_dir() {
+            fs::remove_dir_all(&p)
+        } else {
+            fs::remove_file(&p)
+        };
+    }
+}
+
+/// The process id in a temporary's name (see [`remove_stale_temporaries`]).
+fn temporary_pid(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let tokens: Vec<&str> = rest.split(['.', '-']).collect();
+    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    let k = tokens.iter().position(|&t| t == "tmp" || t == "ace")?;
+    let (before, after) = (k.checked_sub(1).map(|i| tokens[i]), tokens.get(k + 1).copied());
+    let after = if tokens[k] == "ace" {
+        tokens.get(k + 2).copied().filter(|_| tokens.get(k + 1) == Some(&"tmp"))
+    } else {
+        after
+    };
+    [after, before]
+        .into_iter()
+        .flatten()
+        .find(|t| digits(t))
+        .and_then(|t| t.parse().ok())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_names_are_recognised() {
+        assert_eq!(temporary_pid(".walk.glb.ace-tmp-1234"), Some(1234));
+        assert_eq!(temporary_pid(".walk.glb.tmp-77"), Some(77));
+        assert_eq!(temporary_pid(".prior.4242.tmp.safetensors"), Some(4242));
+        assert_eq!(temporary_pid(".spot.safetensors.99.tmp"), Some(99));
+        assert_eq!(temporary_pid("walk.glb"), None);
+        assert_eq!(temporary_pid(".walk01.glb"), None);
+        assert_eq!(temporary_pid(".hidden.tmp"), None);
+    }
+}

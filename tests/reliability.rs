@@ -1,0 +1,630 @@
+//! The `ace` binary against a careless or hostile user: it never writes over a file it read, never
+//! leaves a partial output set, checks every bound before working, and names the file and the problem.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn shared(rel: &str) -> Option<PathBuf> {
+    let p = root().join("../shared/data").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+        eprintln!("skipping: {} is missing", p.display());
+        return None;
+    }
+    panic!(
+        "{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)",
+        p.display()
+    );
+}
+
+fn ace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("running ace")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// An empty scratch folder.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("reliability-cli")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> String {
+    p.to_str().unwrap().to_string()
+}
+
+/// Every file below `dir` with its bytes.
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, to.join(p.file_name().unwrap())).unwrap();
+    }
+}
+
+#[test]
+fn retarget_never_writes_over_its_inputs() {
+    let dir = scratch("guard");
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    let clip = dir.join("walk.bvh");
+    std::fs::copy(root().join("assets/motions/walk.bvh"), &clip).unwrap();
+    // Into the checkpoint directory (`ace.json` would become the trajectory), onto the clip itself, and
+    // onto the clip through a hard link.
+    let link = dir.join("link.glb");
+    std::fs::hard_link(&clip, &link).unwrap();
+    let before_link = snapshot(&dir);
+    for (out, expected) in [
+        (ck.join("ace.glb"), "is inside the checkpoint directory"),
+        (clip.clone(), "it is the input clip"),
+        (link.clone(), "it is the input clip"),
+        (clip.with_extension("glb"), ""), // beside the clip: allowed
+    ] {
+        let o = ace(&[
+            "--threads",
+            "1",
+            "retarget",
+            &s(&clip),
+            "--character",
+            "stretch",
+            "--checkpoint",
+            &s(&ck),
+            "--out",
+            &s(&out),
+        ]);
+        if expected.is_empty() {
+            assert!(o.status.success(), "{}", stderr(&o));
+            continue;
+        }
+        assert!(!o.status.success(), "{}: written", out.display());
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!("error: {}: refusing to write there", out.display())) && e.contains(expected),
+            "{e}"
+        );
+        assert_eq!(snapshot(&dir), before_link, "{}: a file changed", out.display());
+    }
+    // The trajectory beside the clip is `walk.json`: the clip, the checkpoint and the link are intact.
+    let after = snapshot(&dir);
+    for (p, bytes) in &before_link {
+        assert_eq!(after.get(p), Some(bytes), "{} changed", p.display());
+    }
+}
+
+#[test]
+fn training_refuses_a_config_inside_its_outputs() {
+    let dir = scratch("train-guard");
+    let ck = dir.join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    let cfg = ck.join("config.json");
+    std::fs::write(&cfg, "steps = 10\n").unwrap();
+    let o = ace(&[
+        "train-prior",
+        "--character",
+        "stretch",
+        "--frames",
+        "300",
+        "--config",
+        &s(&cfg),
+        "--checkpoint",
+        &s(&ck),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("config.json: refusing to write there: it is the configuration file"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_to_string(&cfg).unwrap(), "steps = 10\n");
+}
+
+#[test]
+fn demo_clips_of_the_same_file_name_do_not_collide() {
+    let dir = scratch("demo-names");
+    let (a, b) = (dir.join("a/walk.bvh"), dir.join("b/walk.bvh"));
+    std::fs::create_dir_all(a.parent().unwrap()).unwrap();
+    std::fs::create_dir_all(b.parent().unwrap()).unwrap();
+    std::fs::copy(root().join("assets/motions/walk.bvh"), &a).unwrap();
+    std::fs::copy(root().join("assets/motions/wave.bvh"), &b).unwrap();
+    let out = dir.join("out");
+    let o = ace(&[
+        "--threads",
+        "1",
+        "demo",
+        "--characters",
+        "stretch",
+        "--clip",
+        &s(&a),
+        "--clip",
+        &s(&b),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is written as `walk-2`: another clip has the same file name"),
+        "{}",
+        stderr(&o)
+    );
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rows = report.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    // Each row's frames are its own clip's (walk 150, wave another count), each in its own files.
+    let frames = |p: &Path| {
+        let o = ace(&["inspect", &s(p), "--json"]);
+        serde_json::from_slice::<Value>(&o.stdout).unwrap()["frames"]
+            .as_u64()
+            .unwrap()
+    };
+    for (row, (clip, name)) in rows.iter().zip([(&a, "walk"), (&b, "walk-2")]) {
+        assert_eq!(row["clip"], name);
+        assert_eq!(row["metrics"]["frames"].as_u64().unwrap(), frames(clip), "{row}");
+        let glb = out.join("stretch").join(format!("{name}.glb"));
+        assert_eq!(row["glb"].as_str().unwrap(), s(&glb));
+        let m: Value =
+            serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
+        assert_eq!(m["frames"].as_u64().unwrap(), frames(clip));
+    }
+    assert_ne!(
+        frames(&a),
+        frames(&b),
+        "the two clips differ in length, so a mix-up would show"
+    );
+    // No staging folder is left.
+    assert!(
+        std::fs::read_dir(&dir)
+            .unwrap()
+            .all(|e| !e.unwrap().file_name().to_string_lossy().contains("ace-tmp"))
+    );
+}
+
+#[test]
+fn numeric_options_are_bounded_before_any_work() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["--threads", "100000", "inspect", "assets/motions/walk.bvh"],
+            "invalid value '100000' for '--threads <THREADS>': 100000 is not in 1..=1024",
+        ),
+        (
+            &[
+                "dataset",
+                "--character",
+                "spot",
+                "--frames",
+                "1000000000000",
+                "--out",
+                "x.safetensors",
+            ],
+            "invalid value '1000000000000' for '--frames <FRAMES>': expected a frame count from 1 to 5000000",
+        ),
+        (
+            &["train-prior", "--character", "spot", "--frames", "0"],
+            "invalid value '0' for '--frames <FRAMES>'",
+        ),
+        (
+            &["eval", "--character", "spot", "--seconds", "0"],
+            "invalid value '0' for '--seconds <SECONDS>': expected seconds greater than 0 and at most 3600",
+        ),
+        (
+            &["eval", "--character", "spot", "--max-clips", "0"],
+            "invalid value '0' for '--max-clips <MAX_CLIPS>': expected a whole number of at least 1",
+        ),
+    ];
+    for (args, expected) in cases {
+        let start = Instant::now();
+        let o = ace(args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains(expected), "{args:?}: {}", stderr(&o));
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "{args:?} worked before checking"
+        );
+    }
+    assert!(!root().join("x.safetensors").exists());
+}
+
+#[test]
+fn config_fields_are_bounded_naming_the_file_and_field() {
+    let dir = scratch("config-bounds");
+    let ck = dir.join("ck");
+    for (text, expected) in [
+        (
+            "batch_size = 1000000000\n",
+            "`batch_size` = 1000000000 is out of range: expected 1 to 65536",
+        ),
+        ("steps = 0\n", "`steps` = 0 is out of range: expected 1 to 100000000"),
+    ] {
+        let cfg = dir.join("prior.toml");
+        std::fs::write(&cfg, text).unwrap();
+        let o = ace(&[
+            "train-prior",
+            "--character",
+            "stretch",
+            "--frames",
+            "300",
+            "--config",
+            &s(&cfg),
+            "--checkpoint",
+            &s(&ck),
+        ]);
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!("error: {}: invalid configuration: {expected}", cfg.display())),
+            "{e}"
+        );
+        assert!(!ck.exists(), "nothing written");
+    }
+    let cfg = dir.join("data.toml");
+    std::fs::write(&cfg, "frames = 1000000000000\n").unwrap();
+    let o = ace(&[
+        "dataset",
+        "--character",
+        "stretch",
+        "--config",
+        &s(&cfg),
+        "--out",
+        &s(&dir.join("d.safetensors")),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!("{} (with the command-line options)", cfg.display()))
+            && e.contains("`frames` = 1000000000000 is out of range"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_failed_dataset_report_leaves_no_dataset_and_keeps_the_previous_one() {
+    let dir = scratch("dataset-set");
+    let out = dir.join("d.safetensors");
+    std::fs::write(&out, b"previous run").unwrap();
+    let blocker = dir.join("file");
+    std::fs::write(&blocker, b"").unwrap();
+    let report = blocker.join("report"); // cannot be a folder: its parent is a file
+    let o = ace(&[
+        "dataset",
+        "--character",
+        "stretch",
+        "--frames",
+        "300",
+        "--out",
+        &s(&out),
+        "--report",
+        &s(&report),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains(&s(&report)), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous run");
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 2, "nothing new is left: {names:?}");
+}
+
+#[test]
+fn stale_temporaries_of_killed_runs_are_removed() {
+    let dir = scratch("stale");
+    // A process id that does not exist.
+    let dead = (4_000_000..4_100_000)
+        .find(|p| !Path::new(&format!("/proc/{p}")).exists())
+        .unwrap();
+    let stale = [format!(".walk.glb.ace-tmp-{dead}"), format!(".walk.glb.tmp-{dead}")];
+    for n in &stale {
+        std::fs::write(dir.join(n), b"half").unwrap();
+    }
+    let keep = dir.join(".hidden-notes.txt");
+    std::fs::write(&keep, b"mine").unwrap();
+    let out = dir.join("walk.glb");
+    let o = ace(&[
+        "--threads",
+        "1",
+        "retarget",
+        "assets/motions/walk.bvh",
+        "--character",
+        "stretch",
+        "--out",
+        &s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for n in &stale {
+        assert!(!dir.join(n).exists(), "{n} survived");
+    }
+    assert!(keep.is_file() && out.is_file());
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains("tmp")), "{names:?}");
+}
+
+#[test]
+fn sigint_and_sigterm_remove_temporaries() {
+    for signal in ["INT", "TERM"] {
+        let dir = scratch(&format!("signal-{signal}"));
+        let out = dir.join("d.safetensors");
+        let report = dir.join("report");
+        // The dataset is staged while the report's pictures are drawn: signal then.
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
+            .args([
+                "dataset",
+                "--character",
+                "spot",
+                "--frames",
+                "60000",
+                "--out",
+                &s(&out),
+                "--report",
+                &s(&report),
+            ])
+            .current_dir(root())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(300);
+        let staged = loop {
+            let found = std::fs::read_dir(&dir)
+                .unwrap()
+                .any(|e| e.unwrap().file_name().to_string_lossy().contains("ace-tmp"));
+            if found || Instant::now() > deadline || child.try_wait().unwrap().is_some() {
+                break found;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        };
+        assert!(staged, "no temporary seen");
+        assert!(
+            Command::new("kill")
+                .args([&format!("-{signal}"), &child.id().to_string()])
+                .status()
+                .unwrap()
+                .success()
+        );
+        let status = child.wait().unwrap();
+        assert!(!status.success());
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.is_empty(), "SIG{signal} left {names:?}");
+    }
+}
+
+#[test]
+fn a_fifo_named_bvh_is_refused_without_hanging() {
+    let dir = scratch("fifo");
+    let fifo = dir.join("clip.bvh");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(["inspect", &s(&fifo)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("ace inspect hung on a FIFO");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(
+        stderr(&o).contains("clip.bvh") && stderr(&o).contains("not a regular file"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn mapping_option_reads_an_unknown_rig() {
+    let data = root().join("models/tests/data");
+    let o = ace(&["inspect", &s(&data.join("unknown_rig.bvh")), "--json"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--mapping FILE"), "{}", stderr(&o));
+    let o = ace(&[
+        "inspect",
+        &s(&data.join("unknown_rig.bvh")),
+        "--json",
+        "--mapping",
+        &s(&data.join("unknown_rig.toml")),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["convention"], "user-mapping");
+    assert_eq!(v["canonical_joints"], 17);
+}
+
+#[test]
+fn urdf_warnings_are_surfaced() {
+    let dir = scratch("urdf-warnings");
+    let urdf = dir.join("anchored.urdf");
+    let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    // Anchor the robot to a `world` link with a floating joint.
+    let base = text
+        .split("<link name=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap()
+        .to_string();
+    let anchored = text.replacen(
+        "<link name=\"",
+        &format!("<link name=\"world\"/>\n  <joint name=\"world_anchor\" type=\"floating\"><parent link=\"world\"/><child link=\"{base}\"/></joint>\n  <link name=\""),
+        1,
+    );
+    // … and give one link a collision mesh that is not there.
+    let anchored = anchored.replacen(
+        "<collision>",
+        "<collision><geometry><mesh filename=\"missing_part.stl\"/></geometry></collision>\n    <collision>",
+        1,
+    );
+    std::fs::write(&urdf, anchored).unwrap();
+    let o = ace(&["inspect", &s(&urdf), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    assert!(
+        warnings.iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .contains("`world_anchor` is Floating; it is treated as fixed")),
+        "{v}"
+    );
+    let missing = "not found or not readable as STL/OBJ (they have no extent): missing_part.stl";
+    assert!(warnings.iter().any(|w| w.as_str().unwrap().contains(missing)), "{v}");
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!("warning: {}: joint `world_anchor`", urdf.display())),
+        "{e}"
+    );
+    assert!(
+        e.contains(&format!("warning: {}: 1 mesh file(s) not found", urdf.display())),
+        "{e}"
+    );
+}
+
+#[test]
+fn metrics_finds_the_urdf_a_dataset_was_made_from() {
+    let Some(urdf) = shared("robots/phantomx_hexapod/phantomx_description/urdf/phantomx.urdf") else {
+        return;
+    };
+    let dir = scratch("metrics-urdf");
+    let file = dir.join("phantomx.safetensors");
+    let o = ace(&[
+        "dataset",
+        "--character",
+        &s(&urdf),
+        "--frames",
+        "600",
+        "--out",
+        &s(&file),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = ace(&["metrics", &s(&file), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["frames"], 600);
+}
+
+#[test]
+fn damaged_or_mismatched_checkpoints_are_blamed_correctly() {
+    let dir = scratch("checkpoint");
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    // NaN into the first weight of the generator.
+    let gen_path = ck.join("generator.safetensors");
+    let mut bytes = std::fs::read(&gen_path).unwrap();
+    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&gen_path, bytes).unwrap();
+    let out = dir.join("x.glb");
+    let o = ace(&[
+        "--threads",
+        "1",
+        "retarget",
+        "assets/motions/walk.bvh",
+        "--character",
+        "stretch",
+        "--checkpoint",
+        &s(&ck),
+        "--out",
+        &s(&out),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains(&s(&gen_path)) && e.contains("holds 1 non-finite value(s) (NaN or infinity)"),
+        "{e}"
+    );
+    assert!(!out.exists());
+
+    // The bundled Stretch scaled ×10: same joints, another size.
+    let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    let scaled = scale_lengths(&text, 10.0);
+    let urdf = dir.join("stretch.urdf");
+    std::fs::write(&urdf, scaled).unwrap();
+    let o = ace(&[
+        "--threads",
+        "1",
+        "retarget",
+        "assets/motions/walk.bvh",
+        "--character",
+        &s(&urdf),
+        "--checkpoint",
+        "assets/checkpoints/stretch",
+        "--out",
+        &s(&out),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("ace.json") && e.contains("with a body length of") && e.contains("(×10"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+/// Every length attribute of a URDF (origins, box sizes, radii, lengths, prismatic limits) × `k`.
+fn scale_lengths(text: &str, k: f64) -> String {
+    let mut out = String::new();
+    let mut rest = text;
+    while let Some(i) = rest.find('"') {
+        let attr_start = rest[..i].rfind(char::is_whitespace).map_or(0, |w| w + 1);
+        let attr = rest[attr_start..i].trim_end_matches('=');
+        let j = rest[i + 1..].find('"').unwrap() + i + 1;
+        let value = &rest[i + 1..j];
+        out.push_str(&rest[..=i]);
+        if ["xyz", "size", "radius", "length"].contains(&attr) && !rest[..i].contains("<axis") {
+            let scaled: Vec<String> = value
+                .split_whitespace()
+                .map(|v| (v.parse::<f64>().unwrap() * k).to_string())
+                .collect();
+            out.push_str(&scaled.join(" "));
+        } else {
+            out.push_str(value);
+        }
+        out.push('"');
+        rest = &rest[j + 1..];
+    }
+    out.push_str(rest);
+    out
+}
