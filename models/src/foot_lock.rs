@@ -18,7 +18,8 @@
 //!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
 //!   speed as in the controllers, and at least as high as the network's foot has risen), moves toward
 //!   the network's foot along a minimum-jerk profile after the first fifth of the swing and before the
-//!   last, and comes down with zero vertical speed where the network's foot is. It never teleports.
+//!   last, and comes down with zero vertical speed where the network's foot was when the descent began
+//!   (the landing point is then frozen, so a low foot never slides). It never teleports.
 //!   Before the descent it waits, hovering, while the network's foot is still high (at most another
 //!   swing time; then it follows the network's foot); it plants where it lands;
 //! - a foot that follows the network never skims the ground: it is kept at least
@@ -123,6 +124,8 @@ struct SwingState {
     frames: usize,
     /// Frames spent waiting before the descent.
     held: usize,
+    /// Where it comes down, frozen when the descent starts.
+    landing: Option<nalgebra::Point2<f32>>,
     /// Peak height above the ground (m).
     height: f32,
 }
@@ -237,6 +240,7 @@ impl FootLock {
                             frame: 0,
                             frames: swing_frames,
                             held: 0,
+                            landing: None,
                             height: c.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0)),
                         });
                     }
@@ -266,7 +270,12 @@ impl FootLock {
                     sw.height = sw.height.max(height);
                     let s = sw.frame as f32 / sw.frames as f32;
                     let u = min_jerk((s - EDGE) / (1.0 - 2.0 * EDGE));
-                    let xy = sw.from.xy() + (tip.xy() - sw.from.xy()) * u;
+                    // The landing point is frozen for the descent, so that a low foot never slides.
+                    if s >= 1.0 - EDGE && !hold && sw.landing.is_none() {
+                        sw.landing = Some(tip.xy());
+                    }
+                    let goal = sw.landing.unwrap_or(tip.xy());
+                    let xy = sw.from.xy() + (goal - sw.from.xy()) * u;
                     let s2 = s * (1.0 - s);
                     let mut z = sw.height * 16.0 * s2 * s2;
                     if hold {
@@ -443,6 +452,9 @@ mod tests {
         let step = 0.3 * l;
         let most = feet.windows(2).map(|w| (w[1] - w[0]).norm()).fold(0.0, f32::max);
         assert!(most < step / 3.0, "{most} m in one frame for a {step} m step");
+        // A low foot never slides: the landing point is frozen for the descent.
+        let ufr_cfg = UfrConfig::for_character(&tree, &morph);
+        assert_eq!(ufr(&tree, &morph, &clean, 30.0, &ufr_cfg).rates.sliding, 0.0);
         let top = feet.iter().map(|p| p.z).fold(f32::MIN, f32::max) - feet[0].z;
         assert!(
             top > 0.5 * FootLockConfig::default().swing_height * lock.legs[0].length * 0.7,
