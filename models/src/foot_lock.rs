@@ -380,6 +380,17 @@ mod tests {
     /// Spot standing still while the network moves its first foot: up to `lift` (L) for frames 10 and
     /// 11, then down again `forward` (L) ahead for good.
     fn quick_step(tree: &KinematicTree, morph: &Morphology, lift: f32, forward: f32) -> Vec<CharacterPose> {
+        sliding_step(tree, morph, lift, forward, 0.0)
+    }
+
+    /// [`quick_step`] with the network's foot sliding on forward by `slide` (L) a frame once down.
+    fn sliding_step(
+        tree: &KinematicTree,
+        morph: &Morphology,
+        lift: f32,
+        forward: f32,
+        slide: f32,
+    ) -> Vec<CharacterPose> {
         let l = character_body_length(tree, morph);
         let standing = tree.standing_pose();
         let chain = Chain::new(tree, morph, morph.feet[0]);
@@ -391,7 +402,7 @@ mod tests {
                 let (dx, dz) = match t {
                     0..10 => (0.0, 0.0),
                     10 | 11 => (0.5 * forward, lift),
-                    _ => (forward, 0.0),
+                    _ => (forward + slide * (t - 12) as f32, 0.0),
                 };
                 let target = start + Vector3::new(dx * l, 0.0, dz * l);
                 chain.solve(tree, &mut p.q, &target, 1e-5, 60, &mut scratch);
@@ -460,6 +471,18 @@ mod tests {
             top > 0.5 * FootLockConfig::default().swing_height * lock.legs[0].length * 0.7,
             "{top}"
         );
+    }
+
+    #[test]
+    fn a_swinging_foot_comes_down_without_sliding_where_the_network_foot_slides() {
+        let (tree, morph) = spot();
+        // The network's foot slides at 0.15 L/s once down: 1.5 times the UFR's sliding speed.
+        let raw = sliding_step(&tree, &morph, 0.1, 0.3, 0.005);
+        let cfg = UfrConfig::for_character(&tree, &morph);
+        assert!(ufr(&tree, &morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, FootLockConfig::default()).apply_all(&tree, &mut clean);
+        assert_eq!(ufr(&tree, &morph, &clean, 30.0, &cfg).rates.sliding, 0.0);
     }
 
     #[test]
