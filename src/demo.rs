@@ -138,14 +138,14 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Op
 
 fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String {
     let mut s = String::from(
-        "| character | clip | frames | L_fea | UFR | self-collision | penetration | sliding | DIV | FID |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| character | clip | frames | L_fea | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let opt = |v: Option<f32>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
     for (c, clip, r, _) in rows {
         let u = &r.ufr.rates;
         let _ = writeln!(
             s,
-            "| {c} | {clip} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} |",
+            "| {c} | {clip} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
             r.frames,
             opt(r.feature_loss),
             100.0 * u.ufr,
@@ -153,7 +153,9 @@ fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String 
             100.0 * u.penetration,
             100.0 * u.sliding,
             r.div,
-            opt(r.fid)
+            opt(r.fid),
+            r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} % of {}", 100.0 * g.pop_rate(), g.swings)),
+            r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} %", 100.0 * g.micro_step_rate())),
         );
     }
     s

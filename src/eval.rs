@@ -394,6 +394,27 @@ pub fn markdown(e: &Evaluation) -> String {
             100.0 * u.sliding
         );
     }
+    if e.rows.iter().any(|r| r.metrics.gait.is_some()) {
+        let _ = writeln!(
+            s,
+            "\nGait (contacts from the UFR's band; pops: swings of 1–2 frames; micro-steps: swings under 0.1 body lengths; stride frequency against Alexander's law):\n\n| system | swings | median swing (frames) | pops | micro-steps | median duty | stride freq. / law |\n|---|---:|---:|---:|---:|---:|---:|"
+        );
+        for r in &e.rows {
+            if let Some(g) = &r.metrics.gait {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.1} | {:.1} % | {:.1} % | {:.2} | {} |",
+                    r.system,
+                    g.swings,
+                    g.median_swing_frames,
+                    100.0 * g.pop_rate(),
+                    100.0 * g.micro_step_rate(),
+                    g.median_duty,
+                    g.median_ratio.map_or("n/a".into(), |x| format!("{x:.2}×"))
+                );
+            }
+        }
+    }
     if let Some(first) = e.rows.iter().find(|r| !r.feature_loss_by_block.is_empty()) {
         let names: Vec<&str> = first.feature_loss_by_block.iter().map(|b| b.0).collect();
         let _ = writeln!(s, "\nL_fea by feature block:\n\n| system | {} |\n|---|{}", names.join(" | "), "---:|".repeat(names.len()));

@@ -6,7 +6,9 @@ use std::path::Path;
 use ace::models::dataset::MotionSet;
 use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, character_body_length, character_features};
 use ace::models::kinematics::KinematicTree;
-use ace::models::metrics::{DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, ufr_episodes};
+use ace::models::metrics::{
+    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, gait_of_labelled_poses, ufr_episodes,
+};
 use ace::models::morphology::Morphology;
 use anyhow::{Result, bail};
 
@@ -65,15 +67,15 @@ pub fn set_features(tree: &KinematicTree, morph: &Morphology, set: &MotionSet) -
     (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, &mapping)).collect()
 }
 
-/// The metrics of a motion set: UFR over its episodes from its stored poses, DIV of its Ψ, and FID
-/// against `reference` when given.
+/// The metrics of a motion set: UFR over its episodes from its stored poses, DIV of its Ψ, FID
+/// against `reference` when given, and the gait measure from its stance labels (legged characters).
 pub fn dataset_metrics(tree: &KinematicTree, morph: &Morphology, set: &MotionSet, reference: Option<&MotionSet>) -> MetricsReport {
     let poses: Vec<_> = (0..set.len()).map(|i| set.pose(i)).collect();
     let ufr = ufr_episodes(tree, morph, &poses, &set.episodes, set.fps, &UfrConfig::for_character(tree, morph));
     let features = set_features(tree, morph, set);
     let fit = reference.map(|r| GaussianFit::fit(&set_features(tree, morph, r)));
     let mapping = EndEffectorMapping::by_side(tree, morph);
-    MetricsReport::compute(
+    let mut report = MetricsReport::compute(
         &MetricsInput {
             features: &features,
             reference: fit.as_ref(),
@@ -83,5 +85,9 @@ pub fn dataset_metrics(tree: &KinematicTree, morph: &Morphology, set: &MotionSet
             div: DivConfig::default(),
         },
         &ufr,
-    )
+    );
+    if set.n_feet == morph.feet.len() {
+        report.gait = gait_of_labelled_poses(tree, morph, &poses, &set.contacts, &set.episodes, set.fps).map(|g| g.summary);
+    }
+    report
 }

@@ -2,7 +2,9 @@
 //!
 //! Two windows of the dataset are shown, the episode with the slowest and the one with the fastest
 //! mean commanded speed (at most [`WINDOW_SECONDS`] of each), as
-//! - `gait.png`: the contact timeline of each foot (a bar where the foot is in stance);
+//! - `gait.png`: the contact timeline of each foot (a bar where the foot is in stance), and the
+//!   dataset's stride frequency against speed beside Alexander's law (medians per speed bin of the gait
+//!   measure);
 //! - `velocity.png`: commanded vs achieved base velocity (forward, sideways, yaw rate), the achieved one
 //!   read back from x^r;
 //! - `foot_heights.png`: the height of each foot point above the ground;
@@ -13,6 +15,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use ace::models::dataset::MotionSet;
+use ace::models::dynamic_similarity::stride_frequency;
 use ace::models::kinematics::KinematicTree;
 use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
@@ -75,6 +78,30 @@ pub fn write(dir: &Path, tree: &KinematicTree, morph: &Morphology, set: &MotionS
                 .collect();
             heights.push(LineChart { title: format!("Foot heights: {title}"), x_label: "time (s)".into(), y_label: "m".into(), series, log_y: false }, 320);
         }
+    }
+    if let Some(g) = metrics.gait.as_ref().filter(|g| !g.bins.is_empty()) {
+        // Stride frequency against speed, the dataset's bin medians beside Alexander's law.
+        let top = g.bins.iter().map(|b| b.speed[1]).fold(0.0, f32::max).min(g.bins.last().map_or(1.0, |b| 1.5 * b.median_speed));
+        let law = (1..=60)
+            .map(|i| {
+                let v = g.bins[0].speed[0] + (top - g.bins[0].speed[0]) * i as f32 / 60.0;
+                (f64::from(v), f64::from(stride_frequency(v, g.config.hip_height)))
+            })
+            .collect();
+        let measured = g.bins.iter().map(|b| (f64::from(b.median_speed), f64::from(b.frequency))).collect();
+        gait.push(
+            LineChart {
+                title: format!("Stride frequency against speed: {} (hip height {:.2} m), medians per speed bin", set.character, g.config.hip_height),
+                x_label: "speed (m/s)".into(),
+                y_label: "Hz".into(),
+                series: vec![
+                    Series { name: "Alexander's law".into(), color: Color::GRAY, points: law },
+                    Series { name: "dataset".into(), color: Color::BLUE, points: measured },
+                ],
+                log_y: false,
+            },
+            300,
+        );
     }
     if set.n_feet > 0 {
         gait.save(&dir.join("gait.png"))?;

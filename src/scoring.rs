@@ -15,7 +15,8 @@ use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::{
-    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, frechet_distance, ufr_episodes,
+    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, frechet_distance, gait_of_poses,
+    ufr_episodes,
 };
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -126,8 +127,9 @@ impl Scorer {
         Some(FidSplit { total: frechet_distance(&fit, reference), blocks })
     }
 
-    /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`) and UFR over `poses`, which hold
-    /// `episodes` back to back (at the project frame rate).
+    /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`), UFR and the gait measure (legged
+    /// characters; contacts from the UFR's band) over `poses`, which hold `episodes` back to back (at
+    /// the project frame rate).
     pub fn report(
         &self,
         tree: &KinematicTree,
@@ -151,7 +153,7 @@ impl Scorer {
         episodes: &[Range<usize>],
     ) -> (MetricsReport, UfrReport) {
         let ufr = ufr_episodes(tree, morph, poses, episodes, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
-        let report = MetricsReport::compute(
+        let mut report = MetricsReport::compute(
             &MetricsInput {
                 features: psi,
                 reference: self.reference.as_ref(),
@@ -162,6 +164,7 @@ impl Scorer {
             },
             &ufr,
         );
+        report.gait = gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None).map(|g| g.summary);
         (report, ufr)
     }
 }

@@ -173,6 +173,7 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
         let blue = img.pixels().filter(|p| p.0 == [40, 100, 235]).count();
         assert!(orange > 300 && blue > 300, "{c}: orange {orange}, blue {blue}");
     }
+    let mut swings = std::collections::HashMap::<String, (u64, u64)>::new();
     for r in rows {
         let m = &r["metrics"];
         for k in ["div", "fid", "feature_loss"] {
@@ -180,6 +181,19 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
         }
         // The shipped checkpoints with the cleanup: realistic motion on the bundled clips.
         assert!(m["ufr"]["rates"]["ufr"].as_f64().unwrap() <= 0.10, "{r}");
+        let c = r["character"].as_str().unwrap().to_string();
+        if c == "stretch" {
+            assert!(m["gait"].is_null(), "wheels have no gait: {r}");
+        } else {
+            let e = swings.entry(c).or_default();
+            e.0 += m["gait"]["swings"].as_u64().unwrap();
+            e.1 += m["gait"]["one_or_two_frame_swings"].as_u64().unwrap();
+        }
+    }
+    // The cleanup's swings: at most 5 % of them pop (1–2 frames) over the bundled clips (the foot lock
+    // that let feet jump made 45–100 % of Spot's swings pops).
+    for (c, (all, pops)) in swings {
+        assert!(all > 0 && pops * 20 <= all, "{c}: {pops} of {all} swings last 1–2 frames");
     }
 }
 
@@ -227,6 +241,14 @@ fn dataset_and_metrics_on_bundled_and_real_characters() {
         // The target for the bundled characters; real robots only need a clean enough motion.
         let limit = if bundled { 0.005 } else { 0.05 };
         assert!(ufr <= limit, "{name}: dataset UFR {:.3} % above {:.1} %", 100.0 * ufr, 100.0 * limit);
+        // Legged characters get the gait measure: steps, and none of them pops.
+        if name.contains("stretch") {
+            assert!(v["gait"].is_null(), "{name}: wheels have no gait");
+        } else {
+            assert!(v["gait"]["strides"].as_u64().unwrap() > 50, "{name}: {}", v["gait"]);
+            assert_eq!(v["gait"]["one_or_two_frame_swings"], 0, "{name}: {}", v["gait"]);
+            assert!(!v["gait"]["bins"].as_array().unwrap().is_empty(), "{name}");
+        }
     }
 }
 

@@ -9,13 +9,24 @@
 //!   anchored there, on the ground;
 //! - while planted, the leg is solved by inverse kinematics ([`Chain::solve`]) so the foot point stays
 //!   on the anchor;
-//! - it **lifts** when the network's foot rises above [`FootLockConfig::lift_height`] or wanders more
-//!   than [`FootLockConfig::max_drift`] from the anchor; the difference between the anchored and the
-//!   network's foot then fades out over [`FootLockConfig::blend_frames`] frames;
-//! - a foot that is not planted never skims the ground: it is kept at least
+//! - it **lifts** when the network's foot rises above [`FootLockConfig::lift_height`] and has moved at
+//!   least [`FootLockConfig::step_distance`] from the anchor, rises above
+//!   [`FootLockConfig::raise_height`], or wanders more than [`FootLockConfig::max_drift`] from the
+//!   anchor. A foot that only needs to move a little thus stays planted instead of popping;
+//! - a lifted foot **swings**: for at least the character's natural swing time at its current speed
+//!   ([`crate::dynamic_similarity::swing_time`], never under [`FootLockConfig::min_swing_frames`]) it
+//!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
+//!   speed as in the controllers, and at least as high as the network's foot has risen), moves toward
+//!   the network's foot along a minimum-jerk profile after the first fifth of the swing and before the
+//!   last, and comes down with zero vertical speed where the network's foot was when the descent began
+//!   (the landing point is then frozen, so a low foot never slides). It never teleports.
+//!   Before the descent it waits, hovering, while the network's foot is still high (at most another
+//!   swing time; then it follows the network's foot); it plants where it lands;
+//! - a foot that follows the network never skims the ground: it is kept at least
 //!   [`FootLockConfig::swing_clearance`] above its standing height (a foot that comes down fast is held
-//!   just above the ground until it slows enough to plant, and one that lifts off leaves the ground at
-//!   once).
+//!   just above the ground until it slows enough to plant). When a swing ends in the air, the difference
+//!   between the swing's and the network's foot fades out over [`FootLockConfig::blend_frames`]
+//!   frames.
 //!
 //! Only leg joints move; the root and every other joint keep the network's values. The cleanup is
 //! causal — each frame depends on the past only — so a live stream and an offline clip give the same
@@ -24,7 +35,10 @@
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::controller::LegConfig;
 use crate::controller::chain::{Chain, ChainScratch};
+use crate::controller::legs::min_jerk;
+use crate::dynamic_similarity::{froude, hip_height, swing_time};
 use crate::features::character_body_length;
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
@@ -37,13 +51,21 @@ pub struct FootLockConfig {
     pub plant_height: f32,
     /// … and when its horizontal speed is below this (L/s).
     pub plant_speed: f32,
-    /// A planted foot lifts when the network's foot rises above this (L).
+    /// A planted foot lifts when the network's foot rises above this (L) …
     pub lift_height: f32,
+    /// … and is at least this far from the anchor horizontally (L),
+    pub step_distance: f32,
+    /// … or rises above this (L),
+    pub raise_height: f32,
     /// … or strays this far from its anchor horizontally (L).
     pub max_drift: f32,
-    /// Frames over which a lifted foot returns to the network's.
+    /// Shortest swing (frames, lift-off to touchdown).
+    pub min_swing_frames: usize,
+    /// Peak swing height as a fraction of the leg length (scaled by 0.7…1 with the Froude number).
+    pub swing_height: f32,
+    /// Frames over which a foot whose swing ends in the air returns to the network's.
     pub blend_frames: usize,
-    /// The lowest a foot that is not planted may be (L).
+    /// The lowest a foot that follows the network may be (L).
     pub swing_clearance: f32,
 }
 
@@ -53,18 +75,24 @@ impl Default for FootLockConfig {
             plant_height: 0.04,
             plant_speed: 1.0,
             lift_height: 0.06,
+            step_distance: 0.1,
+            raise_height: 0.15,
             max_drift: 0.25,
+            min_swing_frames: 5,
+            swing_height: LegConfig::default().swing_height,
             blend_frames: 4,
             swing_clearance: 0.04,
         }
     }
 }
 
-/// One leg: the chain from the root to the foot and the foot's standing height.
+/// One leg: the chain from the root to the foot, the foot's standing height and the leg's length
+/// (first moving joint to foot point, standing).
 #[derive(Clone, Debug)]
 struct Leg {
     chain: Chain,
     ground: f32,
+    length: f32,
 }
 
 /// Foot locking set up for one character (see the module docs).
@@ -73,6 +101,7 @@ pub struct FootLock {
     legs: Vec<Leg>,
     config: FootLockConfig,
     body_length: f32,
+    hip_height: f32,
     dt: f32,
 }
 
@@ -80,16 +109,41 @@ pub struct FootLock {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FootLockState {
     feet: Vec<FootMemory>,
+    /// The root's last horizontal position and its filtered speed (m/s).
+    root: Option<(f32, f32)>,
+    speed: f32,
+}
+
+/// A swing of the cleaned foot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SwingState {
+    /// Where it lifted off.
+    from: Point3<f32>,
+    /// Frames done and frames in all.
+    frame: usize,
+    frames: usize,
+    /// Frames spent waiting before the descent.
+    held: usize,
+    /// Where it comes down, frozen when the descent starts.
+    landing: Option<nalgebra::Point2<f32>>,
+    /// Peak height above the ground (m).
+    height: f32,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
 struct FootMemory {
     anchor: Option<Point3<f32>>,
-    /// Anchored minus network foot at the last lift, fading out.
+    swing: Option<SwingState>,
+    /// Cleaned minus network foot when a swing ended in the air, fading out.
     offset: Vector3<f32>,
     blend_left: usize,
     prev: Option<Point3<f32>>,
 }
+
+/// Fraction of a swing at each end without horizontal motion (as in the controllers).
+const EDGE: f32 = 0.2;
+/// Time constant of the root speed filter (s).
+const SPEED_TIME_CONSTANT: f32 = 0.2;
 
 impl FootLockState {
     /// Feet planted now.
@@ -103,18 +157,28 @@ impl FootLock {
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, config: FootLockConfig) -> FootLock {
         let standing = tree.standing_pose();
         let links = tree.forward_kinematics(&standing);
-        let legs = morph
+        let legs: Vec<Leg> = morph
             .feet
             .iter()
-            .map(|&f| Leg {
-                chain: Chain::new(tree, morph, f),
-                ground: morph.ee_point(f, &links).z.max(0.0),
+            .map(|&f| {
+                let chain = Chain::new(tree, morph, f);
+                let foot = morph.ee_point(f, &links);
+                let length = chain
+                    .first_moving()
+                    .map_or(0.0, |i| (links[chain.links[i]].translation.vector - foot.coords).norm());
+                Leg {
+                    chain,
+                    ground: foot.z.max(0.0),
+                    length,
+                }
             })
             .collect();
+        let mean_leg = legs.iter().map(|l| l.length).sum::<f32>() / legs.len().max(1) as f32;
         FootLock {
             legs,
             config,
             body_length: character_body_length(tree, morph),
+            hip_height: hip_height(tree, morph).unwrap_or(mean_leg).max(1e-3),
             dt: 1.0 / fps,
         }
     }
@@ -123,6 +187,8 @@ impl FootLock {
     pub fn start(&self) -> FootLockState {
         FootLockState {
             feet: vec![FootMemory::default(); self.legs.len()],
+            root: None,
+            speed: 0.0,
         }
     }
 
@@ -130,13 +196,29 @@ impl FootLock {
     ///
     /// # Panics
     /// If `state` was not made by this lock's [`FootLock::start`].
-    pub fn apply(&self, tree: &KinematicTree, state: &mut FootLockState, pose: &mut CharacterPose, scratch: &mut ChainScratch) {
+    pub fn apply(
+        &self,
+        tree: &KinematicTree,
+        state: &mut FootLockState,
+        pose: &mut CharacterPose,
+        scratch: &mut ChainScratch,
+    ) {
         assert_eq!(state.feet.len(), self.legs.len(), "a state from another character");
         if self.legs.is_empty() {
             return;
         }
         let c = &self.config;
         let l = self.body_length;
+        // The root's horizontal speed, filtered: the speed the natural swing time is taken at.
+        let r = pose.root.translation.vector;
+        if let Some((x, y)) = state.root {
+            let v = (r.x - x).hypot(r.y - y) / self.dt;
+            state.speed += (v - state.speed) * (1.0 - (-self.dt / SPEED_TIME_CONSTANT).exp());
+        }
+        state.root = Some((r.x, r.y));
+        let fr = froude(state.speed, self.hip_height);
+        let swing_frames =
+            ((swing_time(state.speed, self.hip_height) / self.dt).round() as usize).max(c.min_swing_frames);
         let links = tree.forward_kinematics(pose);
         let to_root = pose.root.inverse();
         for (leg, mem) in self.legs.iter().zip(&mut state.feet) {
@@ -144,32 +226,84 @@ impl FootLock {
             let speed = mem.prev.map_or(0.0, |p| (tip - p).xy().norm() / self.dt);
             mem.prev = Some(tip);
             let height = tip.z - leg.ground;
+            let low = height < c.plant_height * l;
             match mem.anchor {
-                Some(a) if height > c.lift_height * l || (tip - a).xy().norm() > c.max_drift * l => {
-                    mem.anchor = None;
-                    mem.offset = a - tip;
-                    mem.blend_left = c.blend_frames;
+                Some(a) => {
+                    let away = (tip - a).xy().norm();
+                    if (height > c.lift_height * l && away > c.step_distance * l)
+                        || height > c.raise_height * l
+                        || away > c.max_drift * l
+                    {
+                        mem.anchor = None;
+                        mem.swing = Some(SwingState {
+                            from: a,
+                            frame: 0,
+                            frames: swing_frames,
+                            held: 0,
+                            landing: None,
+                            height: c.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0)),
+                        });
+                    }
                 }
-                None if height < c.plant_height * l && speed < c.plant_speed * l => {
+                None if mem.swing.is_none() && low && speed < c.plant_speed * l => {
                     // Plant where the foot is now, after any fading offset, on the ground.
                     let fade = mem.blend_left as f32 / c.blend_frames.max(1) as f32;
                     let at = tip + mem.offset * fade;
                     mem.anchor = Some(Point3::new(at.x, at.y, leg.ground));
                     mem.blend_left = 0;
                 }
-                _ => {}
+                None => {}
             }
-            let mut target = match mem.anchor {
-                Some(a) => a,
-                None if mem.blend_left > 0 => {
+            let mut target = match (mem.anchor, &mut mem.swing) {
+                (Some(a), _) => a,
+                (None, Some(sw)) => {
+                    // Before coming down, wait (at most another swing time) for the network's foot to
+                    // come low, hovering clear of the ground.
+                    let hold_at = ((1.0 - EDGE) * sw.frames as f32).floor() as usize;
+                    let hold = sw.frame >= hold_at && !low && sw.held < sw.frames;
+                    if hold {
+                        sw.held += 1;
+                    } else {
+                        sw.frame += 1;
+                    }
+                    // The arc rises at least as high as the network's foot has.
+                    sw.height = sw.height.max(height);
+                    let s = sw.frame as f32 / sw.frames as f32;
+                    let u = min_jerk((s - EDGE) / (1.0 - 2.0 * EDGE));
+                    // The landing point is frozen for the descent, so that a low foot never slides.
+                    if s >= 1.0 - EDGE && !hold && sw.landing.is_none() {
+                        sw.landing = Some(tip.xy());
+                    }
+                    let goal = sw.landing.unwrap_or(tip.xy());
+                    let xy = sw.from.xy() + (goal - sw.from.xy()) * u;
+                    let s2 = s * (1.0 - s);
+                    let mut z = sw.height * 16.0 * s2 * s2;
+                    if hold {
+                        z = z.max(c.swing_clearance * l);
+                    }
+                    let p = Point3::new(xy.x, xy.y, leg.ground + z);
+                    if sw.frame >= sw.frames {
+                        mem.swing = None;
+                        if low {
+                            mem.anchor = Some(Point3::new(p.x, p.y, leg.ground));
+                        } else {
+                            mem.offset = p - tip;
+                            mem.blend_left = c.blend_frames;
+                        }
+                    }
+                    p
+                }
+                (None, None) if mem.blend_left > 0 => {
                     let fade = mem.blend_left as f32 / (c.blend_frames + 1) as f32;
                     mem.blend_left -= 1;
                     tip + mem.offset * fade
                 }
-                None => tip,
+                (None, None) => tip,
             };
-            let floor = if mem.anchor.is_some() { 0.0 } else { c.swing_clearance * l };
-            target.z = target.z.max(leg.ground + floor);
+            if mem.anchor.is_none() && mem.swing.is_none() {
+                target.z = target.z.max(leg.ground + c.swing_clearance * l);
+            }
+            target.z = target.z.max(leg.ground);
             if (target - tip).norm() > 1e-4 {
                 let local = to_root.transform_point(&target);
                 leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch);
@@ -194,7 +328,7 @@ mod tests {
     use nalgebra::{Isometry3, Translation3};
 
     use super::*;
-    use crate::metrics::{UfrConfig, ufr};
+    use crate::metrics::{FootTracks, GaitConfig, UfrConfig, gait_quality, ufr};
     use crate::morphology::load_character;
 
     fn spot() -> (KinematicTree, Morphology) {
@@ -241,6 +375,125 @@ mod tests {
                 assert_eq!(a.q[d], b.q[d]);
             }
         }
+    }
+
+    /// Spot standing still while the network moves its first foot: up to `lift` (L) for frames 10 and
+    /// 11, then down again `forward` (L) ahead for good.
+    fn quick_step(tree: &KinematicTree, morph: &Morphology, lift: f32, forward: f32) -> Vec<CharacterPose> {
+        sliding_step(tree, morph, lift, forward, 0.0)
+    }
+
+    /// [`quick_step`] with the network's foot sliding on forward by `slide` (L) a frame once down.
+    fn sliding_step(
+        tree: &KinematicTree,
+        morph: &Morphology,
+        lift: f32,
+        forward: f32,
+        slide: f32,
+    ) -> Vec<CharacterPose> {
+        let l = character_body_length(tree, morph);
+        let standing = tree.standing_pose();
+        let chain = Chain::new(tree, morph, morph.feet[0]);
+        let mut scratch = ChainScratch::default();
+        let start = chain.tip_point(tree, &standing.q, &mut scratch);
+        (0..40)
+            .map(|t| {
+                let mut p = standing.clone();
+                let (dx, dz) = match t {
+                    0..10 => (0.0, 0.0),
+                    10 | 11 => (0.5 * forward, lift),
+                    _ => (forward + slide * (t - 12) as f32, 0.0),
+                };
+                let target = start + Vector3::new(dx * l, 0.0, dz * l);
+                chain.solve(tree, &mut p.q, &target, 1e-5, 60, &mut scratch);
+                p
+            })
+            .collect()
+    }
+
+    fn first_foot(tree: &KinematicTree, morph: &Morphology, poses: &[CharacterPose]) -> Vec<Point3<f32>> {
+        poses
+            .iter()
+            .map(|p| morph.ee_point(morph.feet[0], &tree.forward_kinematics(p)))
+            .collect()
+    }
+
+    #[test]
+    fn a_released_foot_swings_for_its_natural_time_and_lands_where_the_network_put_it() {
+        let (tree, morph) = spot();
+        let l = character_body_length(&tree, &morph);
+        let raw = quick_step(&tree, &morph, 0.1, 0.3);
+        let mut clean = raw.clone();
+        let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig::default());
+        lock.apply_all(&tree, &mut clean);
+        let band = UfrConfig::for_character(&tree, &morph).contact_height;
+        let gait = |poses: &[CharacterPose]| {
+            let cfg = GaitConfig::for_character(&tree, &morph, 30.0, None).unwrap();
+            gait_quality(
+                &FootTracks::from_poses(&tree, &morph, poses, band),
+                &[0..poses.len()],
+                &cfg,
+            )
+        };
+        // The network's foot pops: a 2-frame swing.
+        let raw_swings: Vec<usize> = gait(&raw)
+            .swings
+            .iter()
+            .filter(|s| s.foot == 0)
+            .map(|s| s.frames)
+            .collect();
+        assert_eq!(raw_swings, [2]);
+        // The cleaned foot takes one swing of at least the natural swing time standing (less the first
+        // and last frames, still within the contact band), and lands where the network's foot is.
+        let natural = (swing_time(0.0, lock.hip_height) * 30.0).round() as usize;
+        assert!(natural >= 8, "natural swing {natural} frames");
+        let swings: Vec<usize> = gait(&clean)
+            .swings
+            .iter()
+            .filter(|s| s.foot == 0)
+            .map(|s| s.frames)
+            .collect();
+        assert_eq!(swings.len(), 1, "{swings:?}");
+        assert!(swings[0] + 4 >= natural, "{swings:?} vs {natural}");
+        let feet = first_foot(&tree, &morph, &clean);
+        let goal = first_foot(&tree, &morph, &raw)[39];
+        assert!((feet[39] - goal).norm() < 1e-3, "{:?} vs {goal:?}", feet[39]);
+        // It never jumps: no frame moves it more than a third of the step, and it rises at least
+        // half the swing height.
+        let step = 0.3 * l;
+        let most = feet.windows(2).map(|w| (w[1] - w[0]).norm()).fold(0.0, f32::max);
+        assert!(most < step / 3.0, "{most} m in one frame for a {step} m step");
+        // A low foot never slides: the landing point is frozen for the descent.
+        let ufr_cfg = UfrConfig::for_character(&tree, &morph);
+        assert_eq!(ufr(&tree, &morph, &clean, 30.0, &ufr_cfg).rates.sliding, 0.0);
+        let top = feet.iter().map(|p| p.z).fold(f32::MIN, f32::max) - feet[0].z;
+        assert!(
+            top > 0.5 * FootLockConfig::default().swing_height * lock.legs[0].length * 0.7,
+            "{top}"
+        );
+    }
+
+    #[test]
+    fn a_swinging_foot_comes_down_without_sliding_where_the_network_foot_slides() {
+        let (tree, morph) = spot();
+        // The network's foot slides at 0.15 L/s once down: 1.5 times the UFR's sliding speed.
+        let raw = sliding_step(&tree, &morph, 0.1, 0.3, 0.005);
+        let cfg = UfrConfig::for_character(&tree, &morph);
+        assert!(ufr(&tree, &morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, FootLockConfig::default()).apply_all(&tree, &mut clean);
+        assert_eq!(ufr(&tree, &morph, &clean, 30.0, &cfg).rates.sliding, 0.0);
+    }
+
+    #[test]
+    fn a_foot_that_only_needs_to_move_a_little_stays_planted() {
+        let (tree, morph) = spot();
+        let raw = quick_step(&tree, &morph, 0.08, 0.04);
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, FootLockConfig::default()).apply_all(&tree, &mut clean);
+        let feet = first_foot(&tree, &morph, &clean);
+        let moved = feet.iter().map(|p| (p - feet[0]).norm()).fold(0.0, f32::max);
+        assert!(moved < 1e-3, "the planted foot moved {moved} m");
     }
 
     #[test]

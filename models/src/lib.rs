@@ -16,6 +16,7 @@ pub mod collision_guard;
 pub mod controller;
 pub mod correspondence;
 pub mod dataset;
+pub mod dynamic_similarity;
 pub mod export;
 pub mod features;
 pub mod foot_lock;

@@ -10,7 +10,10 @@
 //!   and the other legs, and nothing of the leg below the ground, for the lowest and highest body height
 //!   and the extreme pitch and roll (bisection over 8 directions); times 0.9, and at most 0.35 × the
 //!   distance to the nearest foot on the same side (neighbours swinging past each other at full stride
-//!   keep apart) and 0.45 × the distance to the nearest foot across the body.
+//!   keep apart) and 0.45 × the distance to the nearest foot across the body. Along the body the region
+//!   reaches further: `r_fore`, the fore-and-aft semi-axis of the largest ellipse with `r_max` across
+//!   that passes the same checks (8 points on it), capped at 0.4 × the distance to the nearest foot on the
+//!   same side only (a front and a hind foot at full stride keep a fifth of their distance apart).
 //! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
 //!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
 //! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
@@ -98,6 +101,7 @@ pub fn legs(tree: &KinematicTree, morph: &Morphology, standing: &CharacterPose) 
             nominal: Vector2::new(sole.x, sole.y),
             length: reach,
             r_max: 0.0,
+            r_fore: 0.0,
             swing_height: 0.0,
             sole: 0.0,
         });
@@ -192,7 +196,20 @@ pub fn step_radii(
         }
         let scene = Scene::new(proxies, fk_root(tree, nominal_q));
         let radii: Vec<f32> = (0..legs.len())
-            .map(|i| 0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, &mut scratch))
+            .map(|i| {
+                0.9 * radius(
+                    tree,
+                    proxies,
+                    &scene,
+                    legs,
+                    i,
+                    nominal_q,
+                    &poses,
+                    dip_tol,
+                    None,
+                    &mut scratch,
+                )
+            })
             .collect();
         // The worst leg's radius relative to its length decides.
         let worst = legs
@@ -216,11 +233,35 @@ pub fn step_radii(
     let best = best.expect("at least one posture range is tried");
     for ((leg, &r), &s) in legs.iter_mut().zip(&best.radii).zip(&best.soles) {
         leg.r_max = r;
+        leg.r_fore = r;
         if leg.sole != s {
             leg.sole = s;
             let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
             leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
         }
+    }
+    // The fore-and-aft semi-axis: the same checks over the ellipse with the lateral one kept.
+    let poses = postures(best.height, best.tilt);
+    let scene = Scene::new(proxies, fk_root(tree, nominal_q));
+    let fore: Vec<f32> = (0..legs.len())
+        .map(|i| {
+            let lateral = legs[i].r_max / 0.9;
+            0.9 * radius(
+                tree,
+                proxies,
+                &scene,
+                legs,
+                i,
+                nominal_q,
+                &poses,
+                dip_tol,
+                Some(lateral),
+                &mut scratch,
+            )
+        })
+        .collect();
+    for (leg, r) in legs.iter_mut().zip(fore) {
+        leg.r_fore = r.max(leg.r_max);
     }
     if best.worst < 0.03 {
         let leg = legs
@@ -264,7 +305,9 @@ fn sole(
     (dip - 0.5 * dip_tol).max(0.0)
 }
 
-/// The step radius of leg `i` (before the 0.9 margin), by bisection.
+/// The step radius of leg `i` (before the 0.9 margin), by bisection: of a circle, or with `lateral`
+/// given, the fore-and-aft semi-axis of an ellipse with that lateral semi-axis (no cap from the feet
+/// across the body, which move alongside).
 #[allow(clippy::too_many_arguments)]
 fn radius(
     tree: &KinematicTree,
@@ -275,6 +318,7 @@ fn radius(
     nominal_q: &[f32],
     poses: &[Posture],
     dip_tol: f32,
+    lateral: Option<f32>,
     scratch: &mut ChainScratch,
 ) -> f32 {
     let leg = &legs[i];
@@ -282,16 +326,21 @@ fn radius(
         .iter()
         .enumerate()
         .filter(|&(j, _)| j != i)
-        .map(|(_, o)| {
+        .filter_map(|(_, o)| {
             let d = (o.nominal - leg.nominal).norm();
             let same_side = (o.nominal.y > 0.0) == (leg.nominal.y > 0.0);
-            if same_side { 0.35 * d } else { 0.45 * d }
+            match (same_side, lateral) {
+                (true, None) => Some(0.35 * d),
+                (true, Some(_)) => Some(0.4 * d),
+                (false, None) => Some(0.45 * d),
+                (false, Some(_)) => None,
+            }
         })
         .fold(0.6 * leg.length, f32::min);
     let ok = |r: f32, scratch: &mut ChainScratch| {
         (0..8).all(|k| {
             let a = k as f32 * std::f32::consts::FRAC_PI_4;
-            let p = leg.nominal + Vector2::new(a.cos(), a.sin()) * r;
+            let p = leg.nominal + Vector2::new(a.cos() * r, a.sin() * lateral.unwrap_or(r));
             let foot = Point3::new(p.x, p.y, leg.sole);
             poses.iter().all(|&(h, pitch, roll)| {
                 let root = tilted_root(h, pitch, roll);
@@ -356,10 +405,9 @@ pub fn swept_legs(
         ];
         for k in 0..8 {
             let a = k as f32 * std::f32::consts::FRAC_PI_4;
-            let dir = Vector2::new(a.cos(), a.sin());
-            let p = leg.nominal + dir * leg.r_max;
+            let p = leg.region_point(a, 1.0);
             targets.push(Point3::new(p.x, p.y, leg.sole));
-            let p = leg.nominal + dir * (0.6 * leg.r_max);
+            let p = leg.region_point(a, 0.6);
             targets.push(Point3::new(p.x, p.y, leg.sole + 0.8 * leg.swing_height));
         }
         for &h in &height {

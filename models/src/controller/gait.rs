@@ -12,10 +12,16 @@
 //! - **bound** and **gallop** (two legs a side): front pair and hind pair half a cycle apart, in phase
 //!   (bound) or split by a tenth of a cycle (transverse gallop).
 //!
-//! Speeds are human-equivalent (m/s divided by the speed scale) and include turning: `|v| + |ω|·R` with
-//! `R` the mean foot distance from the root, so that turning on the spot also steps.
+//! Gaits are chosen by Froude number `Fr = v²/(g·h)` (h the hip height), as animals choose them
+//! ([`crate::dynamic_similarity`]): the walk (or wave and ripple) up to [`WALK_TROT_FROUDE`], the trot
+//! (tripod, biped run) up to [`TROT_GALLOP_FROUDE`], then the gallop or bound. The speed includes
+//! turning: `|v| + |ω|·R` with `R` the mean foot distance from the root, so that turning on the spot
+//! also steps. Duty factors follow the same table; the hexapod patterns keep the duty their phase
+//! pattern needs (a wave lifts one leg at a time: `1 − 1/n`).
 
 use serde::{Deserialize, Serialize};
+
+use crate::dynamic_similarity::{TROT_GALLOP_FROUDE, WALK_TROT_FROUDE};
 
 /// The gait families (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -42,14 +48,21 @@ pub struct Gait {
     pub name: &'static str,
     /// Lift-off phase of each leg in `[0, 1)`, in leg order.
     pub offsets: Vec<f32>,
-    /// Duty factor at the gait's lowest and highest speed (interpolated in between).
+    /// Duty factor at the Froude numbers `duty_froude` (interpolated in between, held outside).
     pub duty: [f32; 2],
-    /// Lowest stepping frequency in units of `√(g/L)/2π` (L = leg length), so that small characters
-    /// step faster.
-    pub frequency: f32,
-    /// Human-equivalent speed from which this gait is used.
-    pub from_speed: f32,
+    /// Froude numbers at which the duty factor is `duty[0]` and `duty[1]`.
+    pub duty_froude: [f32; 2],
+    /// Froude number from which this gait is used.
+    pub from_froude: f32,
 }
+
+/// Froude span of the walks, the trots and the gallops (duty factors are interpolated over it).
+const WALKS: [f32; 2] = [0.0, WALK_TROT_FROUDE];
+const TROTS: [f32; 2] = [WALK_TROT_FROUDE, TROT_GALLOP_FROUDE];
+const GALLOPS: [f32; 2] = [TROT_GALLOP_FROUDE, 2.0 * TROT_GALLOP_FROUDE];
+/// The hexapods' ripple takes over from the wave at this Froude number (insects move from the wave to
+/// the ripple well before the tripod, Wilson 1966).
+const RIPPLE_FROUDE: f32 = 0.05;
 
 /// Foot positions (root frame, x forward, y left) from which patterns are built.
 pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
@@ -58,7 +71,7 @@ pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
         return Vec::new();
     }
     if n == 1 {
-        return vec![gait(GaitKind::Alternating, "hop", vec![0.0], [0.5, 0.4], 2.0, 0.0)];
+        return vec![gait(GaitKind::Alternating, "hop", vec![0.0], [0.5, 0.4], TROTS, 0.0)];
     }
     let cx = feet_xy.iter().map(|p| p[0]).sum::<f32>() / n as f32;
     let mut left: Vec<usize> = (0..n).filter(|&i| feet_xy[i][1] > 0.0).collect();
@@ -91,10 +104,17 @@ pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
                     "walk",
                     alternating.clone(),
                     [0.65, 0.55],
-                    1.4,
+                    WALKS,
                     0.0,
                 ));
-                out.push(gait(GaitKind::Alternating, "run", alternating, [0.42, 0.32], 2.2, 2.0));
+                out.push(gait(
+                    GaitKind::Alternating,
+                    "run",
+                    alternating,
+                    [0.42, 0.32],
+                    TROTS,
+                    WALK_TROT_FROUDE,
+                ));
             }
             2 => {
                 let front = |leg: usize| feet_xy[leg][0] > cx;
@@ -105,10 +125,31 @@ pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
                         if front(l) { 0.45 + split } else { split }
                     })
                     .collect();
-                out.push(gait(GaitKind::Wave, "walk", wave, [0.75, 0.7], 1.4, 0.0));
-                out.push(gait(GaitKind::Alternating, "trot", alternating, [0.6, 0.45], 2.2, 1.0));
-                out.push(gait(GaitKind::Gallop, "gallop", gallop, [0.35, 0.25], 2.6, 3.4));
-                out.push(gait(GaitKind::Bound, "bound", bound, [0.4, 0.3], 2.6, 3.4));
+                out.push(gait(GaitKind::Wave, "walk", wave, [0.75, 0.6], WALKS, 0.0));
+                out.push(gait(
+                    GaitKind::Alternating,
+                    "trot",
+                    alternating,
+                    [0.45, 0.35],
+                    TROTS,
+                    WALK_TROT_FROUDE,
+                ));
+                out.push(gait(
+                    GaitKind::Gallop,
+                    "gallop",
+                    gallop,
+                    [0.4, 0.25],
+                    GALLOPS,
+                    TROT_GALLOP_FROUDE,
+                ));
+                out.push(gait(
+                    GaitKind::Bound,
+                    "bound",
+                    bound,
+                    [0.4, 0.25],
+                    GALLOPS,
+                    TROT_GALLOP_FROUDE,
+                ));
             }
             _ => {
                 let mut ripple = vec![0.0; n];
@@ -119,15 +160,22 @@ pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
                     ripple[leg] = (rank as f32 / k as f32 + 0.5).fract();
                 }
                 let wave_duty = 1.0 - 1.0 / n as f32;
-                out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], 1.4, 0.0));
-                out.push(gait(GaitKind::Ripple, "ripple", ripple, [0.67, 0.6], 1.8, 0.7));
+                out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], WALKS, 0.0));
+                out.push(gait(
+                    GaitKind::Ripple,
+                    "ripple",
+                    ripple,
+                    [0.67, 0.6],
+                    [RIPPLE_FROUDE, WALK_TROT_FROUDE],
+                    RIPPLE_FROUDE,
+                ));
                 out.push(gait(
                     GaitKind::Alternating,
                     if k == 3 { "tripod" } else { "alternating" },
                     alternating,
                     [0.55, 0.42],
-                    2.2,
-                    1.8,
+                    TROTS,
+                    WALK_TROT_FROUDE,
                 ));
             }
         }
@@ -144,14 +192,14 @@ pub fn build_gaits(feet_xy: &[[f32; 2]]) -> Vec<Gait> {
             alternating[leg] = if rank % 2 == 0 { 0.0 } else { 0.5 };
         }
         let wave_duty = (1.0 - 1.0 / n as f32).max(0.6);
-        out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], 1.4, 0.0));
+        out.push(gait(GaitKind::Wave, "wave", wave, [wave_duty, wave_duty], WALKS, 0.0));
         out.push(gait(
             GaitKind::Alternating,
             "alternating",
             alternating,
             [0.55, 0.45],
-            2.0,
-            1.0,
+            TROTS,
+            WALK_TROT_FROUDE,
         ));
     }
     out
@@ -162,21 +210,22 @@ fn gait(
     name: &'static str,
     offsets: Vec<f32>,
     duty: [f32; 2],
-    frequency: f32,
-    from_speed: f32,
+    duty_froude: [f32; 2],
+    from_froude: f32,
 ) -> Gait {
     Gait {
         kind,
         name,
         offsets,
         duty,
-        frequency,
-        from_speed,
+        duty_froude,
+        from_froude,
     }
 }
 
-/// Picks the gait for a speed, with hysteresis, among gaits sorted by `from_speed`. When several gaits
-/// share a threshold (bound and gallop), `variant` picks among them (it is drawn per episode).
+/// Picks the gait for a Froude number, with hysteresis, among gaits sorted by `from_froude`. When
+/// several gaits share a threshold (bound and gallop), `variant` picks among them (it is drawn per
+/// episode).
 #[derive(Clone, Debug)]
 pub struct GaitSelector {
     /// Index of the current gait.
@@ -187,15 +236,15 @@ impl GaitSelector {
     /// Relative hysteresis band around each threshold.
     pub const BAND: f32 = 0.1;
 
-    /// Updates the current gait for human-equivalent speed `speed`; returns true when it changed.
-    pub fn update(&mut self, gaits: &[Gait], speed: f32, variant: usize) -> bool {
+    /// Updates the current gait for Froude number `froude`; returns true when it changed.
+    pub fn update(&mut self, gaits: &[Gait], froude: f32, variant: usize) -> bool {
         let tiers = tiers(gaits);
         let tier_of = |g: usize| tiers.iter().position(|t| t.contains(&g)).unwrap_or(0);
         let mut tier = tier_of(self.current);
-        while tier + 1 < tiers.len() && speed > gaits[tiers[tier + 1][0]].from_speed * (1.0 + Self::BAND) {
+        while tier + 1 < tiers.len() && froude > gaits[tiers[tier + 1][0]].from_froude * (1.0 + Self::BAND) {
             tier += 1;
         }
-        while tier > 0 && speed < gaits[tiers[tier][0]].from_speed * (1.0 - Self::BAND) {
+        while tier > 0 && froude < gaits[tiers[tier][0]].from_froude * (1.0 - Self::BAND) {
             tier -= 1;
         }
         let choice = if tiers.is_empty() {
@@ -209,12 +258,12 @@ impl GaitSelector {
     }
 }
 
-/// Gaits grouped by equal `from_speed`, in order.
+/// Gaits grouped by equal `from_froude`, in order.
 fn tiers(gaits: &[Gait]) -> Vec<Vec<usize>> {
     let mut out: Vec<Vec<usize>> = Vec::new();
     for (i, g) in gaits.iter().enumerate() {
         match out.last_mut() {
-            Some(t) if gaits[t[0]].from_speed == g.from_speed => t.push(i),
+            Some(t) if gaits[t[0]].from_froude == g.from_froude => t.push(i),
             _ => out.push(vec![i]),
         }
     }
@@ -222,11 +271,14 @@ fn tiers(gaits: &[Gait]) -> Vec<Vec<usize>> {
 }
 
 impl Gait {
-    /// Duty factor at human-equivalent speed `speed`: interpolated from this gait's lowest speed to
-    /// twice that (or +2 m/s for the first gait).
-    pub fn duty_at(&self, speed: f32) -> f32 {
-        let span = if self.from_speed > 0.0 { self.from_speed } else { 2.0 };
-        let t = ((speed - self.from_speed) / span).clamp(0.0, 1.0);
+    /// Duty factor at Froude number `froude`.
+    pub fn duty_at(&self, froude: f32) -> f32 {
+        let [a, b] = self.duty_froude;
+        let t = if b > a {
+            ((froude - a) / (b - a)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         self.duty[0] + (self.duty[1] - self.duty[0]) * t
     }
 }
@@ -251,16 +303,24 @@ mod tests {
         // Bound: front pair together.
         assert_eq!(g[3].offsets, [0.5, 0.5, 0.0, 0.0]);
         let mut sel = GaitSelector { current: 0 };
-        assert!(!sel.update(&g, 0.5, 0));
-        assert!(sel.update(&g, 2.0, 0));
+        // Froude numbers: walk below 0.4, trot to 2.5, then gallop or bound.
+        assert!(!sel.update(&g, 0.3, 0));
+        assert!(!sel.update(&g, 0.43, 0), "within the hysteresis band");
+        assert!(sel.update(&g, 0.5, 0));
         assert_eq!(g[sel.current].name, "trot");
-        sel.update(&g, 4.5, 1);
+        sel.update(&g, 4.0, 1);
         assert_eq!(g[sel.current].name, "bound");
         // Hysteresis: just under the threshold keeps the faster gait.
-        sel.update(&g, 3.3, 1);
+        sel.update(&g, 2.4, 1);
         assert_eq!(g[sel.current].name, "bound");
-        sel.update(&g, 0.2, 0);
+        sel.update(&g, 0.1, 0);
         assert_eq!(g[sel.current].name, "walk");
+        // Duty factors fall with the Froude number: walk 0.75 → 0.6, trot 0.45 → 0.35.
+        assert_eq!(g[0].duty_at(0.0), 0.75);
+        assert!((g[0].duty_at(0.4) - 0.6).abs() < 1e-6);
+        assert_eq!(g[1].duty_at(0.4), 0.45);
+        assert!((g[1].duty_at(2.5) - 0.35).abs() < 1e-6);
+        assert!(g[2].duty_at(5.0) < g[1].duty_at(2.5));
 
         let hex = [
             [0.2, 0.2],

@@ -7,11 +7,13 @@
 //!   (new offsets and duty) only shifts when legs next lift off: no foot ever jumps. A leg that has
 //!   stood its full stance time also lifts anywhere in its window (the window moved), or out of turn
 //!   when it is far out (a gait starting or speeding up).
-//! - `f = max(natural frequency of the gait, the frequency at which a stance half-length stays within
-//!   STANCE_USE · r_max)`, capped so that swings last at least a few frames, and low-pass filtered. The
-//!   speed looked at is the larger of the current one and the one the command filter reaches shortly.
-//! - Stance feet are fixed in the world. A stance foot that drifts beyond its step radius `r_max`, or
-//!   that IK cannot hold, lifts off at once (counted in [`super::ControllerStats::early_liftoffs`]).
+//! - `f = max(the stride frequency of dynamic similarity, the frequency at which a stance half-length
+//!   stays within STANCE_USE of the step region's radius along the motion)`, capped so that swings last
+//!   at least a few frames, and low-pass filtered (see [`super`]). The speed looked at is the larger of
+//!   the current one and the one the command filter reaches shortly.
+//! - Stance feet are fixed in the world. A stance foot that drifts out of its step region (an ellipse
+//!   of semi-axes `r_fore` along the body and `r_max` across it), or that IK cannot hold, lifts off at
+//!   once (counted in [`super::ControllerStats::early_liftoffs`]).
 //! - Footholds (Raibert): the nominal foothold, rotated by `ω·T_st/2` and shifted by `v·T_st/2`
 //!   (`T_st` = stance time, `v` and `ω` the mean predicted over that stance), in the heading frame
 //!   predicted at touchdown, so that the foot passes under its nominal position mid-stance.
@@ -24,11 +26,11 @@ use nalgebra::{Point3, Vector2};
 
 use super::rig::Leg;
 
-/// Fraction of the step radius a stance half-length uses at the chosen frequency.
-pub const STANCE_USE: f32 = 0.7;
+/// Fraction of the step region's radius a stance half-length uses at the chosen frequency.
+pub const STANCE_USE: f32 = 0.9;
 /// Fraction of the swing at each end without horizontal motion.
 const EDGE: f32 = 0.2;
-/// Fraction of the step radius within which a foothold is placed.
+/// Fraction of the step region within which a foothold is placed.
 const FOOTHOLD_USE: f32 = 0.85;
 
 /// Where a leg is in its cycle.
@@ -183,7 +185,8 @@ impl LegState {
         let mut emergency = false;
         if let LegPhase::Stance { time } = &mut self.phase {
             *time += dt;
-            let drift = (base.to_local(&self.foot) - leg.nominal).norm();
+            // Where the foot is in its step region (1 on the boundary).
+            let drift = leg.reach_fraction(base.to_local(&self.foot) - leg.nominal);
             // Due: early in the leg's swing window, or anywhere in it once the stance has lasted its
             // full time (after a gait change moved the window), or out of turn when a foot that has
             // stood its time is far out (the gait is just starting or speeding up).
@@ -191,8 +194,8 @@ impl LegState {
                 && *time >= 0.4 * stance_time
                 && (phase < 0.5 * window
                     || (phase < window && *time >= stance_time)
-                    || (*time >= stance_time && drift > 0.8 * leg.r_max));
-            emergency = !due && ((drift > leg.r_max && *time > dt) || force);
+                    || (*time >= stance_time && drift > 0.8));
+            emergency = !due && ((drift > 1.0 && *time > dt) || force);
             if due || emergency {
                 let nominal = window / p.frequency;
                 let duration = if due && phase < window {
@@ -250,9 +253,9 @@ pub fn foothold(leg: &Leg, base: &BaseMotion, remaining: f32, stance_time: f32) 
     let (v, wz) = base.mean_velocity(remaining, stance_time);
     let mut local = rot(wz * half) * leg.nominal + v * half;
     let d = local - leg.nominal;
-    let r = FOOTHOLD_USE * leg.r_max;
-    if d.norm() > r {
-        local = leg.nominal + d * (r / d.norm());
+    let k = leg.reach_fraction(d);
+    if k > FOOTHOLD_USE {
+        local = leg.nominal + d * (FOOTHOLD_USE / k);
     }
     base.predict(local, remaining)
 }

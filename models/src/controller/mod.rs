@@ -16,11 +16,14 @@
 //! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root).
 //! [`ScalingConfig::speed_scale`] overrides the scale.
 //!
-//! Gaits are chosen by human-equivalent speed (`(|v| + |ω|·R) / scale`). The bundled Spot-like
-//! character (0.53 m legs) gets a scale of 0.585: 5 m/s becomes 2.9 m/s; it walks below 0.56 m/s, trots
-//! from 0.56 to 1.48 m/s — covering the real Spot's 0.5–1.6 m/s — and gallops or bounds above. The crab
-//! (0.23 m legs, scale 0.25) tops out at 0.96 m/s (wave, ripple from 0.12 m/s, tripod from 0.4 m/s);
-//! Stretch-like (1.3 m tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
+//! # Gait timing
+//! Legs step as animals do ([`crate::dynamic_similarity`]): the gait, its duty factor and the stride
+//! frequency follow the Froude number of the foot speed `|v| + |ω|·R` and the hip height — the stride
+//! frequency is Alexander's `v / (2.3·h·Fr^0.3)`, raised only where a stance would not fit in the
+//! step radius and capped so that swings last at least [`LegConfig::min_swing_frames`] frames
+//! ([`LegConfig::walking_min_swing_frames`] in the walks). The bundled Spot-like
+//! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
+//! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
 //!
 //! # Clean motion
 //! Stance feet are fixed in the world (IK to 0.01 mm), feet never go below the ground, every joint value
@@ -50,6 +53,7 @@ pub use legs::{BaseMotion, LegPhase, LegState, StepParams};
 pub use reach::{ReachConfig, ReachEvents, ReachState};
 pub use rig::{BaseMode, Leg, ReachGroup, ReachKind, Rig, Wheel};
 
+use crate::dynamic_similarity;
 use crate::kinematics::{CharacterPose, KinematicTree};
 
 /// Uniform draw in `[lo, hi)` (`lo` when the range is empty).
@@ -139,6 +143,9 @@ pub struct LegConfig {
     /// Shortest swing in frames, from the lift-off frame to the touchdown frame (so `n − 1` frames with
     /// the foot in the air). Together with the frame rate it caps the cadence and thus the top speed.
     pub min_swing_frames: u32,
+    /// Shortest swing in frames (as `min_swing_frames`) in the walks, below
+    /// [`crate::dynamic_similarity::WALK_TROT_FROUDE`].
+    pub walking_min_swing_frames: u32,
     /// Probability per episode that the fast quadruped gait is the bound rather than the gallop.
     pub bound_probability: f32,
     /// Time constant of the stepping frequency filter (s).
@@ -150,7 +157,8 @@ impl Default for LegConfig {
         LegConfig {
             max_extension: 0.85,
             swing_height: 0.12,
-            min_swing_frames: 3,
+            min_swing_frames: 4,
+            walking_min_swing_frames: 5,
             bound_probability: 0.3,
             frequency_time_constant: 0.15,
         }
@@ -274,7 +282,7 @@ impl<'a> Controller<'a> {
         self.selector = GaitSelector { current: 0 };
         self.variant = usize::from(rng.random::<f32>() < self.cfg.legs.bound_probability);
         self.clock = 0.0;
-        self.frequency = rig.gaits.first().map_or(1.0, |g| g.frequency * rig.frequency_unit());
+        self.frequency = dynamic_similarity::stride_frequency(0.0, rig.hip_height.max(1e-3));
         self.stepping = false;
         self.reach = rig
             .reach
@@ -451,11 +459,17 @@ impl<'a> Controller<'a> {
         let (v_ahead, wz_ahead) = base.velocity_at(LOOKAHEAD);
         let foot_speed = (v.norm() + wz.abs() * rig.foot_radius).max(v_ahead.norm() + wz_ahead.abs() * rig.foot_radius);
         let speed = foot_speed / rig.speed_scale.max(1e-6);
+        let h = rig.hip_height;
+        let fr = dynamic_similarity::froude(foot_speed, h);
+        // The shortest swing goes by the slower of the two speeds, so that a decelerating character
+        // already takes walking swings.
+        let slower = (v.norm() + wz.abs() * rig.foot_radius).min(v_ahead.norm() + wz_ahead.abs() * rig.foot_radius);
+        let fr_slower = dynamic_similarity::froude(slower, h);
         let drift = self
             .legs
             .iter()
             .zip(&rig.legs)
-            .map(|(s, l)| (base.to_local(&s.foot) - l.nominal).norm() / l.r_max)
+            .map(|(s, l)| l.reach_fraction(base.to_local(&s.foot) - l.nominal))
             .fold(0.0, f32::max);
         let swinging = self.legs.iter().any(|l| !l.in_stance());
         self.stepping = if self.stepping {
@@ -463,15 +477,22 @@ impl<'a> Controller<'a> {
         } else {
             speed > 0.08 || drift > 0.3
         };
-        if self.selector.update(&rig.gaits, speed, self.variant) {
+        if self.selector.update(&rig.gaits, fr, self.variant) {
             self.stats.gait_changes += 1;
         }
         let gait = &rig.gaits[self.selector.current];
-        let duty = gait.duty_at(speed);
-        let r_min = rig.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
+        let duty = gait.duty_at(fr);
+        // Alexander's stride frequency, raised where the stance would overrun the step radius, capped
+        // by the shortest swing.
+        let dir = if v_ahead.norm() > v.norm() { v_ahead } else { v };
+        let r_min = rig
+            .legs
+            .iter()
+            .map(|l| l.radius_toward(dir))
+            .fold(f32::INFINITY, f32::min);
         let needed = foot_speed * duty / (2.0 * legs::STANCE_USE * r_min);
-        let cap = rig::frequency_cap(&self.cfg, gait, duty, rig.leg_length, 1.0 / self.dt);
-        let target = needed.max(gait.frequency * rig.frequency_unit()).min(cap);
+        let cap = rig::frequency_cap(&self.cfg, duty, fr_slower, 1.0 / self.dt);
+        let target = dynamic_similarity::stride_frequency(foot_speed, h).max(needed).min(cap);
         let a = 1.0 - (-self.dt / self.cfg.legs.frequency_time_constant.max(1e-3)).exp();
         self.frequency += (target - self.frequency) * a;
         if self.stepping {
@@ -494,8 +515,8 @@ impl<'a> Controller<'a> {
             clock: self.clock,
             frequency: self.frequency,
             duty,
-            lift: 0.7 + 0.3 * (speed / 3.0).min(1.0),
-            min_swing: self.cfg.legs.min_swing_frames as f32 * self.dt,
+            lift: 0.7 + 0.3 * fr.min(1.0),
+            min_swing: rig::min_swing_frames(&self.cfg, fr_slower) as f32 * self.dt,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
             let force = std::mem::take(&mut self.force_lift[i]);

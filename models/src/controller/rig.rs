@@ -9,9 +9,11 @@
 //! How each leg's stance, step radius, sole and swing height and the body's height and tilt range
 //! are found is described in [`super::calibrate`]. The **speed scale** is the mean hip–foot distance at
 //! the nominal stance / [`super::ScalingConfig::human_leg_length`] for legged characters, the standing
-//! height / [`super::ScalingConfig::human_height`] otherwise. The **top speed** is what the fastest gait
-//! can follow at its highest cadence with stances within the step radii, and each faster gait takes
-//! over no later than where the slower one runs out of stride.
+//! height / [`super::ScalingConfig::human_height`] otherwise. The **hip height** is
+//! [`crate::dynamic_similarity::hip_height_at`] the nominal stance; gaits are chosen and timed by the Froude number it gives
+//! ([`super::gait`]). The **top speed** is what the fastest gait can follow at its highest cadence with
+//! stances within the step radii, and each faster gait takes over no later than where the slower one
+//! runs out of stride.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 
@@ -19,11 +21,9 @@ use super::chain::Chain;
 use super::collide::{Obb, Proxies};
 use super::gait::{Gait, build_gaits};
 use super::{ControllerConfig, ControllerError, calibrate, reach, wheels};
+use crate::dynamic_similarity::{froude, hip_height_at, speed_at_froude};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
 use crate::morphology::Morphology;
-
-/// Gravity (m/s²), for the stepping frequency scale √(g/L).
-pub const GRAVITY: f32 = 9.81;
 
 /// How the base moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,14 +51,41 @@ pub struct Leg {
     pub nominal: Vector2<f32>,
     /// Hip–foot distance at the nominal stance (m).
     pub length: f32,
-    /// Largest safe horizontal distance of a stance foot from its nominal foothold (m).
+    /// Largest safe horizontal distance of a stance foot from its nominal foothold in any direction
+    /// (m): the step region's semi-axis across the body.
     pub r_max: f32,
+    /// The step region's semi-axis along the body (forward and back, m; at least `r_max`): the region
+    /// is the ellipse with these semi-axes around the nominal foothold (heading frame).
+    pub r_fore: f32,
     /// Peak swing height (m).
     pub swing_height: f32,
     /// Height of the foot point above the ground in stance (m): 0 unless the foot's geometry would
     /// dip below the ground at the nominal stance with the foot point on it (a foot point found at a
     /// straight-legged neutral pose, say), then just enough to keep the geometry on the ground.
     pub sole: f32,
+}
+
+impl Leg {
+    /// Where offset `d` (heading frame, from the nominal foothold) lies in the step region: 1 on its
+    /// boundary, less inside.
+    pub fn reach_fraction(&self, d: Vector2<f32>) -> f32 {
+        (d.x / self.r_fore.max(1e-6)).hypot(d.y / self.r_max.max(1e-6))
+    }
+
+    /// The step region's radius in the direction of `dir` (any length; `r_max` for a zero vector).
+    pub fn radius_toward(&self, dir: Vector2<f32>) -> f32 {
+        let n = dir.norm();
+        if n < 1e-9 {
+            self.r_max
+        } else {
+            n / self.reach_fraction(dir)
+        }
+    }
+
+    /// The point of the step region's boundary at angle `a` (rad, from forward), scaled by `scale`.
+    pub fn region_point(&self, a: f32, scale: f32) -> Vector2<f32> {
+        self.nominal + Vector2::new(a.cos() * self.r_fore, a.sin() * self.r_max) * scale
+    }
 }
 
 /// One wheel.
@@ -134,6 +161,8 @@ pub struct Rig {
     pub gaits: Vec<Gait>,
     /// Mean leg length (m; 0 without legs).
     pub leg_length: f32,
+    /// Hip height for the laws of [`crate::dynamic_similarity`] (m; 0 without legs).
+    pub hip_height: f32,
     /// Multiplies human-equivalent speeds (m/s) into character speeds.
     pub speed_scale: f32,
     /// Largest foot speed `|v| + |ω|·foot_radius` the legs follow cleanly (m/s): the top linear speed
@@ -260,6 +289,7 @@ impl Rig {
             reach,
             gaits: Vec::new(),
             leg_length: 0.0,
+            hip_height: 0.0,
             speed_scale: 1.0,
             max_speed: f32::INFINITY,
             foot_radius: 0.0,
@@ -267,16 +297,23 @@ impl Rig {
             swept,
             nominal_links,
         };
-        rig.set_speeds(tree, cfg, fps);
+        rig.set_speeds(tree, morph, cfg, fps);
         Ok(rig)
     }
 
     /// Gaits, speed scale and top speed (module docs).
-    fn set_speeds(&mut self, tree: &KinematicTree, cfg: &ControllerConfig, fps: f32) {
+    fn set_speeds(&mut self, tree: &KinematicTree, morph: &Morphology, cfg: &ControllerConfig, fps: f32) {
         let feet_xy: Vec<[f32; 2]> = self.legs.iter().map(|l| [l.nominal.x, l.nominal.y]).collect();
         self.gaits = build_gaits(&feet_xy);
         let n = self.legs.len().max(1) as f32;
         self.leg_length = self.legs.iter().map(|l| l.length).sum::<f32>() / n;
+        if !self.legs.is_empty() {
+            let nominal = CharacterPose {
+                root: tilted_root(self.nominal_height, 0.0, 0.0),
+                q: self.nominal_q.clone(),
+            };
+            self.hip_height = hip_height_at(tree, morph, &nominal).unwrap_or(self.leg_length);
+        }
         self.foot_radius = self.legs.iter().map(|l| l.nominal.norm()).sum::<f32>() / n;
         let height = {
             let b = tree.aabb(&tree.forward_kinematics(&self.standing));
@@ -290,52 +327,65 @@ impl Rig {
         if self.mode != BaseMode::Legged {
             return;
         }
-        // The highest foot speed gait `g` follows at speed `at`: its stance fits in the step radius at
-        // its highest cadence.
-        let r_min = self.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
-        let capacity = |g: &Gait, duty: f32| {
-            frequency_cap(cfg, g, duty, self.leg_length, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty
-        };
+        // The highest foot speed (m/s) a gait follows with duty `duty` at Froude number `fr`: its
+        // stance fits in the step radius at its highest cadence.
+        // Top speeds are forward: the step regions' fore-and-aft semi-axes.
+        let r_min = self.legs.iter().map(|l| l.r_fore).fold(f32::INFINITY, f32::min);
+        let capacity =
+            |duty: f32, fr: f32| frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
+        let h = self.hip_height;
         for k in 1..self.gaits.len() {
-            let (from, prev_from) = (self.gaits[k].from_speed, self.gaits[k - 1].from_speed);
+            let (from, prev_from) = (self.gaits[k].from_froude, self.gaits[k - 1].from_froude);
             if from <= prev_from {
                 continue;
             }
             let limit = self.gaits[..k]
                 .iter()
-                .filter(|g| g.from_speed == prev_from)
-                .map(|g| capacity(g, g.duty_at(from)))
+                .filter(|g| g.from_froude == prev_from)
+                .map(|g| capacity(g.duty_at(from), 0.99 * from)) // still in the slower gait
                 .fold(f32::INFINITY, f32::min)
-                / self.speed_scale
-                / (1.0 + super::gait::GaitSelector::BAND)
                 * 0.95;
+            let limit = froude(limit, h) / (1.0 + super::gait::GaitSelector::BAND);
             if limit < from {
-                for g in self.gaits.iter_mut().skip(k).filter(|g| g.from_speed == from) {
-                    g.from_speed = limit.max(0.05);
+                for g in self.gaits.iter_mut().skip(k).filter(|g| g.from_froude == from) {
+                    g.from_froude = limit.max(froude(0.05 * self.speed_scale, h));
                 }
             }
         }
-        let top = self.gaits.iter().map(|g| g.from_speed).fold(0.0, f32::max);
-        self.max_speed = self
-            .gaits
-            .iter()
-            .filter(|g| g.from_speed == top)
-            .map(|g| capacity(g, g.duty[1]))
-            .fold(f32::INFINITY, f32::min);
-    }
-
-    /// Natural stepping frequency unit √(g/L)/2π (Hz).
-    pub fn frequency_unit(&self) -> f32 {
-        (GRAVITY / self.leg_length.max(1e-3)).sqrt() / std::f32::consts::TAU
+        let top = self.gaits.iter().map(|g| g.from_froude).fold(0.0, f32::max);
+        // The top gait's capacity at the speed it reaches: iterate, as the duty and the frame cap
+        // depend on the Froude number.
+        let mut v = speed_at_froude(top, h).max(1e-3);
+        for _ in 0..20 {
+            let fr = froude(v, h);
+            v = self
+                .gaits
+                .iter()
+                .filter(|g| g.from_froude == top)
+                .map(|g| capacity(g.duty_at(fr), fr))
+                .fold(f32::INFINITY, f32::min);
+        }
+        self.max_speed = v;
     }
 }
 
-/// Highest stepping frequency of a gait: swings last at least `min_swing_frames`, and the cadence
-/// stays within 3× the gait's natural frequency.
-pub fn frequency_cap(cfg: &ControllerConfig, g: &Gait, duty: f32, leg_length: f32, fps: f32) -> f32 {
-    let unit = (GRAVITY / leg_length.max(1e-3)).sqrt() / std::f32::consts::TAU;
-    let by_frames = (1.0 - duty) * fps / cfg.legs.min_swing_frames.max(1) as f32;
-    by_frames.min(3.0 * g.frequency * unit)
+/// Shortest swing (frames, lift-off to touchdown) at Froude number `fr`:
+/// [`super::LegConfig::walking_min_swing_frames`] in the walks (below
+/// [`crate::dynamic_similarity::WALK_TROT_FROUDE`], a margin over the gait measure's walking Froude
+/// number), else [`super::LegConfig::min_swing_frames`].
+pub fn min_swing_frames(cfg: &ControllerConfig, fr: f32) -> u32 {
+    let frames = if fr < crate::dynamic_similarity::WALK_TROT_FROUDE {
+        cfg.legs.walking_min_swing_frames.max(cfg.legs.min_swing_frames)
+    } else {
+        cfg.legs.min_swing_frames
+    };
+    frames.max(1)
+}
+
+/// Highest stepping frequency with duty factor `duty` at Froude number `fr` (Hz): swings last at least
+/// [`min_swing_frames`].
+pub fn frequency_cap(cfg: &ControllerConfig, duty: f32, fr: f32, fps: f32) -> f32 {
+    (1.0 - duty) * fps / min_swing_frames(cfg, fr) as f32
 }
 
 /// Position limits of DoF `d`, with continuous joints limited to ±π around `centre`.

@@ -4,6 +4,8 @@
 //!   ground penetration, foot sliding), built on the narrow phase of [`collision`];
 //! - [`distribution`]: DIV (diversity of Ψ over random pairs of frames) and FID (Fréchet distance
 //!   between Gaussian fits of two Ψ sets);
+//! - [`mod@gait`]: swing durations, stride frequency beside the law of dynamic similarity, duty factor,
+//!   foot pops and micro-steps of legged characters;
 //! - L_fea is [`crate::features::mean_feature_loss`];
 //! - [`MetricsReport`] gathers them for `ace metrics` (`--json` through serde).
 //!
@@ -32,6 +34,7 @@
 
 pub mod collision;
 pub mod distribution;
+pub mod gait;
 pub mod ufr;
 
 use std::fmt;
@@ -41,7 +44,10 @@ use nalgebra::{Isometry3, Translation3};
 use serde::{Deserialize, Serialize};
 
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
-pub use ufr::{PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes};
+pub use gait::{FootTracks, GaitConfig, GaitReport, GaitSummary, gait_of_labelled_poses, gait_of_poses, gait_quality};
+pub use ufr::{
+    PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes,
+};
 
 use crate::character_state::{CharacterLayout, decode_pose, read_quat};
 use crate::features::{FeatureLayout, FeatureWeights, mean_feature_loss};
@@ -78,6 +84,9 @@ pub struct MetricsReport {
     pub feature_loss: Option<f32>,
     /// UFR and its detectors (lower is better).
     pub ufr: UfrSummary,
+    /// The gait measure of a legged character ([`mod@gait`]; `None` without feet or when not measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gait: Option<GaitSummary>,
 }
 
 impl MetricsReport {
@@ -99,6 +108,7 @@ impl MetricsReport {
                 .source_features
                 .map(|s| mean_feature_loss(&input.layout, features, s, &input.weights)),
             ufr: ufr.summary(),
+            gait: None,
         }
     }
 }
@@ -121,6 +131,9 @@ impl fmt::Display for MetricsReport {
         )?;
         for p in &self.ufr.collision_pairs {
             write!(f, "\n        {} × {}: {} frames", p.a, p.b, p.frames)?;
+        }
+        if let Some(g) = &self.gait {
+            write!(f, "\n{g}")?;
         }
         Ok(())
     }
