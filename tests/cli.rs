@@ -316,29 +316,40 @@ fn dataset_and_metrics_reject_bad_input_naming_it() {
 const TINY_PRIOR: &str = "steps = 120\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n";
 const TINY_ACE: &str = "steps = 40\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n";
 
-#[test]
-fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
-    let dir = tmp("pipeline");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+/// Runs `ace` with `args` and returns its standard output; a failure fails the test with its errors.
+fn run_ok(args: &[&str]) -> String {
+    let out = ace(args);
+    assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Trains a tiny prior (on 3,000 frames) and generator for `character` into `dir/ck` and returns the
+/// checkpoint folder and what `ace train` printed.
+fn tiny_checkpoint(dir: &Path, character: &str) -> (PathBuf, String) {
+    let _ = std::fs::remove_dir_all(dir);
+    std::fs::create_dir_all(dir).unwrap();
     let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
     std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
     std::fs::write(&ace_cfg, TINY_ACE).unwrap();
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let run = |args: &[&str]| {
-        let out = ace(args);
-        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
-    run(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    run_ok(&["--threads", "1", "train-prior", "--character", character, "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
     for f in ["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"] {
         assert!(ck.join(f).is_file(), "train-prior wrote no {f}");
     }
-    let stdout = run(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
-    assert!(stdout.contains("grasp_center"), "the correspondence table names the end effectors:\n{stdout}");
+    let stdout = run_ok(&["--threads", "1", "train", "--character", character, "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
     for f in ["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", "reference.json"] {
         assert!(ck.join(f).is_file(), "train wrote no {f}");
     }
+    (ck, stdout)
+}
+
+#[test]
+fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
+    let dir = tmp("pipeline");
+    let (ck, stdout) = tiny_checkpoint(&dir, "stretch");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = run_ok;
+    assert!(stdout.contains("grasp_center"), "the correspondence table names the end effectors:\n{stdout}");
 
     let glb = dir.join("wave.glb");
     run(&["--threads", "1", "retarget", "assets/motions/wave.bvh", "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&glb)]);
@@ -467,20 +478,10 @@ fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
 fn a_rigged_creature_trains_and_retargets_end_to_end() {
     let Some(fox) = shared("creatures/Fox/Fox.glb") else { return };
     let dir = tmp("creature");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
-    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
-    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    let f = fox.to_str().unwrap().to_string();
+    let (ck, stdout) = tiny_checkpoint(&dir, &f);
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let run = |args: &[&str]| {
-        let out = ace(args);
-        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
-    let f = s(&fox);
-    run(&["--threads", "1", "train-prior", "--character", &f, "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
-    let stdout = run(&["--threads", "1", "train", "--character", &f, "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    let run = run_ok;
     // The fox's paws are matched to the human's hands and feet.
     assert!(stdout.contains("b_LeftHand_011") && stdout.contains("b_LeftFoot02_018"), "{stdout}");
     // The checkpoint names the character file and its checksum.
@@ -495,6 +496,7 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
     assert_eq!(csv.lines().count(), frames + 1);
     let m: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
-    assert!(m["ufr"].as_f64().is_some_and(f64::is_finite), "{m}");
+    assert!(m["ufr"]["rates"]["ufr"].as_f64().is_some_and(f64::is_finite), "{m}");
+    assert_eq!(m["frames"], frames);
     validate_gltf(&glb);
 }
