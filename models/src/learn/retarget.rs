@@ -630,7 +630,7 @@ mod tests {
                 human_folder: PathBuf::new(),
                 human_split: humans.split.clone(),
                 body_lengths: BodyLengths {
-                    character: 1.0,
+                    character: crate::features::character_body_length(&tree, &morph),
                     human_override: None,
                     human_clips: Default::default(),
                 },
