@@ -32,35 +32,11 @@ pub fn bvh_summary(path: &Path, mapping: Option<&Path>) -> Result<(HumanClip, Va
     Ok((clip, v))
 }
 
-/// A URDF file's summary.
-pub fn urdf_summary(path: &Path) -> Result<(KinematicTree, Morphology, Value)> {
-    let (tree, morphology) = load_character(path)?;
+/// The fields every character summary has, URDF robot or glTF creature.
+fn character_fields(kind: &str, path: &Path, tree: &KinematicTree, m: &Morphology) -> serde_json::Map<String, Value> {
     let names = |links: &[usize]| -> Vec<String> { links.iter().map(|&i| tree.links[i].name.clone()).collect() };
     let v = json!({
-        "kind": "urdf",
-        "file": path.display().to_string(),
-        "name": tree.name,
-        "links": tree.links.len(),
-        "dof": tree.dof(),
-        "dof_names": tree.dof_names(),
-        "feet": names(&morphology.feet),
-        "manipulators": names(&morphology.manipulators),
-        "wheels": names(&morphology.wheels),
-        "head": morphology.head.map(|h| tree.links[h].name.clone()),
-        "standing_height_m": tree.standing_root_height(),
-        "warnings": tree.warnings.clone(),
-    });
-    Ok((tree, morphology, v))
-}
-
-/// A glTF creature's summary: the URDF fields, plus its skins, clips, helper bones and the joints
-/// left at rest.
-pub fn gltf_summary(path: &Path) -> Result<Value> {
-    let c = ace::models::character::load_creature(path)?;
-    let (tree, m) = (&c.tree, &c.morphology);
-    let names = |links: &[usize]| -> Vec<String> { links.iter().map(|&i| tree.links[i].name.clone()).collect() };
-    Ok(json!({
-        "kind": "gltf",
+        "kind": kind,
         "file": path.display().to_string(),
         "name": tree.name,
         "links": tree.links.len(),
@@ -70,17 +46,41 @@ pub fn gltf_summary(path: &Path) -> Result<Value> {
         "manipulators": names(&m.manipulators),
         "wheels": names(&m.wheels),
         "head": m.head.map(|h| tree.links[h].name.clone()),
-        "tails": c.plan.tails,
         "standing_height_m": tree.standing_root_height(),
+        "warnings": tree.warnings.clone(),
+    });
+    match v {
+        Value::Object(o) => o,
+        _ => unreachable!("a JSON object literal"),
+    }
+}
+
+/// A URDF file's summary.
+pub fn urdf_summary(path: &Path) -> Result<(KinematicTree, Morphology, Value)> {
+    let (tree, morphology) = load_character(path)?;
+    let v = Value::Object(character_fields("urdf", path, &tree, &morphology));
+    Ok((tree, morphology, v))
+}
+
+/// A glTF creature's summary: the URDF fields, plus its tails, scale, skins, clips, moving bones,
+/// helper bones and the joints left at rest.
+pub fn gltf_summary(path: &Path) -> Result<Value> {
+    let c = ace::models::character::load_creature(path)?;
+    let mut v = character_fields("gltf", path, &c.tree, &c.morphology);
+    let extra = json!({
+        "tails": c.plan.tails,
         "scale_m_per_unit": c.scale,
         "body_root": c.plan.body_root,
-        "skins": c.skins,
-        "animations": c.animations,
+        "skins": c.rig.skins,
+        "animations": c.rig.animations,
         "moving_bones": c.plan.roles,
         "joints_at_rest": c.plan.at_rest,
         "helper_bones": c.plan.helpers,
-        "warnings": tree.warnings,
-    }))
+    });
+    if let Value::Object(o) = extra {
+        v.extend(o);
+    }
+    Ok(Value::Object(v))
 }
 
 fn kind_of(path: &Path) -> Result<&'static str> {
@@ -112,17 +112,10 @@ pub fn text(v: &Value) -> String {
 pub fn run(path: &Path, as_json: bool, mapping: Option<&Path>) -> Result<()> {
     let v = match kind_of(path)? {
         "bvh" => bvh_summary(path, mapping)?.1,
-        "gltf" => {
-            let v = gltf_summary(path)?;
+        kind => {
+            let v = if kind == "gltf" { gltf_summary(path)? } else { urdf_summary(path)?.2 };
             for w in v["warnings"].as_array().into_iter().flatten() {
                 eprintln!("warning: {}: {}", path.display(), w.as_str().unwrap_or_default());
-            }
-            v
-        }
-        _ => {
-            let (tree, _, v) = urdf_summary(path)?;
-            for w in &tree.warnings {
-                eprintln!("warning: {}: {w}", path.display());
             }
             v
         }

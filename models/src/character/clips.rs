@@ -10,12 +10,12 @@ use super::Creature;
 use super::gltf::{TrackKind, polar_rotation};
 use crate::kinematics::CharacterPose;
 
-/// The poses of animation `clip` (index into [`Creature::animations`]) sampled at `fps` from its start
+/// The poses of animation `clip` (index into the rig's [`super::gltf::Rig::animations`]) sampled at `fps` from its start
 /// to its end inclusive.
 pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
     let rig = &c.rig;
     let tracks = &rig.clips[clip];
-    let duration = c.animations[clip].duration_s.max(0.0);
+    let duration = rig.animations[clip].duration_s.max(0.0);
     let frames = (duration * fps).floor() as usize + 1;
     let nb = rig.bones.len();
     let to_char = rig.to_character;

@@ -27,11 +27,10 @@ pub struct Creature {
     pub tree: KinematicTree,
     pub morphology: Morphology,
     pub plan: BodyPlan,
-    pub skins: Vec<SkinInfo>,
-    pub animations: Vec<AnimationInfo>,
     /// Metres per file unit.
     pub scale: f32,
-    /// What was read from the file (bones, vertices, clips), for the clips' poses and the export.
+    /// What was read from the file (bones, vertices, skins, clips), for `ace inspect`, the clips' poses
+    /// and the export.
     pub rig: gltf::Rig,
 }
 
@@ -80,8 +79,6 @@ pub fn load_creature_with(path: &Path, profile: &Profile) -> Result<Creature, Ch
         tree,
         morphology,
         plan,
-        skins: rig.skins.clone(),
-        animations: rig.animations.clone(),
         scale: rig.scale,
         rig,
     })
