@@ -2,7 +2,7 @@
 # Trains the checkpoints shipped in assets/checkpoints/ from scratch, with the project's own CLI and
 # the CPU defaults, evaluates each on its held-out human clips and copies the results into place.
 #
-#   bash scripts/train-checkpoints.sh [spot] [crab] [stretch]     (default: all three)
+#   bash scripts/train-checkpoints.sh [spot] [crab] [stretch] [hound]     (default: all four)
 #
 # Work happens in out/checkpoints/<character> (resumable: rerunning continues an interrupted run) and
 # out/eval/<character>; assets/checkpoints/<character> is replaced only once a character is done.
@@ -17,7 +17,7 @@ ace="$root/target/debug/ace"
 [ -n "${CARGO_TARGET_DIR:-}" ] && ace="$CARGO_TARGET_DIR/debug/ace"
 
 characters=("$@")
-[ ${#characters[@]} -eq 0 ] && characters=(spot crab stretch)
+[ ${#characters[@]} -eq 0 ] && characters=(spot crab stretch hound)
 for c in "${characters[@]}"; do
     run="out/checkpoints/$c"
     prior_config=()

@@ -1,5 +1,6 @@
-//! Where the CLI finds characters: `--character` takes a bundled character's name (`spot`, `crab`,
-//! `stretch`) or a path to any URDF robot or rigged glTF creature (`.glb`/`.gltf`).
+//! Where the CLI finds characters: `--character` takes a bundled character's name (the robots `spot`,
+//! `crab`, `stretch` in `assets/characters/`, the creature `hound` in `assets/creatures/`) or a path to
+//! any URDF robot or rigged glTF creature (`.glb`/`.gltf`).
 
 use std::path::{Path, PathBuf};
 
@@ -8,8 +9,11 @@ use ace::models::kinematics::KinematicTree;
 use ace::models::morphology::{Morphology, load_character};
 use anyhow::{Result, bail};
 
-/// Names of the characters in `assets/characters/`.
-pub const BUNDLED: [&str; 3] = ["spot", "crab", "stretch"];
+/// Names of the bundled characters.
+pub const BUNDLED: [&str; 4] = ["spot", "crab", "stretch", "hound"];
+
+/// The bundled characters' files under `assets/`, in [`BUNDLED`] order.
+const BUNDLED_FILES: [&str; 4] = ["characters/spot.urdf", "characters/crab.urdf", "characters/stretch.urdf", "creatures/hound.glb"];
 
 /// The project's `assets/` folder: `./assets` when run from the repository root, else the one beside
 /// the sources this binary was built from.
@@ -28,8 +32,8 @@ pub fn character_path(arg: &str) -> Result<PathBuf> {
     if path.is_file() {
         return Ok(path.to_path_buf());
     }
-    if BUNDLED.contains(&arg) {
-        return Ok(assets_dir().join("characters").join(format!("{arg}.urdf")));
+    if let Some(k) = BUNDLED.iter().position(|b| *b == arg) {
+        return Ok(assets_dir().join(BUNDLED_FILES[k]));
     }
     bail!(
         "no character `{arg}`: not a URDF or glTF file, nor a bundled character ({})",
