@@ -14,6 +14,7 @@ pub mod gltf;
 pub mod mesh_file;
 pub mod tessellate;
 pub mod trajectory;
+pub mod writer;
 
 #[cfg(test)]
 mod tests;
