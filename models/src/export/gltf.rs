@@ -35,7 +35,7 @@ use json::animation::Property;
 
 use super::mesh_file::{MeshData, MeshError, MeshPart, read_mesh};
 use super::tessellate::{box_mesh, cylinder_mesh, shape_mesh, sphere_mesh};
-use super::writer::{Builder, glb};
+use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::human::{HumanFrame, Joint};
@@ -364,28 +364,6 @@ fn z_towards(v: &Vector3<f32>) -> UnitQuaternion<f32> {
     }
     UnitQuaternion::rotation_between(&Vector3::z(), v)
         .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI))
-}
-
-/// Translations (or scales) as accessor values.
-fn vec3_values(v: &[Vector3<f32>]) -> Vec<f32> {
-    v.iter().flat_map(|t| [t.x, t.y, t.z]).collect()
-}
-
-/// Rotations as accessor values `x y z w`, each flipped when needed to stay in the hemisphere of the
-/// previous one (q and −q are the same rotation, but LINEAR interpolation between keys of opposite
-/// sign would turn the long way round).
-fn quat_values(rotations: &[UnitQuaternion<f32>]) -> Vec<f32> {
-    let mut out = Vec::with_capacity(4 * rotations.len());
-    let mut prev: Option<nalgebra::Quaternion<f32>> = None;
-    for r in rotations {
-        let mut q = r.normalize();
-        if prev.is_some_and(|p| p.dot(&q) < 0.0) {
-            q = -q;
-        }
-        out.extend_from_slice(&[q.i, q.j, q.k, q.w]);
-        prev = Some(q);
-    }
-    out
 }
 
 /// URDF colour of each visual (linear RGBA, `None` when it has none) by link name and visual index.

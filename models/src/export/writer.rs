@@ -4,6 +4,7 @@
 //! the creature's own file.
 
 use gltf_json as json;
+use nalgebra::{UnitQuaternion, Vector3};
 use json::accessor::{ComponentType, GenericComponentType, Type};
 use json::animation::{Channel, Interpolation, Property, Sampler, Target};
 use json::validation::{Checked, USize64};
@@ -50,7 +51,8 @@ impl Builder {
         self.root.push(view)
     }
 
-    /// A float accessor of `width` components per element (1, 3 or 4), with min/max when `bounds`.
+    /// A float accessor of `width` components per element (1, 3, 4 or 16 for 4×4 matrices), with min/max
+    /// when `bounds`.
     pub fn floats(
         &mut self,
         data: &[f32],
@@ -64,6 +66,7 @@ impl Builder {
             1 => Type::Scalar,
             3 => Type::Vec3,
             4 => Type::Vec4,
+            16 => Type::Mat4,
             _ => unreachable!("accessor width {width}"),
         };
         let (mut min, mut max) = (None, None);
@@ -154,11 +157,6 @@ impl Builder {
         });
     }
 
-    /// Whether any channel was added.
-    pub fn has_channels(&self) -> bool {
-        !self.channels.is_empty()
-    }
-
     /// Adds the animation of the channels written so far, named `name`, and sets buffer 0 to the
     /// binary data (no URI: the GLB's binary chunk). Returns the document and the binary data.
     pub fn finish(mut self, name: &str) -> (Root, Vec<u8>) {
@@ -186,6 +184,28 @@ impl Builder {
         }
         (self.root, self.bin)
     }
+}
+
+/// Translations (or scales) as accessor values.
+pub fn vec3_values(v: &[Vector3<f32>]) -> Vec<f32> {
+    v.iter().flat_map(|t| [t.x, t.y, t.z]).collect()
+}
+
+/// Rotations as accessor values `x y z w`, each flipped when needed to stay in the hemisphere of the
+/// previous one (q and −q are the same rotation, but LINEAR interpolation between keys of opposite
+/// sign would turn the long way round).
+pub fn quat_values(rotations: &[UnitQuaternion<f32>]) -> Vec<f32> {
+    let mut out = Vec::with_capacity(4 * rotations.len());
+    let mut prev: Option<nalgebra::Quaternion<f32>> = None;
+    for r in rotations {
+        let mut q = r.normalize();
+        if prev.is_some_and(|p| p.dot(&q) < 0.0) {
+            q = -q;
+        }
+        out.extend_from_slice(&[q.i, q.j, q.k, q.w]);
+        prev = Some(q);
+    }
+    out
 }
 
 /// The GLB container of `root` and its binary chunk `bin` (buffer 0): 12-byte header, the JSON chunk
