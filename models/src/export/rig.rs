@@ -21,7 +21,8 @@
 //! - **One buffer.** The file's buffers (a GLB's binary chunk, data URIs, `.bin` files beside a
 //!   `.gltf`) and its external or data-URI images are laid end to end in the GLB's one binary chunk, so
 //!   the output stands alone wherever it is written. The model's own animations are dropped unless
-//!   [`RigClipOptions::keep_animations`] (their data stays in the buffer either way).
+//!   [`RigClipOptions::keep_animations`], and with them the accessors, buffer views and bytes only they
+//!   used (unless an extension such as mesh compression might point at those, then the data stays).
 //! - **Animation only** ([`RigClipOptions::animation_only`]): the skin's joints and their ancestors
 //!   with their rest transforms, the skin (joints and inverse bind matrices, so that a DCC tool builds
 //!   an armature) and the clip; no meshes, materials or images.
@@ -310,6 +311,7 @@ fn whole_model(
     root.buffers.truncate(1);
     if !keep_animations {
         root.animations.clear();
+        bin = drop_unused_data(&mut root, bin);
     }
     let images = std::mem::take(&mut root.images);
     let mut b = Builder::new(root, bin);
@@ -330,6 +332,94 @@ fn whole_model(
         b.root.push(image);
     }
     Ok(b)
+}
+
+/// Extensions (by prefix) that point at no accessor or buffer view: a document using only these can
+/// have its accessors and buffer views renumbered.
+const RENUMBERABLE: [&str; 7] = [
+    "KHR_materials_",
+    "KHR_texture_transform",
+    "KHR_lights_punctual",
+    "KHR_mesh_quantization",
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+];
+
+/// Drops the accessors nothing refers to any more (those of the dropped animations) and the buffer
+/// views and bytes only they used, renumbering the rest; `bin` is buffer 0, the only one. Documents
+/// using an extension that might point at accessors or buffer views (mesh compression, instancing)
+/// are left as they are.
+fn drop_unused_data(root: &mut json::Root, bin: Vec<u8>) -> Vec<u8> {
+    if root.extensions_used.iter().any(|e| !RENUMBERABLE.iter().any(|p| e.starts_with(p))) {
+        return bin;
+    }
+    let mut used = vec![false; root.accessors.len()];
+    accessor_refs(root, &mut |a| used[a.value()] = true);
+    let map = renumber(&used);
+    let accessors = std::mem::take(&mut root.accessors);
+    root.accessors = accessors.into_iter().zip(&used).filter(|(_, u)| **u).map(|(a, _)| a).collect();
+    accessor_refs(root, &mut |a| *a = Index::new(map[a.value()]));
+
+    let mut used = vec![false; root.buffer_views.len()];
+    view_refs(root, &mut |v| used[v.value()] = true);
+    let map = renumber(&used);
+    let views = std::mem::take(&mut root.buffer_views);
+    let mut out = Vec::with_capacity(bin.len());
+    for (mut v, _) in views.into_iter().zip(&used).filter(|(_, u)| **u) {
+        let start = v.byte_offset.map_or(0, |o| o.0) as usize;
+        let end = (start + v.byte_length.0 as usize).min(bin.len());
+        // The same offset modulo 4 as before, so that every accessor stays aligned to its components.
+        while out.len() % 4 != start % 4 {
+            out.push(0);
+        }
+        v.byte_offset = Some(USize64::from(out.len()));
+        out.extend_from_slice(&bin[start.min(end)..end]);
+        root.buffer_views.push(v);
+    }
+    view_refs(root, &mut |v| *v = Index::new(map[v.value()]));
+    out
+}
+
+/// New index of each kept object (`used`), counting kept objects only.
+fn renumber(used: &[bool]) -> Vec<u32> {
+    let mut next = 0;
+    used.iter()
+        .map(|&u| {
+            let i = next;
+            next += u32::from(u);
+            i
+        })
+        .collect()
+}
+
+/// Visits every reference to an accessor: mesh attributes, indices and morph targets, inverse bind
+/// matrices, animation samplers.
+fn accessor_refs(root: &mut json::Root, f: &mut dyn FnMut(&mut Index<json::Accessor>)) {
+    for p in root.meshes.iter_mut().flat_map(|m| m.primitives.iter_mut()) {
+        p.attributes.values_mut().for_each(&mut *f);
+        p.indices.iter_mut().for_each(&mut *f);
+        for t in p.targets.iter_mut().flatten() {
+            t.positions.iter_mut().chain(t.normals.iter_mut()).chain(t.tangents.iter_mut()).for_each(&mut *f);
+        }
+    }
+    root.skins.iter_mut().filter_map(|s| s.inverse_bind_matrices.as_mut()).for_each(&mut *f);
+    for s in root.animations.iter_mut().flat_map(|a| a.samplers.iter_mut()) {
+        f(&mut s.input);
+        f(&mut s.output);
+    }
+}
+
+/// Visits every reference to a buffer view: accessors (sparse ones included) and images.
+fn view_refs(root: &mut json::Root, f: &mut dyn FnMut(&mut Index<json::buffer::View>)) {
+    for a in &mut root.accessors {
+        a.buffer_view.iter_mut().for_each(&mut *f);
+        if let Some(s) = &mut a.sparse {
+            f(&mut s.indices.buffer_view);
+            f(&mut s.values.buffer_view);
+        }
+    }
+    root.images.iter_mut().filter_map(|i| i.buffer_view.as_mut()).for_each(&mut *f);
 }
 
 /// The bytes of an image URI (a data URI, or a file beside `source`) and the MIME type a data URI
