@@ -135,7 +135,7 @@ enum Command {
         #[arg(long)]
         keep_animations: bool,
         /// glTF creatures: write only the skeleton, its skin and the clip (no meshes, materials or images).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "keep_animations")]
         animation_only: bool,
         /// Write the networks' raw output: no foot locking, no collision guard.
         #[arg(long)]

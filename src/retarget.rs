@@ -148,7 +148,8 @@ pub fn check_rig_options(character: &Path, rig: &RigClipOptions) -> Result<()> {
     if !is_gltf(character) && (rig.keep_animations || rig.animation_only) {
         let flag = if rig.keep_animations { "--keep-animations" } else { "--animation-only" };
         bail!(
-            "{flag} is for rigged glTF creatures (.glb, .gltf), whose own model the clip is written onto; {} is a URDF robot",
+            "{flag} is for rigged glTF creatures (.glb, .gltf), whose own model the clip is written onto; \
+             {} is a URDF robot",
             character.display()
         );
     }
@@ -188,9 +189,11 @@ pub fn write_with(
             // The creature again, for its rig: it must still be the one the tree was built from.
             let creature = load_creature(model)?;
             if creature.tree.dof_names() != tree.dof_names() {
-                bail!("{}: the creature's file changed since it was loaded (its DoFs differ); run again", model.display());
+                let file = model.display();
+                bail!("{file}: the creature's file changed since it was loaded (its DoFs differ); run again");
             }
-            let opts = RigClipOptions { name: Some(rig.name.clone().unwrap_or_else(|| clip.name.clone())), ..rig.clone() };
+            let name = rig.name.clone().unwrap_or_else(|| clip.name.clone());
+            let opts = RigClipOptions { name: Some(name), ..rig.clone() };
             write_rig_clip(&outputs.stage(&glb_path)?, &creature, &motion.poses, motion.fps, &opts)?;
         }
         None => {

@@ -127,7 +127,14 @@ impl Readback {
 /// Every bone that has a link in the tree sits, in the file at key `k` of animation `anim`, where forward
 /// kinematics puts its link: position within `tol` (m), rotation within 1e-3 rad. Returns the largest
 /// position error.
-fn assert_bones_follow_the_tree(c: &Creature, rb: &Readback, anim: usize, k: usize, pose: &CharacterPose, tol: f32) -> f32 {
+fn assert_bones_follow_the_tree(
+    c: &Creature,
+    rb: &Readback,
+    anim: usize,
+    k: usize,
+    pose: &CharacterPose,
+    tol: f32,
+) -> f32 {
     let worlds = rb.worlds_at(anim, k);
     let fk = c.tree.forward_kinematics(pose);
     let to_char = c.rig.to_character;
@@ -239,7 +246,8 @@ fn rig_clips_of_the_shared_creatures_validate_and_keep_the_model() {
             for k in [0, poses.len() / 3, poses.len() - 1] {
                 worst = worst.max(assert_bones_follow_the_tree(&c, &rb, anims - 1, k, &poses[k], 1e-4 * s));
             }
-            eprintln!("{file} {tag}: {} bones animated, worst bone position error {:.2e} of the size", w.animated_nodes, worst / s);
+            let (animated, worst) = (w.animated_nodes, worst / s);
+            eprintln!("{file} {tag}: {animated} bones animated, worst bone position error {worst:.2e} of the size");
         }
     }
     let _ = std::fs::remove_dir_all(out);
@@ -266,11 +274,13 @@ fn round_trip(c: &Creature, path: &Path, clip: usize, out: &Path) -> (f32, f32) 
         for (l, (x, y)) in c.tree.forward_kinematics(a).iter().zip(c.tree.forward_kinematics(b)).enumerate() {
             let e = (x.translation.vector - y.translation.vector).norm() / s;
             worst_pos = worst_pos.max(e);
-            assert!(e <= 1e-4, "{} clip {clip} frame {k}: link {} off by {e} of the size", path.display(), c.tree.links[l].name);
+            let link = &c.tree.links[l].name;
+            assert!(e <= 1e-4, "{} clip {clip} frame {k}: link {link} off by {e} of the size", path.display());
         }
         for (d, (x, y)) in a.q.iter().zip(&b.q).enumerate() {
             worst_q = worst_q.max((x - y).abs());
-            assert!((x - y).abs() <= 1e-3, "{} clip {clip} frame {k}: {} {x} became {y}", path.display(), c.tree.dof_names()[d]);
+            let dof = c.tree.dof_names()[d];
+            assert!((x - y).abs() <= 1e-3, "{} clip {clip} frame {k}: {dof} {x} became {y}", path.display());
         }
     }
     (worst_pos, worst_q)
@@ -279,13 +289,15 @@ fn round_trip(c: &Creature, path: &Path, clip: usize, out: &Path) -> (f32, f32) 
 #[test]
 fn the_creatures_own_clips_come_back_through_clip_poses() {
     let Some(dir) = creatures() else { return };
-    for (file, clips) in [("Fox/Fox.glb", 0..3), ("Quaternius_Wolf/Wolf.gltf", 0..12), ("Quaternius_Spider/Spider.glb", 4..5)] {
+    let cases = [("Fox/Fox.glb", 0..3), ("Quaternius_Wolf/Wolf.gltf", 0..12), ("Quaternius_Spider/Spider.glb", 4..5)];
+    for (file, clips) in cases {
         let path = dir.join(file);
         let c = load(&path);
         let out = tmp(&format!("round-trip-{}", file.replace('/', "-")));
         for clip in clips {
             let (pos, q) = round_trip(&c, &path, clip, &out);
-            eprintln!("{file} clip {clip} ({}): worst link position {pos:.2e} of the size, worst DoF {q:.2e} rad", c.rig.animations[clip].name);
+            let name = &c.rig.animations[clip].name;
+            eprintln!("{file} clip {clip} ({name}): worst link position {pos:.2e} of the size, worst DoF {q:.2e} rad");
         }
         let _ = std::fs::remove_dir_all(out);
     }
@@ -301,8 +313,8 @@ fn bad_inputs_get_errors_that_name_the_file() {
 
     // A glTF without a skin.
     let skinless = out.join("skinless.gltf");
-    std::fs::write(&skinless, r#"{"asset":{"version":"2.0"},"nodes":[{"name":"b_Hip_01"}],"scenes":[{"nodes":[0]}],"scene":0}"#)
-        .unwrap();
+    let json = r#"{"asset":{"version":"2.0"},"nodes":[{"name":"b_Hip_01"}],"scenes":[{"nodes":[0]}],"scene":0}"#;
+    std::fs::write(&skinless, json).unwrap();
     let mut c = fox.clone();
     c.tree.source = Some(skinless.clone());
     let target = out.join("fox.glb");

@@ -51,7 +51,8 @@ pub struct RigClipOptions {
     pub name: Option<String>,
     /// Keep the model's own animations beside the new one (the new one comes last).
     pub keep_animations: bool,
-    /// Write only the skeleton, its skin and the clip (see the module docs).
+    /// Write only the skeleton, its skin and the clip (see the module docs); `keep_animations` is then
+    /// moot.
     pub animation_only: bool,
 }
 
@@ -111,7 +112,12 @@ struct Hierarchy {
     world: Vec<Matrix4<f32>>,
 }
 
-fn build(c: &Creature, poses: &[CharacterPose], fps: f32, opts: &RigClipOptions) -> Result<RigClipOutput, ExportProblem> {
+fn build(
+    c: &Creature,
+    poses: &[CharacterPose],
+    fps: f32,
+    opts: &RigClipOptions,
+) -> Result<RigClipOutput, ExportProblem> {
     check_poses(&c.tree, poses, fps)?;
     let source = c.tree.source.as_deref().ok_or(ExportProblem::NoSource)?;
     let model = source.display().to_string();
