@@ -1,6 +1,7 @@
-//! Skinned glTF 2.0 (`.glb`, `.gltf` with embedded or external buffers) → [`KinematicTree`]: the rigged
-//! creatures that game developers and artists bring become the same tree a URDF becomes, so morphology,
-//! controllers, datasets, training, metrics and cleanup see no difference.
+//! Skinned glTF 2.0 (`.glb`, `.gltf` with embedded or external buffers) →
+//! [`KinematicTree`](crate::kinematics::KinematicTree): the rigged creatures that game developers and
+//! artists bring become the same tree a URDF becomes, so morphology, controllers, datasets, training,
+//! metrics and cleanup see no difference.
 //!
 //! Decisions, documented once:
 //! - **Frame.** glTF is y up with the model facing +z; the character frame is z up facing +x. A point
