@@ -43,7 +43,8 @@ try {
       readFile(path.resolve(dir, decodeURIComponent(uri))).then((b) => new Uint8Array(b)),
   });
   console.log(JSON.stringify(report, null, 2));
-  process.exit(report.issues.numErrors > 0 ? 1 : 0);
+  // Not process.exit(): it would cut off a long report still being written to a pipe.
+  process.exitCode = report.issues.numErrors > 0 ? 1 : 0;
 } catch (e) {
   console.error(`${file}: the validator failed: ${e?.message ?? e}`);
   process.exit(2);

@@ -118,18 +118,25 @@ enum Command {
     Retarget {
         /// The human clip (BVH).
         clip: PathBuf,
-        /// A bundled character (spot, crab, stretch) or a URDF file.
+        /// A bundled character (spot, crab, stretch), a URDF file or a rigged glTF creature (.glb, .gltf).
         #[arg(long)]
         character: String,
         /// Checkpoint directory [default: the bundled character's shipped one].
         #[arg(long)]
         checkpoint: Option<PathBuf>,
-        /// Output glTF binary (.glb); the trajectory and metrics are written beside it.
+        /// Output glTF binary (.glb); the trajectory and metrics are written beside it. For a rigged glTF
+        /// creature it is the creature's own model with the clip as a new animation on its skeleton.
         #[arg(long)]
         out: PathBuf,
-        /// Leave the human skeleton out of the glTF.
+        /// Leave the human skeleton out of the glTF (a glTF creature's model never has it).
         #[arg(long)]
         no_human: bool,
+        /// glTF creatures: keep the model's own animations beside the retargeted clip.
+        #[arg(long)]
+        keep_animations: bool,
+        /// glTF creatures: write only the skeleton, its skin and the clip (no meshes, materials or images).
+        #[arg(long, conflicts_with = "keep_animations")]
+        animation_only: bool,
         /// Write the networks' raw output: no foot locking, no collision guard.
         #[arg(long)]
         no_cleanup: bool,
@@ -210,13 +217,14 @@ fn main() -> ExitCode {
         }),
         Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, no_human, no_cleanup, mapping } => retarget::run(
+        Command::Retarget { clip, character, checkpoint, out, no_human, keep_animations, animation_only, no_cleanup, mapping } => retarget::run(
             &retarget::RetargetArgs {
                 clip,
                 character,
                 checkpoint,
                 out,
                 with_human: !no_human,
+                rig: ace::models::export::RigClipOptions { name: None, keep_animations, animation_only },
                 cleanup: !no_cleanup,
                 mapping,
             },

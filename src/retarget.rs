@@ -1,11 +1,14 @@
 //! `ace retarget`: a human clip onto a character with a trained checkpoint, written as a glTF binary
-//! (the character's animation, optionally with the human skeleton beside it), a robot command
-//! trajectory (JSON and CSV) and the clip's metrics.
+//! (a URDF character's animation, optionally with the human skeleton beside it; a rigged glTF
+//! creature's own model with the clip as a new animation on its skeleton), a robot command trajectory
+//! (JSON and CSV) and the clip's metrics.
 
 use std::path::{Path, PathBuf};
 
 use ace::models::cleanup::Cleanup;
+use ace::models::character::{is_gltf, load_creature};
 use ace::models::export::gltf::{GltfOptions, HumanOverlay, write_glb};
+use ace::models::export::{RigClipOptions, write_rig_clip};
 use ace::models::export::trajectory::CommandTrajectory;
 use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions, Joint, JointMapping};
@@ -52,6 +55,8 @@ pub struct RetargetArgs {
     pub checkpoint: Option<PathBuf>,
     pub out: PathBuf,
     pub with_human: bool,
+    /// How a glTF creature's rig clip is written (its name is the clip's).
+    pub rig: RigClipOptions,
     pub cleanup: bool,
     /// A joint-mapping file for the clip's skeleton.
     pub mapping: Option<PathBuf>,
@@ -66,6 +71,7 @@ pub fn import_options(mapping: Option<&Path>) -> Result<ImportOptions> {
 /// Runs `ace retarget`.
 pub fn run(a: &RetargetArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&a.character)?;
+    check_rig_options(&urdf, &a.rig)?;
     let dir = match &a.checkpoint {
         Some(d) => d.clone(),
         None => default_checkpoint(&a.character)?,
@@ -89,7 +95,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     }
     let scorer = Scorer::new(&retargeter, &dir)?;
     let r = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
-    let w = write(&r, &tree, &clip, &a.out, a.with_human, &mut outputs)?;
+    let w = write_with(&r, &tree, &clip, &a.out, a.with_human, &a.rig, &mut outputs)?;
     outputs.commit()?;
     println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);
     println!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display());
@@ -138,9 +144,20 @@ pub fn retarget_and_score(
     Ok(Retargeted { human, motion, report, flagged: ufr.any })
 }
 
-/// Writes a retargeted clip: `out` (.glb, the character's animation, with the human skeleton beside
-/// it when `with_human`), the robot command trajectory beside it (`.json`, `.csv`) and its metrics
-/// (`.metrics.json`), each staged in `outputs` (they appear when it is committed).
+/// Fails when `rig` asks for something only a rigged glTF creature has and `character` is a URDF.
+pub fn check_rig_options(character: &Path, rig: &RigClipOptions) -> Result<()> {
+    if !is_gltf(character) && (rig.keep_animations || rig.animation_only) {
+        let flag = if rig.keep_animations { "--keep-animations" } else { "--animation-only" };
+        bail!(
+            "{flag} is for rigged glTF creatures (.glb, .gltf), whose own model the clip is written onto; \
+             {} is a URDF robot",
+            character.display()
+        );
+    }
+    Ok(())
+}
+
+/// [`write_with`] with the default rig clip options (the model whole, without its own animations).
 pub fn write(
     r: &Retargeted,
     tree: &KinematicTree,
@@ -149,18 +166,51 @@ pub fn write(
     with_human: bool,
     outputs: &mut Outputs,
 ) -> Result<Written> {
+    write_with(r, tree, clip, out, with_human, &RigClipOptions::default(), outputs)
+}
+
+/// Writes a retargeted clip: `out` (.glb: for a URDF character its animation, with the human skeleton
+/// beside it when `with_human`; for a rigged glTF creature its own model with the clip as a new
+/// animation named after the clip, as `rig` says), the robot command trajectory beside it (`.json`,
+/// `.csv`) and its metrics (`.metrics.json`), each staged in `outputs` (they appear when it is
+/// committed).
+pub fn write_with(
+    r: &Retargeted,
+    tree: &KinematicTree,
+    clip: &HumanClip,
+    out: &Path,
+    with_human: bool,
+    rig: &RigClipOptions,
+    outputs: &mut Outputs,
+) -> Result<Written> {
     let [glb_path, json, csv, metrics] = output_paths(out);
-    // The human walks beside the character: its first pelvis position is put 1.2 m to its left.
-    let first = clip.frames.first().context("the clip has no frames")?.positions[Joint::Pelvis.index()];
-    let offset = Vector3::new(-first.x, 1.2 - first.y, 0.0);
-    let opts = GltfOptions {
-        human: with_human.then(|| HumanOverlay::new(&clip.frames, offset)),
-        ..GltfOptions::default()
-    };
     let motion = &r.motion;
-    let glb = write_glb(&outputs.stage(&glb_path)?, tree, &motion.poses, motion.fps, &opts)?;
-    for w in &glb.warnings {
-        eprintln!("warning: {w}");
+    match tree.source.as_deref().filter(|s| is_gltf(s)) {
+        Some(model) => {
+            // The creature again, for its rig: it must still be the one the tree was built from.
+            let creature = load_creature(model)?;
+            if creature.tree.dof_names() != tree.dof_names() {
+                let file = model.display();
+                bail!("{file}: the creature's file changed since it was loaded (its DoFs differ); run again");
+            }
+            let name = rig.name.clone().unwrap_or_else(|| clip.name.clone());
+            let opts = RigClipOptions { name: Some(name), ..rig.clone() };
+            write_rig_clip(&outputs.stage(&glb_path)?, &creature, &motion.poses, motion.fps, &opts)?;
+        }
+        None => {
+            check_rig_options(tree.source.as_deref().unwrap_or(Path::new(&tree.name)), rig)?;
+            // The human walks beside the character: its first pelvis position is put 1.2 m to its left.
+            let first = clip.frames.first().context("the clip has no frames")?.positions[Joint::Pelvis.index()];
+            let offset = Vector3::new(-first.x, 1.2 - first.y, 0.0);
+            let opts = GltfOptions {
+                human: with_human.then(|| HumanOverlay::new(&clip.frames, offset)),
+                ..GltfOptions::default()
+            };
+            let glb = write_glb(&outputs.stage(&glb_path)?, tree, &motion.poses, motion.fps, &opts)?;
+            for w in &glb.warnings {
+                eprintln!("warning: {w}");
+            }
+        }
     }
     let trajectory = CommandTrajectory::from_poses(tree, &motion.poses, motion.fps)?;
     trajectory.write_json(&outputs.stage(&json)?)?;

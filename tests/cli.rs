@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use ace::models::character::gltf::open;
 use serde_json::Value;
 
 fn root() -> &'static Path {
@@ -499,4 +500,46 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     assert!(m["ufr"]["rates"]["ufr"].as_f64().is_some_and(f64::is_finite), "{m}");
     assert_eq!(m["frames"], frames);
     validate_gltf(&glb);
+
+    // The clip is written onto the fox's own model: its mesh, skin, material and texture, with the clip
+    // as its one animation (a key per frame); --keep-animations keeps its own three clips before it;
+    // --animation-only writes the skeleton, its skin and the clip alone.
+    let (source, _) = open(&fox).unwrap();
+    let channel_keys = |doc: &ace::models::gltf::Document, glb: &Path| {
+        let (_, buffers) = open(glb).unwrap();
+        let a = doc.animations().last().unwrap();
+        assert_eq!(a.name(), Some("walk"));
+        a.channels().next().unwrap().reader(|b| buffers.get(b.index()).map(Vec::as_slice)).read_inputs().unwrap().count()
+    };
+    let (doc, _) = open(&glb).unwrap();
+    assert_eq!(doc.animations().count(), 1);
+    assert_eq!(channel_keys(&doc, &glb), frames);
+    for (what, n, m) in [("meshes", doc.meshes().count(), source.meshes().count()), ("skins", doc.skins().count(), 1), ("images", doc.images().count(), 1), ("nodes", doc.nodes().count(), source.nodes().count())] {
+        assert_eq!(n, m, "{what}");
+    }
+    let kept = dir.join("walk_kept.glb");
+    run(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &f, "--checkpoint", &s(&ck), "--out", &s(&kept), "--keep-animations"]);
+    let (doc, _) = open(&kept).unwrap();
+    let names: Vec<_> = doc.animations().map(|a| a.name().unwrap_or_default().to_owned()).collect();
+    assert_eq!(names, ["Survey", "Walk", "Run", "walk"]);
+    assert_eq!(doc.meshes().count(), 1);
+    validate_gltf(&kept);
+    let only = dir.join("walk_only.glb");
+    run(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &f, "--checkpoint", &s(&ck), "--out", &s(&only), "--animation-only"]);
+    let (doc, _) = open(&only).unwrap();
+    assert_eq!((doc.meshes().count(), doc.images().count(), doc.skins().count(), doc.animations().count()), (0, 0, 1, 1));
+    assert_eq!(channel_keys(&doc, &only), frames);
+    validate_gltf(&only);
+    for ext in ["json", "csv", "metrics.json"] {
+        assert!(only.with_extension(ext).is_file(), "the {ext} output stays");
+    }
+
+    // The two options are for glTF creatures only.
+    for flag in ["--keep-animations", "--animation-only"] {
+        let bad = dir.join("spot.glb");
+        let out = ace(&["retarget", "assets/motions/walk.bvh", "--character", "spot", "--out", &s(&bad), flag]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(flag) && err.contains("URDF"), "{err}");
+        assert!(!bad.exists());
+    }
 }

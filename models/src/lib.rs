@@ -7,6 +7,8 @@
 //!
 //! Conventions everywhere in this crate: right-handed, z up, metres, seconds, `f32`.
 
+/// The glTF reader whose documents [`character::gltf::open`] returns.
+pub use gltf;
 pub use nalgebra;
 
 pub mod character;

@@ -1,6 +1,7 @@
-//! Skinned glTF 2.0 (`.glb`, `.gltf` with embedded or external buffers) → [`KinematicTree`]: the rigged
-//! creatures that game developers and artists bring become the same tree a URDF becomes, so morphology,
-//! controllers, datasets, training, metrics and cleanup see no difference.
+//! Skinned glTF 2.0 (`.glb`, `.gltf` with embedded or external buffers) →
+//! [`KinematicTree`](crate::kinematics::KinematicTree): the rigged creatures that game developers and
+//! artists bring become the same tree a URDF becomes, so morphology, controllers, datasets, training,
+//! metrics and cleanup see no difference.
 //!
 //! Decisions, documented once:
 //! - **Frame.** glTF is y up with the model facing +z; the character frame is z up facing +x. A point
@@ -263,18 +264,8 @@ fn name_of(node: &::gltf::Node) -> String {
 /// unit detection; `forward` says which file axis the creature faces.
 pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, GltfError> {
     let fail = |p: GltfProblem| p.in_file(path);
-    let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
-    if !meta.is_file() {
-        return Err(fail(GltfProblem::NotAFile));
-    }
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(fail(GltfProblem::TooLarge(meta.len())));
-    }
-    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
-    let gltf =
-        ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
-    let doc = &gltf.document;
-    let buffers = read_buffers(doc, path, gltf.blob.clone())?;
+    let (document, buffers) = open(path)?;
+    let doc = &document;
     let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
 
     // Hierarchy: one parent per node, no cycles; world transforms in parent-first order.
@@ -687,6 +678,24 @@ pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, Gl
     })
 }
 
+/// The document of the glTF file at `path` (at most [`MAX_FILE_BYTES`]) and the bytes of each of its
+/// buffers (the GLB binary chunk, data URIs, files beside it).
+pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
+    let fail = |p: GltfProblem| p.in_file(path);
+    let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    if !meta.is_file() {
+        return Err(fail(GltfProblem::NotAFile));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(fail(GltfProblem::TooLarge(meta.len())));
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    let gltf =
+        ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
+    let buffers = read_buffers(&gltf.document, path, gltf.blob)?;
+    Ok((gltf.document, buffers))
+}
+
 /// Every buffer's bytes, with errors that name the buffer and its URI.
 fn read_buffers(
     doc: &::gltf::Document,
@@ -755,7 +764,8 @@ fn read_buffers(
     Ok(out)
 }
 
-fn percent_decode(s: &str) -> String {
+/// `s` with its `%XX` escapes decoded, as URIs of files beside a glTF carry them.
+pub fn percent_decode(s: &str) -> String {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;

@@ -29,10 +29,13 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use serde_json::{Value, json};
+use gltf_json as json;
+use json::Index;
+use json::animation::Property;
 
 use super::mesh_file::{MeshData, MeshError, MeshPart, read_mesh};
 use super::tessellate::{box_mesh, cylinder_mesh, shape_mesh, sphere_mesh};
+use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::human::{HumanFrame, Joint};
@@ -127,11 +130,11 @@ pub fn character_glb(
     let what = format!("<glTF of {} in memory>", tree.name);
     check_input(tree, poses, fps, opts).map_err(|p| p.in_file(&what))?;
     let name = opts.name.clone().unwrap_or_else(|| tree.name.clone());
-    let mut b = Builder::default();
+    let mut b = Doc::default();
     let mut visuals = Visuals::new(tree, opts);
 
     let times: Vec<f32> = (0..poses.len()).map(|k| k as f32 / fps).collect();
-    let input = b.floats(&times, 1, None, true);
+    let input = b.w.floats(&times, 1, None, true);
     let to_y_up = Isometry3::from_parts(Translation3::identity(), z_up_to_y_up());
 
     link_nodes(&mut b, tree, poses, input, &to_y_up);
@@ -146,22 +149,21 @@ pub fn character_glb(
         roots.push(human_nodes(&mut b, h, opts.segments, input, &to_y_up));
     }
 
-    let mut doc = json!({
-        "asset": {"version": "2.0", "generator": concat!("ace_models ", env!("CARGO_PKG_VERSION"))},
-        "scene": 0,
-        "scenes": [{"name": name, "nodes": roots}],
-        "nodes": b.nodes.iter().map(Node::to_json).collect::<Vec<_>>(),
-        "animations": [{"name": name, "samplers": b.samplers, "channels": b.channels}],
-        "accessors": b.accessors,
-        "bufferViews": b.views,
-        "buffers": [{"byteLength": b.bin.len()}],
-    });
-    // glTF forbids empty arrays: meshes and materials only when there are any.
-    if !b.meshes.is_empty() {
-        doc["meshes"] = Value::Array(b.meshes);
-        doc["materials"] = Value::Array(b.materials);
+    let scene = json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: Some(name.clone()),
+        nodes: roots.iter().map(|&r| Index::new(r as u32)).collect(),
+    };
+    let Doc { mut w, nodes, .. } = b;
+    w.root.asset.generator = Some(concat!("ace_models ", env!("CARGO_PKG_VERSION")).into());
+    let scene = w.root.push(scene);
+    w.root.scene = Some(scene);
+    for n in &nodes {
+        w.root.push(n.to_json());
     }
-    let bytes = glb(&doc, &b.bin).map_err(|p| p.in_file(&what))?;
+    let (root, bin) = w.finish(&name);
+    let bytes = glb(&root, &bin).map_err(|p| p.in_file(&what))?;
     Ok(GlbOutput {
         bytes,
         warnings: visuals.warnings,
@@ -219,10 +221,10 @@ fn check_input(
 /// translation and rotation for the root, rotation for revolute and continuous joints, translation
 /// for prismatic ones.
 fn link_nodes(
-    b: &mut Builder,
+    b: &mut Doc,
     tree: &KinematicTree,
     poses: &[CharacterPose],
-    input: usize,
+    input: Index<json::Accessor>,
     to_y_up: &Isometry3<f32>,
 ) {
     for (i, link) in tree.links.iter().enumerate() {
@@ -244,18 +246,18 @@ fn link_nodes(
         };
         if moves {
             let t: Vec<Vector3<f32>> = track.iter().map(|m| m.translation.vector).collect();
-            b.channel(node, "translation", input, &vec3_values(&t));
+            b.channel(node, Property::Translation, input, &vec3_values(&t));
         }
         if turns {
             let r: Vec<UnitQuaternion<f32>> = track.iter().map(|m| m.rotation).collect();
-            b.channel(node, "rotation", input, &quat_values(&r));
+            b.channel(node, Property::Rotation, input, &quat_values(&r));
         }
     }
 }
 
 /// Adds the visual nodes of link node `i` (or, when none of its visuals can be shown, its collision
 /// geometry).
-fn geometry_nodes(b: &mut Builder, visuals: &mut Visuals, i: usize, link: &Link) {
+fn geometry_nodes(b: &mut Doc, visuals: &mut Visuals, i: usize, link: &Link) {
     let mut shown = 0;
     for (k, g) in link.visuals.iter().enumerate() {
         let what = format!("visual {k} of link `{}`", link.name);
@@ -288,10 +290,10 @@ fn geometry_nodes(b: &mut Builder, visuals: &mut Visuals, i: usize, link: &Link)
 
 /// Adds the human skeleton under a root node `human`; returns that node.
 fn human_nodes(
-    b: &mut Builder,
+    b: &mut Doc,
     h: &HumanOverlay,
     segments: u32,
-    input: usize,
+    input: Index<json::Accessor>,
     to_y_up: &Isometry3<f32>,
 ) -> usize {
     let material = b.material(HUMAN_COLOR);
@@ -322,11 +324,11 @@ fn human_nodes(
         let n = b.node(node);
         joint_nodes[j.index()] = n;
         let t: Vec<Vector3<f32>> = track.iter().map(|m| m.translation.vector).collect();
-        b.channel(n, "translation", input, &vec3_values(&t));
+        b.channel(n, Property::Translation, input, &vec3_values(&t));
         let parent = match j.parent() {
             None => {
                 let r: Vec<UnitQuaternion<f32>> = track.iter().map(|m| m.rotation).collect();
-                b.channel(n, "rotation", input, &quat_values(&r));
+                b.channel(n, Property::Rotation, input, &quat_values(&r));
                 root
             }
             Some(p) => {
@@ -343,8 +345,8 @@ fn human_nodes(
                 node.scale = Some(s[0]);
                 node.mesh = Some(bone);
                 let bn = b.node(node);
-                b.channel(bn, "rotation", input, &quat_values(&r));
-                b.channel(bn, "scale", input, &vec3_values(&s));
+                b.channel(bn, Property::Rotation, input, &quat_values(&r));
+                b.channel(bn, Property::Scale, input, &vec3_values(&s));
                 let pn = joint_nodes[p.index()];
                 b.nodes[pn].children.push(bn);
                 pn
@@ -362,28 +364,6 @@ fn z_towards(v: &Vector3<f32>) -> UnitQuaternion<f32> {
     }
     UnitQuaternion::rotation_between(&Vector3::z(), v)
         .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI))
-}
-
-/// Translations (or scales) as accessor values.
-fn vec3_values(v: &[Vector3<f32>]) -> Vec<f32> {
-    v.iter().flat_map(|t| [t.x, t.y, t.z]).collect()
-}
-
-/// Rotations as accessor values `x y z w`, each flipped when needed to stay in the hemisphere of the
-/// previous one (q and −q are the same rotation, but LINEAR interpolation between keys of opposite
-/// sign would turn the long way round).
-fn quat_values(rotations: &[UnitQuaternion<f32>]) -> Vec<f32> {
-    let mut out = Vec::with_capacity(4 * rotations.len());
-    let mut prev: Option<nalgebra::Quaternion<f32>> = None;
-    for r in rotations {
-        let mut q = r.normalize();
-        if prev.is_some_and(|p| p.dot(&q) < 0.0) {
-            q = -q;
-        }
-        out.extend_from_slice(&[q.i, q.j, q.k, q.w]);
-        prev = Some(q);
-    }
-    out
 }
 
 /// URDF colour of each visual (linear RGBA, `None` when it has none) by link name and visual index.
@@ -433,7 +413,7 @@ impl Visuals {
 
     /// The glTF mesh of geometry `g` (`what` names it in warnings) in `color` (else the mesh file's
     /// colours, else [`DEFAULT_COLOR`]); `None` when it has nothing to show.
-    fn mesh(&mut self, b: &mut Builder, what: &str, color: Option<[f32; 4]>, g: &Geometry) -> Option<usize> {
+    fn mesh(&mut self, b: &mut Doc, what: &str, color: Option<[f32; 4]>, g: &Geometry) -> Option<usize> {
         let Shape::Mesh {
             filename,
             scale,
@@ -630,111 +610,31 @@ impl Node {
         }
     }
 
-    fn to_json(&self) -> Value {
+    fn to_json(&self) -> json::Node {
         let q = self.rotation.normalize();
-        let t = self.translation;
-        let mut n = json!({
-            "name": self.name,
-            "translation": [t.x, t.y, t.z],
-            "rotation": [q.i, q.j, q.k, q.w],
-        });
-        if let Some(s) = self.scale {
-            n["scale"] = json!([s.x, s.y, s.z]);
+        json::Node {
+            name: Some(self.name.clone()),
+            translation: Some(self.translation.into()),
+            rotation: Some(json::scene::UnitQuaternion([q.i, q.j, q.k, q.w])),
+            scale: self.scale.map(Into::into),
+            mesh: self.mesh.map(|m| Index::new(m as u32)),
+            children: (!self.children.is_empty())
+                .then(|| self.children.iter().map(|&c| Index::new(c as u32)).collect()),
+            ..Default::default()
         }
-        if let Some(m) = self.mesh {
-            n["mesh"] = json!(m);
-        }
-        if !self.children.is_empty() {
-            n["children"] = json!(self.children);
-        }
-        n
     }
 }
 
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-const FLOAT: u32 = 5126;
-
-/// The glTF document's arrays and the binary buffer, grown object by object.
+/// The document of a character export: the writer, the nodes (whose children grow while links,
+/// visuals and human joints are added) and one material per colour.
 #[derive(Default)]
-struct Builder {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-    materials: Vec<Value>,
-    material_index: HashMap<[u32; 4], usize>,
-    meshes: Vec<Value>,
+struct Doc {
+    w: Builder,
     nodes: Vec<Node>,
-    samplers: Vec<Value>,
-    channels: Vec<Value>,
+    material_index: HashMap<[u32; 4], usize>,
 }
 
-impl Builder {
-    /// Appends `bytes` as a buffer view starting on a 4-byte boundary (what every accessor's component
-    /// type needs).
-    fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
-        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
-        if let Some(t) = target {
-            v["target"] = json!(t);
-        }
-        self.bin.extend_from_slice(bytes);
-        self.views.push(v);
-        self.views.len() - 1
-    }
-
-    /// A float accessor of `width` components per element (1, 3 or 4), with min/max when `bounds`.
-    fn floats(&mut self, data: &[f32], width: usize, target: Option<u32>, bounds: bool) -> usize {
-        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
-        let view = self.view(&bytes, target);
-        let kind = match width {
-            1 => "SCALAR",
-            3 => "VEC3",
-            4 => "VEC4",
-            _ => unreachable!("accessor width {width}"),
-        };
-        let mut a =
-            json!({"bufferView": view, "componentType": FLOAT, "count": data.len() / width, "type": kind});
-        if bounds {
-            // Exactly the stored f32 values: serde_json keeps f32 → f64 exact, validators compare exactly.
-            let mut lo = vec![f32::INFINITY; width];
-            let mut hi = vec![f32::NEG_INFINITY; width];
-            for e in data.chunks_exact(width) {
-                for c in 0..width {
-                    lo[c] = lo[c].min(e[c]);
-                    hi[c] = hi[c].max(e[c]);
-                }
-            }
-            a["min"] = json!(lo);
-            a["max"] = json!(hi);
-        }
-        self.accessors.push(a);
-        self.accessors.len() - 1
-    }
-
-    /// A triangle index accessor, 16-bit when the vertices allow it.
-    fn indices(&mut self, indices: &[u32], vertex_count: usize) -> usize {
-        // 65535 is the primitive-restart value of 16-bit indices and may not be used.
-        let (bytes, component): (Vec<u8>, u32) = if vertex_count <= 65535 {
-            (
-                indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect(),
-                UNSIGNED_SHORT,
-            )
-        } else {
-            (
-                indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-                UNSIGNED_INT,
-            )
-        };
-        let view = self.view(&bytes, Some(ELEMENT_ARRAY_BUFFER));
-        self.accessors.push(json!({
-            "bufferView": view, "componentType": component, "count": indices.len(), "type": "SCALAR"
-        }));
-        self.accessors.len() - 1
-    }
-
+impl Doc {
     /// The material of colour `rgba` (linear RGBA), shared by every mesh of that colour.
     fn material(&mut self, rgba: [f32; 4]) -> usize {
         let key = rgba.map(f32::to_bits);
@@ -742,37 +642,56 @@ impl Builder {
             return m;
         }
         let [r, g, b, a] = rgba;
-        let mut m = json!({
-            "name": format!("rgba({r} {g} {b} {a})"),
-            "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": 0.6},
+        let m = self.w.root.push(json::Material {
+            name: Some(format!("rgba({r} {g} {b} {a})")),
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor(rgba),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(0.6),
+                ..Default::default()
+            },
+            alpha_mode: json::validation::Checked::Valid(if a < 1.0 {
+                json::material::AlphaMode::Blend
+            } else {
+                json::material::AlphaMode::Opaque
+            }),
+            ..Default::default()
         });
-        if a < 1.0 {
-            m["alphaMode"] = json!("BLEND");
-        }
-        self.materials.push(m);
-        self.material_index.insert(key, self.materials.len() - 1);
-        self.materials.len() - 1
+        self.material_index.insert(key, m.value());
+        m.value()
     }
 
     /// A mesh with one triangle primitive per part.
     fn mesh(&mut self, name: &str, parts: &[(&MeshPart, usize)]) -> usize {
-        let primitives: Vec<Value> = parts
+        use json::mesh::{Mode, Semantic};
+        use json::validation::Checked::Valid;
+        let primitives = parts
             .iter()
             .map(|(p, material)| {
                 let flat = |v: &[[f32; 3]]| v.iter().flatten().copied().collect::<Vec<f32>>();
-                let position = self.floats(&flat(&p.positions), 3, Some(ARRAY_BUFFER), true);
-                let normal = self.floats(&flat(&p.normals), 3, Some(ARRAY_BUFFER), false);
-                let indices = self.indices(&p.indices, p.positions.len());
-                json!({
-                    "attributes": {"POSITION": position, "NORMAL": normal},
-                    "indices": indices,
-                    "material": material,
-                    "mode": 4,
-                })
+                let vertices = Some(json::buffer::Target::ArrayBuffer);
+                let position = self.w.floats(&flat(&p.positions), 3, vertices, true);
+                let normal = self.w.floats(&flat(&p.normals), 3, vertices, false);
+                let indices = self.w.indices(&p.indices, p.positions.len());
+                json::mesh::Primitive {
+                    attributes: [(Valid(Semantic::Positions), position), (Valid(Semantic::Normals), normal)].into(),
+                    extensions: None,
+                    extras: Default::default(),
+                    indices: Some(indices),
+                    material: Some(Index::new(*material as u32)),
+                    mode: Valid(Mode::Triangles),
+                    targets: None,
+                }
             })
             .collect();
-        self.meshes.push(json!({"name": name, "primitives": primitives}));
-        self.meshes.len() - 1
+        let m = self.w.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(name.to_owned()),
+            primitives,
+            weights: None,
+        });
+        m.value()
     }
 
     fn node(&mut self, node: Node) -> usize {
@@ -780,35 +699,7 @@ impl Builder {
         self.nodes.len() - 1
     }
 
-    /// A LINEAR sampler over the shared time accessor `input` and a channel driving `path` of `node`.
-    fn channel(&mut self, node: usize, path: &str, input: usize, values: &[f32]) {
-        let width = if path == "rotation" { 4 } else { 3 };
-        let output = self.floats(values, width, None, false);
-        self.samplers
-            .push(json!({"input": input, "output": output, "interpolation": "LINEAR"}));
-        self.channels
-            .push(json!({"sampler": self.samplers.len() - 1, "target": {"node": node, "path": path}}));
+    fn channel(&mut self, node: usize, path: Property, input: Index<json::Accessor>, values: &[f32]) {
+        self.w.channel(node, path, input, values);
     }
-}
-
-/// The GLB container: 12-byte header, the JSON chunk padded with spaces and the binary chunk padded
-/// with zeros, each to a multiple of 4 bytes.
-fn glb(doc: &Value, bin: &[u8]) -> Result<Vec<u8>, ExportProblem> {
-    let mut json = serde_json::to_vec(doc).expect("a JSON value serialises");
-    json.resize(json.len().next_multiple_of(4), b' ');
-    let bin_len = bin.len().next_multiple_of(4);
-    let total = 12 + 8 + json.len() + 8 + bin_len;
-    let total32 = u32::try_from(total).map_err(|_| ExportProblem::TooLarge(total))?;
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&total32.to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin_len as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(bin);
-    out.resize(total, 0);
-    Ok(out)
 }

@@ -5,20 +5,25 @@
 //!   node per link, meshes for the visual geometry and one animation;
 //! - [`mesh_file`]: STL and OBJ mesh files read as triangles for [`gltf`]; [`tessellate`]: the
 //!   triangle meshes of URDF primitives;
-//! - [`trajectory`]: [`CommandTrajectory`], written as JSON or CSV.
+//! - [`rig`]: a clip on a rigged glTF creature's own model, as a new animation on its skeleton;
+//! - [`trajectory`]: [`CommandTrajectory`], written as JSON or CSV;
+//! - [`writer`]: the typed glTF document ([`gltf_json`]) and GLB container both glTF exports write.
 //!
 //! Every writer goes through [`write_atomic`]: the bytes land in a temporary file beside the target
 //! that is renamed over it, so a failed export never leaves a half-written file.
 
 pub mod gltf;
 pub mod mesh_file;
+pub mod rig;
 pub mod tessellate;
 pub mod trajectory;
+pub mod writer;
 
 #[cfg(test)]
 mod tests;
 
 pub use gltf::{GlbOutput, GltfOptions, HumanOverlay, character_glb, write_glb};
+pub use rig::{RigClipOptions, RigClipOutput, rig_clip_glb, write_rig_clip};
 pub use trajectory::{CommandFrame, CommandTrajectory};
 
 use std::io::Write;
@@ -26,6 +31,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
+use crate::character::gltf::GltfError;
 use crate::kinematics::{CharacterPose, KinematicTree};
 
 /// An export error: the file being written (or, for exports to memory, what was being exported) and
@@ -54,6 +60,16 @@ pub enum ExportProblem {
     HumanFrameCount { human: usize, character: usize },
     #[error("the binary data is {0} bytes, more than a GLB can hold")]
     TooLarge(usize),
+    #[error("the creature names no file it was loaded from, so there is no model to write its clip onto")]
+    NoSource,
+    #[error("cannot read the creature's model: {0}")]
+    Source(#[from] GltfError),
+    #[error("{model} has no skin: a clip goes onto a rigged (skinned) glTF model")]
+    NoSkin { model: String },
+    #[error("{model} is not the model the creature was loaded from: {why}")]
+    NotTheCreature { model: String, why: String },
+    #[error("{model}: image {index} cannot be embedded: {reason}")]
+    Image { model: String, index: usize, reason: String },
     #[error("cannot write: {0}")]
     Io(#[from] std::io::Error),
 }

@@ -1,0 +1,530 @@
+//! A retargeted clip written onto a rigged glTF creature's own skeleton: the artist's model comes out
+//! as it went in (meshes, skins, materials, textures, images, samplers, every node) with the clip as a
+//! new animation on its joint nodes, ready for Blender, three.js or Bevy.
+//!
+//! Decisions, documented once:
+//! - **Inverse of the import.** The import ([`crate::character::gltf`]) folds the armature's
+//!   transforms, the file's units (×100, ×300 armatures) and its axes into the z-up, metres character
+//!   frame: a file point `p` is `C·p` there, with `C` the file → character rotation scaled by the
+//!   creature's metres per unit. A bone's link in the tree has the bone's frame, so the tree's pose of
+//!   bone `b` moves it by `Δ = W_b · R_b⁻¹` (its link's world pose times the inverse of its rest pose),
+//!   and the bone's world matrix in the file becomes `C⁻¹ · Δ · C · F_b` (`F_b` its world matrix at
+//!   rest). Its new local transform is its parent's world matrix (as a player composes it, frame by
+//!   frame) inverted times that. Every scale (node scales, the armature's units) stays where it was.
+//! - **Channels.** A rotation channel on every bone that carries DoFs; bones held at rest keep their
+//!   node transform. Root motion goes on the **body root's node** (translation and rotation), not on
+//!   the armature root: the armature also holds the IK and pole helpers hanging off it, and its ×100
+//!   scale and axis change would have to be folded out of the motion. Deforming helpers (an IK-driven
+//!   foot hanging off the armature root) follow their host bone in the tree, so they get translation
+//!   and rotation channels that put them where the tree does. Every channel has one LINEAR key per
+//!   pose at `k / fps` s; rotations stay in one hemisphere from key to key.
+//! - **One buffer.** The file's buffers (a GLB's binary chunk, data URIs, `.bin` files beside a
+//!   `.gltf`) and its external or data-URI images are laid end to end in the GLB's one binary chunk, so
+//!   the output stands alone wherever it is written. The model's own animations are dropped unless
+//!   [`RigClipOptions::keep_animations`], and with them the accessors, buffer views and bytes only they
+//!   used (unless an extension such as mesh compression might point at those, then the data stays).
+//! - **Animation only** ([`RigClipOptions::animation_only`]): the skin's joints and their ancestors
+//!   with their rest transforms, the skin (joints and inverse bind matrices, so that a DCC tool builds
+//!   an armature) and the clip; no meshes, materials or images.
+
+use std::path::Path;
+
+use gltf_json as json;
+use json::Index;
+use json::animation::Property;
+use json::validation::USize64;
+use nalgebra::{Matrix3, Matrix4, Translation3, UnitQuaternion, Vector3};
+
+use super::writer::{Builder, glb, quat_values, vec3_values};
+use super::{ExportError, ExportProblem, check_poses, write_atomic};
+use crate::character::Creature;
+use crate::character::gltf::{MAX_FILE_BYTES, decode_base64, open, percent_decode, polar_rotation};
+use crate::kinematics::CharacterPose;
+
+/// Name of the clip's animation when [`RigClipOptions::name`] gives none.
+pub const DEFAULT_CLIP_NAME: &str = "retargeted";
+
+/// Options of [`rig_clip_glb`].
+#[derive(Clone, Debug, Default)]
+pub struct RigClipOptions {
+    /// Name of the new animation; default [`DEFAULT_CLIP_NAME`].
+    pub name: Option<String>,
+    /// Keep the model's own animations beside the new one (the new one comes last).
+    pub keep_animations: bool,
+    /// Write only the skeleton, its skin and the clip (see the module docs); `keep_animations` is then
+    /// moot.
+    pub animation_only: bool,
+}
+
+/// A rig clip in memory.
+#[derive(Clone, Debug)]
+pub struct RigClipOutput {
+    /// The `.glb` file's bytes.
+    pub bytes: Vec<u8>,
+    /// Nodes the clip animates.
+    pub animated_nodes: usize,
+}
+
+/// Writes `poses` (one per frame, `fps` frames per second, in the tree of `creature`) as a new
+/// animation on the creature's own model, read again from the file it was loaded from
+/// ([`crate::kinematics::KinematicTree::source`]). See the module docs. Errors name `<rig clip of NAME
+/// in memory>`.
+pub fn rig_clip_glb(
+    creature: &Creature,
+    poses: &[CharacterPose],
+    fps: f32,
+    opts: &RigClipOptions,
+) -> Result<RigClipOutput, ExportError> {
+    build(creature, poses, fps, opts).map_err(|p| p.in_file(format!("<rig clip of {} in memory>", creature.tree.name)))
+}
+
+/// [`rig_clip_glb`] written atomically to `path` (see [`write_atomic`]). Errors name `path`.
+pub fn write_rig_clip(
+    path: &Path,
+    creature: &Creature,
+    poses: &[CharacterPose],
+    fps: f32,
+    opts: &RigClipOptions,
+) -> Result<RigClipOutput, ExportError> {
+    let out = build(creature, poses, fps, opts).map_err(|p| p.in_file(path.display().to_string()))?;
+    write_atomic(path, &out.bytes)?;
+    Ok(out)
+}
+
+/// A bone the clip animates.
+struct Driven {
+    node: usize,
+    /// Its rig bone and tree link.
+    bone: usize,
+    link: usize,
+    /// Whether it gets a translation channel too (the body root, deforming helpers).
+    translates: bool,
+}
+
+/// The file's node hierarchy at rest.
+struct Hierarchy {
+    parent: Vec<Option<usize>>,
+    /// Parents before children.
+    order: Vec<usize>,
+    /// Local translation, rotation and scale of each node.
+    trs: Vec<(Vector3<f32>, UnitQuaternion<f32>, Vector3<f32>)>,
+    /// World matrix of each node.
+    world: Vec<Matrix4<f32>>,
+}
+
+fn build(
+    c: &Creature,
+    poses: &[CharacterPose],
+    fps: f32,
+    opts: &RigClipOptions,
+) -> Result<RigClipOutput, ExportProblem> {
+    check_poses(&c.tree, poses, fps)?;
+    let source = c.tree.source.as_deref().ok_or(ExportProblem::NoSource)?;
+    let model = source.display().to_string();
+    let (doc, buffers) = open(source)?;
+    if doc.skins().len() == 0 {
+        return Err(ExportProblem::NoSkin { model });
+    }
+    let h = hierarchy(&doc, &model)?;
+    let driven = driven_bones(c, &doc, &model)?;
+    let tracks = tracks(c, &h, &driven, poses, &model)?;
+
+    let (mut b, map) = if opts.animation_only {
+        skeleton(&doc, &buffers, c, &h)
+    } else {
+        let b = whole_model(&doc, buffers, source, opts.keep_animations, &model)?;
+        (b, (0..h.parent.len()).map(Some).collect())
+    };
+    let times: Vec<f32> = (0..poses.len()).map(|k| k as f32 / fps).collect();
+    let input = b.floats(&times, 1, None, true);
+    for (d, (t, r)) in driven.iter().zip(&tracks) {
+        let node = map[d.node].expect("the skeleton keeps every bone");
+        if d.translates {
+            b.channel(node, Property::Translation, input, &vec3_values(t));
+        }
+        b.channel(node, Property::Rotation, input, &quat_values(r));
+    }
+    let (mut root, bin) = b.finish(opts.name.as_deref().unwrap_or(DEFAULT_CLIP_NAME));
+    root.asset.generator = Some(concat!("ace_models ", env!("CARGO_PKG_VERSION")).into());
+    Ok(RigClipOutput {
+        bytes: glb(&root, &bin)?,
+        animated_nodes: driven.len(),
+    })
+}
+
+/// The file's nodes at rest, checked: one parent each, no cycle, finite transforms.
+fn hierarchy(doc: &::gltf::Document, model: &str) -> Result<Hierarchy, ExportProblem> {
+    let not_it = |why: String| ExportProblem::NotTheCreature { model: model.to_owned(), why };
+    let nodes: Vec<::gltf::Node> = doc.nodes().collect();
+    let n = nodes.len();
+    let mut parent = vec![None; n];
+    for nd in &nodes {
+        for ch in nd.children() {
+            if parent[ch.index()].replace(nd.index()).is_some() || ch.index() == nd.index() {
+                return Err(not_it(format!("node {} has several parents", ch.index())));
+            }
+        }
+    }
+    let mut order = Vec::with_capacity(n);
+    let mut stack: Vec<usize> = (0..n).filter(|&i| parent[i].is_none()).collect();
+    while let Some(i) = stack.pop() {
+        order.push(i);
+        stack.extend(nodes[i].children().map(|c| c.index()));
+    }
+    if order.len() < n {
+        return Err(not_it("its node hierarchy has a cycle".into()));
+    }
+    let trs = nodes
+        .iter()
+        .map(|nd| {
+            let (t, r, s) = nd.transform().decomposed();
+            (
+                Vector3::from(t),
+                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(r[3], r[0], r[1], r[2])),
+                Vector3::from(s),
+            )
+        })
+        .collect();
+    let mut world = vec![Matrix4::identity(); n];
+    for &i in &order {
+        let local = Matrix4::from(nodes[i].transform().matrix());
+        world[i] = parent[i].map_or(local, |p| world[p] * local);
+        if !world[i].iter().all(|v| v.is_finite()) {
+            return Err(not_it(format!("node {i} has a non-finite transform")));
+        }
+    }
+    Ok(Hierarchy { parent, order, trs, world })
+}
+
+/// The bones the clip animates (see the module docs), checked against the file's nodes.
+fn driven_bones(c: &Creature, doc: &::gltf::Document, model: &str) -> Result<Vec<Driven>, ExportProblem> {
+    let not_it = |why: String| ExportProblem::NotTheCreature { model: model.to_owned(), why };
+    let rig = &c.rig;
+    for b in &rig.bones {
+        let name = doc
+            .nodes()
+            .nth(b.node)
+            .map(|nd| nd.name().map_or_else(|| format!("node{}", nd.index()), str::to_owned));
+        if name.as_deref() != Some(b.name.as_str()) {
+            return Err(not_it(format!("node {} is not the bone `{}`", b.node, b.name)));
+        }
+    }
+    let link = |b: usize| {
+        c.tree
+            .link_index(&rig.bones[b].name)
+            .ok_or_else(|| not_it(format!("the creature's tree has no link for bone `{}`", rig.bones[b].name)))
+    };
+    let root = c.plan.root_bone;
+    let mut out = vec![Driven { node: rig.bones[root].node, bone: root, link: link(root)?, translates: true }];
+    for j in &c.plan.joints {
+        if j.dofs.iter().any(Option::is_some) {
+            out.push(Driven { node: rig.bones[j.bone].node, bone: j.bone, link: j.link, translates: false });
+        }
+    }
+    // Deforming helpers are the helpers that have a link (the others are dropped from the tree).
+    for (b, bone) in rig.bones.iter().enumerate() {
+        if c.plan.helpers.contains(&bone.name) && c.tree.link_index(&bone.name).is_some() {
+            out.push(Driven { node: bone.node, bone: b, link: link(b)?, translates: true });
+        }
+    }
+    Ok(out)
+}
+
+/// Per driven bone, its local translation and rotation in every frame (file frame and units).
+#[allow(clippy::type_complexity)]
+fn tracks(
+    c: &Creature,
+    h: &Hierarchy,
+    driven: &[Driven],
+    poses: &[CharacterPose],
+    model: &str,
+) -> Result<Vec<(Vec<Vector3<f32>>, Vec<UnitQuaternion<f32>>)>, ExportProblem> {
+    let degenerate = |node: usize| ExportProblem::NotTheCreature {
+        model: model.to_owned(),
+        why: format!("node {node} has a degenerate transform: its pose cannot be written"),
+    };
+    let n = h.parent.len();
+    let mut driven_of = vec![None; n];
+    for (k, d) in driven.iter().enumerate() {
+        driven_of[d.node] = Some(k);
+    }
+    // File → character frame (C) and back.
+    let s = c.rig.scale;
+    let mut to_char = Matrix4::identity();
+    to_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(c.rig.to_character.matrix() * s));
+    let mut from_char = Matrix4::identity();
+    from_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(c.rig.to_character.matrix().transpose() / s));
+    // C · F_b per driven bone, and R_b⁻¹ · C · F_b: the rest pose taken out in the character frame.
+    let rest: Vec<Matrix4<f32>> = driven
+        .iter()
+        .map(|d| c.rig.bones[d.bone].rest.inverse().to_homogeneous() * to_char * h.world[d.node])
+        .collect();
+    let mut out: Vec<_> = driven
+        .iter()
+        .map(|_| (Vec::with_capacity(poses.len()), Vec::with_capacity(poses.len())))
+        .collect();
+    let mut world = vec![Matrix4::<f32>::identity(); n];
+    let mut fk = Vec::new();
+    for pose in poses {
+        c.tree.forward_kinematics_into(pose, &mut fk);
+        for &i in &h.order {
+            let parent = h.parent[i].map_or_else(Matrix4::identity, |p| world[p]);
+            let (t0, r0, s0) = h.trs[i];
+            let Some(k) = driven_of[i] else {
+                world[i] = parent * local_matrix(&t0, &r0, &s0);
+                continue;
+            };
+            let d = &driven[k];
+            let want = from_char * fk[d.link].to_homogeneous() * rest[k];
+            let local = parent.try_inverse().ok_or_else(|| degenerate(i))? * want;
+            let t = if d.translates { local.fixed_view::<3, 1>(0, 3).into_owned() } else { t0 };
+            let unscale = Matrix3::from_diagonal(&s0.map(|v| 1.0 / v));
+            let r = polar_rotation(&(local.fixed_view::<3, 3>(0, 0) * unscale)).ok_or_else(|| degenerate(i))?;
+            world[i] = parent * local_matrix(&t, &r, &s0);
+            out[k].0.push(t);
+            out[k].1.push(r);
+        }
+    }
+    Ok(out)
+}
+
+fn local_matrix(t: &Vector3<f32>, r: &UnitQuaternion<f32>, s: &Vector3<f32>) -> Matrix4<f32> {
+    Translation3::from(*t).to_homogeneous() * r.to_homogeneous() * Matrix4::new_nonuniform_scaling(s)
+}
+
+/// The whole model: the file's document with its buffers and images in one binary buffer, and its own
+/// animations unless `keep_animations` is false.
+fn whole_model(
+    doc: &::gltf::Document,
+    buffers: Vec<Vec<u8>>,
+    source: &Path,
+    keep_animations: bool,
+    model: &str,
+) -> Result<Builder, ExportProblem> {
+    let mut root = doc.as_json().clone();
+    let mut bin = Vec::new();
+    let mut base = Vec::with_capacity(buffers.len());
+    for data in buffers {
+        bin.resize(bin.len().next_multiple_of(4), 0);
+        base.push(bin.len() as u64);
+        bin.extend_from_slice(&data);
+    }
+    for v in &mut root.buffer_views {
+        let offset = v.byte_offset.map_or(0, |o| o.0) + base[v.buffer.value()];
+        v.byte_offset = Some(USize64(offset));
+        v.buffer = Index::new(0);
+    }
+    root.buffers.truncate(1);
+    if !keep_animations {
+        root.animations.clear();
+        bin = drop_unused_data(&mut root, bin);
+    }
+    let images = std::mem::take(&mut root.images);
+    let mut b = Builder::new(root, bin);
+    for (index, mut image) in images.into_iter().enumerate() {
+        if let Some(uri) = image.uri.take() {
+            let fail = |reason: String| ExportProblem::Image { model: model.to_owned(), index, reason };
+            let (bytes, declared) = image_bytes(&uri, source).map_err(fail)?;
+            let mime = image
+                .mime_type
+                .as_ref()
+                .map(|m| m.0.clone())
+                .or(declared)
+                .or_else(|| sniff_image(&bytes).map(str::to_owned))
+                .ok_or_else(|| fail("neither its URI nor its bytes say which image format it is".into()))?;
+            image.buffer_view = Some(b.view(&bytes, None));
+            image.mime_type = Some(json::image::MimeType(mime));
+        }
+        b.root.push(image);
+    }
+    Ok(b)
+}
+
+/// Extensions (by prefix) that point at no accessor or buffer view: a document using only these can
+/// have its accessors and buffer views renumbered.
+const RENUMBERABLE: [&str; 7] = [
+    "KHR_materials_",
+    "KHR_texture_transform",
+    "KHR_lights_punctual",
+    "KHR_mesh_quantization",
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+];
+
+/// Drops the accessors nothing refers to any more (those of the dropped animations) and the buffer
+/// views and bytes only they used, renumbering the rest; `bin` is buffer 0, the only one. Documents
+/// using an extension that might point at accessors or buffer views (mesh compression, instancing)
+/// are left as they are.
+fn drop_unused_data(root: &mut json::Root, bin: Vec<u8>) -> Vec<u8> {
+    if root.extensions_used.iter().any(|e| !RENUMBERABLE.iter().any(|p| e.starts_with(p))) {
+        return bin;
+    }
+    let mut used = vec![false; root.accessors.len()];
+    accessor_refs(root, &mut |a| used[a.value()] = true);
+    let map = renumber(&used);
+    let accessors = std::mem::take(&mut root.accessors);
+    root.accessors = accessors.into_iter().zip(&used).filter(|(_, u)| **u).map(|(a, _)| a).collect();
+    accessor_refs(root, &mut |a| *a = Index::new(map[a.value()]));
+
+    let mut used = vec![false; root.buffer_views.len()];
+    view_refs(root, &mut |v| used[v.value()] = true);
+    let map = renumber(&used);
+    let views = std::mem::take(&mut root.buffer_views);
+    let mut out = Vec::with_capacity(bin.len());
+    for (mut v, _) in views.into_iter().zip(&used).filter(|(_, u)| **u) {
+        let start = v.byte_offset.map_or(0, |o| o.0) as usize;
+        let end = (start + v.byte_length.0 as usize).min(bin.len());
+        // The same offset modulo 4 as before, so that every accessor stays aligned to its components.
+        while out.len() % 4 != start % 4 {
+            out.push(0);
+        }
+        v.byte_offset = Some(USize64::from(out.len()));
+        out.extend_from_slice(&bin[start.min(end)..end]);
+        root.buffer_views.push(v);
+    }
+    view_refs(root, &mut |v| *v = Index::new(map[v.value()]));
+    out
+}
+
+/// New index of each kept object (`used`), counting kept objects only.
+fn renumber(used: &[bool]) -> Vec<u32> {
+    let mut next = 0;
+    used.iter()
+        .map(|&u| {
+            let i = next;
+            next += u32::from(u);
+            i
+        })
+        .collect()
+}
+
+/// Visits every reference to an accessor: mesh attributes, indices and morph targets, inverse bind
+/// matrices, animation samplers.
+fn accessor_refs(root: &mut json::Root, f: &mut dyn FnMut(&mut Index<json::Accessor>)) {
+    for p in root.meshes.iter_mut().flat_map(|m| m.primitives.iter_mut()) {
+        p.attributes.values_mut().for_each(&mut *f);
+        p.indices.iter_mut().for_each(&mut *f);
+        for t in p.targets.iter_mut().flatten() {
+            t.positions.iter_mut().chain(t.normals.iter_mut()).chain(t.tangents.iter_mut()).for_each(&mut *f);
+        }
+    }
+    root.skins.iter_mut().filter_map(|s| s.inverse_bind_matrices.as_mut()).for_each(&mut *f);
+    for s in root.animations.iter_mut().flat_map(|a| a.samplers.iter_mut()) {
+        f(&mut s.input);
+        f(&mut s.output);
+    }
+}
+
+/// Visits every reference to a buffer view: accessors (sparse ones included) and images.
+fn view_refs(root: &mut json::Root, f: &mut dyn FnMut(&mut Index<json::buffer::View>)) {
+    for a in &mut root.accessors {
+        a.buffer_view.iter_mut().for_each(&mut *f);
+        if let Some(s) = &mut a.sparse {
+            f(&mut s.indices.buffer_view);
+            f(&mut s.values.buffer_view);
+        }
+    }
+    root.images.iter_mut().filter_map(|i| i.buffer_view.as_mut()).for_each(&mut *f);
+}
+
+/// The bytes of an image URI (a data URI, or a file beside `source`) and the MIME type a data URI
+/// declares.
+fn image_bytes(uri: &str, source: &Path) -> Result<(Vec<u8>, Option<String>), String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (head, data) = rest.split_once(";base64,").ok_or("only base64 data URIs are read")?;
+        let bytes = decode_base64(data).ok_or("invalid base64")?;
+        return Ok((bytes, (!head.is_empty()).then(|| head.to_owned())));
+    }
+    let file = source.parent().unwrap_or(Path::new(".")).join(percent_decode(uri));
+    let meta = std::fs::metadata(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
+        return Err(format!("{}: not a regular file of at most {MAX_FILE_BYTES} bytes", file.display()));
+    }
+    let bytes = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    Ok((bytes, None))
+}
+
+/// The MIME type of image bytes by their signature (the formats glTF and its extensions embed).
+fn sniff_image(b: &[u8]) -> Option<&'static str> {
+    if b.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some("image/png")
+    } else if b.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some("image/jpeg")
+    } else if b.len() >= 12 && &b[0..4] == b"RIFF" && &b[8..12] == b"WEBP" {
+        Some("image/webp")
+    } else if b.starts_with(b"\xABKTX 20\xBB") {
+        Some("image/ktx2")
+    } else {
+        None
+    }
+}
+
+/// The skeleton alone: the skin's joints and their ancestors (rest transforms, names, extras), the
+/// skin the creature was built from, one scene. Returns the builder and the new index of each kept node.
+fn skeleton(doc: &::gltf::Document, buffers: &[Vec<u8>], c: &Creature, h: &Hierarchy) -> (Builder, Vec<Option<usize>>) {
+    let src = doc.as_json();
+    let n = h.parent.len();
+    let mut keep = vec![false; n];
+    for bone in &c.rig.bones {
+        let mut i = Some(bone.node);
+        while let Some(k) = i.filter(|&k| !keep[k]) {
+            keep[k] = true;
+            i = h.parent[k];
+        }
+    }
+    let mut map = vec![None; n];
+    let mut count = 0;
+    for i in 0..n {
+        if keep[i] {
+            map[i] = Some(count);
+            count += 1;
+        }
+    }
+    let remap = |i: Index<json::Node>| map[i.value()].map(|k| Index::new(k as u32));
+    let mut root = json::Root {
+        asset: src.asset.clone(),
+        ..Default::default()
+    };
+    for nd in src.nodes.iter().enumerate().filter(|(i, _)| keep[*i]).map(|(_, nd)| nd) {
+        let children: Vec<Index<json::Node>> = nd.children.iter().flatten().filter_map(|&ch| remap(ch)).collect();
+        root.push(json::Node {
+            name: nd.name.clone(),
+            matrix: nd.matrix,
+            translation: nd.translation,
+            rotation: nd.rotation,
+            scale: nd.scale,
+            children: (!children.is_empty()).then_some(children),
+            extras: nd.extras.clone(),
+            ..Default::default()
+        });
+    }
+    let roots = (0..n).filter(|&i| keep[i] && h.parent[i].is_none_or(|p| !keep[p]));
+    let scene_name = doc.default_scene().or_else(|| doc.scenes().next()).and_then(|s| s.name().map(str::to_owned));
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: scene_name,
+        nodes: roots.map(|i| Index::new(map[i].expect("kept") as u32)).collect(),
+    });
+    root.scene = Some(scene);
+    let mut b = Builder::new(root, Vec::new());
+    let used = c.rig.skins.iter().position(|s| s.used).unwrap_or(0);
+    if let Some(skin) = doc.skins().nth(used) {
+        let ibm: Option<Vec<f32>> = skin
+            .reader(|buf| buffers.get(buf.index()).map(Vec::as_slice))
+            .read_inverse_bind_matrices()
+            .map(|it| it.flat_map(|m| m.into_iter().flatten()).collect());
+        let inverse_bind_matrices = ibm.map(|m| b.floats(&m, 16, None, false));
+        let joints = skin.joints().filter_map(|j| map[j.index()].map(|k| Index::new(k as u32))).collect();
+        b.root.push(json::Skin {
+            extensions: None,
+            extras: Default::default(),
+            inverse_bind_matrices,
+            joints,
+            name: skin.name().map(str::to_owned),
+            skeleton: skin.skeleton().and_then(|s| map[s.index()]).map(|k| Index::new(k as u32)),
+        });
+    }
+    (b, map)
+}

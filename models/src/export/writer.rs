@@ -1,0 +1,240 @@
+//! The one glTF writer of the exports: a typed document ([`gltf_json::Root`]) grown object by object
+//! beside its binary buffer, and the GLB container around both. The URDF character export
+//! ([`super::gltf`]) builds its document from nothing; the rig clip export ([`super::rig`]) starts from
+//! the creature's own file.
+
+use gltf_json as json;
+use nalgebra::{UnitQuaternion, Vector3};
+use json::accessor::{ComponentType, GenericComponentType, Type};
+use json::animation::{Channel, Interpolation, Property, Sampler, Target};
+use json::validation::{Checked, USize64};
+use json::{Index, Root};
+
+use super::ExportProblem;
+
+/// A glTF document under construction with its binary buffer (buffer 0, the GLB's binary chunk) and
+/// the animation being written.
+pub struct Builder {
+    pub root: Root,
+    pub bin: Vec<u8>,
+    /// Samplers and channels of the animation [`Builder::finish`] adds (when it has channels).
+    samplers: Vec<Sampler>,
+    channels: Vec<Channel>,
+}
+
+impl Builder {
+    /// A builder over `root`, whose buffer 0 (if any) is `bin`.
+    pub fn new(root: Root, bin: Vec<u8>) -> Self {
+        Builder {
+            root,
+            bin,
+            samplers: Vec::new(),
+            channels: Vec::new(),
+        }
+    }
+
+    /// Appends `bytes` as a buffer view starting on a 4-byte boundary (what every accessor's component
+    /// type needs).
+    pub fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> Index<json::buffer::View> {
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        let view = json::buffer::View {
+            buffer: Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(self.bin.len())),
+            byte_stride: None,
+            name: None,
+            target: target.map(Checked::Valid),
+            extensions: None,
+            extras: Default::default(),
+        };
+        self.bin.extend_from_slice(bytes);
+        self.root.push(view)
+    }
+
+    /// A float accessor of `width` components per element (1, 3, 4 or 16 for 4×4 matrices), with min/max
+    /// when `bounds`.
+    pub fn floats(
+        &mut self,
+        data: &[f32],
+        width: usize,
+        target: Option<json::buffer::Target>,
+        bounds: bool,
+    ) -> Index<json::Accessor> {
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, target);
+        let kind = match width {
+            1 => Type::Scalar,
+            3 => Type::Vec3,
+            4 => Type::Vec4,
+            16 => Type::Mat4,
+            _ => unreachable!("accessor width {width}"),
+        };
+        let (mut min, mut max) = (None, None);
+        if bounds {
+            // Exactly the stored f32 values: serde_json keeps f32 → f64 exact, validators compare exactly.
+            let mut lo = vec![f32::INFINITY; width];
+            let mut hi = vec![f32::NEG_INFINITY; width];
+            for e in data.chunks_exact(width) {
+                for c in 0..width {
+                    lo[c] = lo[c].min(e[c]);
+                    hi[c] = hi[c].max(e[c]);
+                }
+            }
+            min = Some(json::Value::from(lo));
+            max = Some(json::Value::from(hi));
+        }
+        self.accessor(view, ComponentType::F32, data.len() / width, kind, min, max)
+    }
+
+    /// A triangle index accessor, 16-bit when the vertices allow it.
+    pub fn indices(&mut self, indices: &[u32], vertex_count: usize) -> Index<json::Accessor> {
+        // 65535 is the primitive-restart value of 16-bit indices and may not be used.
+        let (bytes, component): (Vec<u8>, ComponentType) = if vertex_count <= 65535 {
+            (
+                indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect(),
+                ComponentType::U16,
+            )
+        } else {
+            (
+                indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+                ComponentType::U32,
+            )
+        };
+        let view = self.view(&bytes, Some(json::buffer::Target::ElementArrayBuffer));
+        self.accessor(view, component, indices.len(), Type::Scalar, None, None)
+    }
+
+    fn accessor(
+        &mut self,
+        view: Index<json::buffer::View>,
+        component: ComponentType,
+        count: usize,
+        kind: Type,
+        min: Option<json::Value>,
+        max: Option<json::Value>,
+    ) -> Index<json::Accessor> {
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Checked::Valid(GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Checked::Valid(kind),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    /// A LINEAR sampler over the time accessor `input` and a channel driving `path` of `node` with
+    /// `values` (3 floats per key for translations and scales, 4 for rotations).
+    pub fn channel(&mut self, node: usize, path: Property, input: Index<json::Accessor>, values: &[f32]) {
+        let width = if path == Property::Rotation { 4 } else { 3 };
+        let output = self.floats(values, width, None, false);
+        let sampler = Index::push(
+            &mut self.samplers,
+            Sampler {
+                extensions: None,
+                extras: Default::default(),
+                input,
+                interpolation: Checked::Valid(Interpolation::Linear),
+                output,
+            },
+        );
+        self.channels.push(Channel {
+            sampler,
+            target: Target {
+                extensions: None,
+                extras: Default::default(),
+                node: Index::new(node as u32),
+                path: Checked::Valid(path),
+            },
+            extensions: None,
+            extras: Default::default(),
+        });
+    }
+
+    /// Adds the animation of the channels written so far, named `name`, and sets buffer 0 to the
+    /// binary data (no URI: the GLB's binary chunk). Returns the document and the binary data.
+    pub fn finish(mut self, name: &str) -> (Root, Vec<u8>) {
+        if !self.channels.is_empty() {
+            self.root.push(json::Animation {
+                extensions: None,
+                extras: Default::default(),
+                channels: std::mem::take(&mut self.channels),
+                name: Some(name.to_owned()),
+                samplers: std::mem::take(&mut self.samplers),
+            });
+        }
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        let buffer = json::Buffer {
+            byte_length: USize64::from(self.bin.len()),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        };
+        if self.root.buffers.is_empty() {
+            self.root.push(buffer);
+        } else {
+            self.root.buffers[0] = buffer;
+        }
+        (self.root, self.bin)
+    }
+}
+
+/// Translations (or scales) as accessor values.
+pub fn vec3_values(v: &[Vector3<f32>]) -> Vec<f32> {
+    v.iter().flat_map(|t| [t.x, t.y, t.z]).collect()
+}
+
+/// Rotations as accessor values `x y z w`, each flipped when needed to stay in the hemisphere of the
+/// previous one (q and −q are the same rotation, but LINEAR interpolation between keys of opposite
+/// sign would turn the long way round).
+pub fn quat_values(rotations: &[UnitQuaternion<f32>]) -> Vec<f32> {
+    let mut out = Vec::with_capacity(4 * rotations.len());
+    let mut prev: Option<nalgebra::Quaternion<f32>> = None;
+    for r in rotations {
+        let mut q = r.normalize();
+        if prev.is_some_and(|p| p.dot(&q) < 0.0) {
+            q = -q;
+        }
+        out.extend_from_slice(&[q.i, q.j, q.k, q.w]);
+        prev = Some(q);
+    }
+    out
+}
+
+/// The GLB container of `root` and its binary chunk `bin` (buffer 0): 12-byte header, the JSON chunk
+/// padded with spaces and the binary chunk padded with zeros, each to a multiple of 4 bytes.
+pub fn glb(root: &Root, bin: &[u8]) -> Result<Vec<u8>, ExportProblem> {
+    let json = root.to_vec().expect("a glTF document serialises");
+    let total = 12 + 8 + json.len().next_multiple_of(4) + 8 + bin.len().next_multiple_of(4);
+    if u32::try_from(total).is_err() {
+        return Err(ExportProblem::TooLarge(total));
+    }
+    let header = ::gltf::binary::Header {
+        magic: *b"glTF",
+        version: 2,
+        length: total as u32,
+    };
+    let out = ::gltf::Glb {
+        header,
+        json: json.into(),
+        bin: Some(bin.into()),
+    }
+    .to_vec()
+    .map_err(|e| ExportProblem::Io(std::io::Error::other(e.to_string())))?;
+    debug_assert_eq!(out.len(), total);
+    Ok(out)
+}
+
+impl Default for Builder {
+    /// An empty document (glTF 2.0) and no binary data.
+    fn default() -> Self {
+        Builder::new(Root::default(), Vec::new())
+    }
+}
