@@ -1,11 +1,16 @@
 //! The project's own creature, `assets/creatures/hound.glb`: made by `scripts/make_creature.py`, it
-//! imports as a quadruped with a head and a tail, and its motion dataset is clean.
+//! imports as a quadruped with a head and a tail, its motion dataset is clean, and it and a clip
+//! exported onto it pass Khronos' validator.
+
+mod common;
+use common::khronos_validate;
 
 use std::path::PathBuf;
 use std::process::Command;
 
 use ace_models::character::load_creature;
 use ace_models::dataset::{DatasetConfig, generate};
+use ace_models::export::{RigClipOptions, write_rig_clip};
 use ace_models::kinematics::CharacterPose;
 use ace_models::metrics::{UfrConfig, ufr_episodes};
 
@@ -54,4 +59,20 @@ fn the_hounds_dataset_is_clean() {
     let ufr =
         ufr_episodes(&c.tree, &c.morphology, &poses, &set.episodes, set.fps, &UfrConfig::for_character(&c.tree, &c.morphology));
     assert!(ufr.rates.ufr <= 0.01, "UFR {:.2} % {:?}", 100.0 * ufr.rates.ufr, ufr.collision_pairs);
+}
+
+#[test]
+fn the_hound_and_a_clip_on_it_pass_the_validator() {
+    let file = repo("assets/creatures/hound.glb");
+    let Some(report) = khronos_validate(&file) else { return };
+    assert_eq!(report["numWarnings"], 0, "{report}");
+    // Two seconds of its own dataset, written onto the model.
+    let c = load_creature(&file).unwrap();
+    let set = generate(&c.tree, &c.morphology, &DatasetConfig { frames: 60, seed: 1, ..DatasetConfig::default() }, &mut |_| {})
+        .unwrap();
+    let poses: Vec<CharacterPose> = (0..set.len()).map(|i| set.pose(i)).collect();
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("hound-clip.glb");
+    let written = write_rig_clip(&out, &c, &poses, set.fps, &RigClipOptions::default()).unwrap();
+    assert!(written.animated_nodes >= 17, "{} nodes animated", written.animated_nodes);
+    khronos_validate(&out);
 }
