@@ -681,15 +681,17 @@ fn feature_loss_is_the_weighted_mean_square() {
     b[layout.ee_positions().start] = 2.0; // squared error 4 in the end-effector block
     let w = FeatureWeights::default();
     assert!((feature_loss(&layout, &a, &b, &w) - 5.0 / 16.0).abs() < 1e-7);
+    // Weights that change the sum (2·1 + 0.25·4 = 3, against 5 unweighted).
     let w = FeatureWeights {
-        root_height: 3.0,
-        ee_positions: 0.5,
+        root_height: 2.0,
+        ee_positions: 0.25,
         ..Default::default()
     };
-    assert!((feature_loss(&layout, &a, &b, &w) - 5.0 / 16.0).abs() < 1e-7);
+    assert!((feature_loss(&layout, &a, &b, &w) - 3.0 / 16.0).abs() < 1e-7);
+    assert!((feature_loss(&layout, &a, &b, &w.only(FeatureBlock::EePositions)) - 1.0 / 16.0).abs() < 1e-7);
     assert_eq!(
         w.per_element(&layout)[layout.range(FeatureBlock::EePositions)],
-        [0.5; 3]
+        [0.25; 3]
     );
     assert!(
         (mean_feature_loss(&layout, &[a.clone(), a.clone()], &[b, a], &FeatureWeights::default()) - 2.5 / 16.0).abs()
