@@ -486,6 +486,34 @@ mod tests {
     }
 
     #[test]
+    fn a_foot_the_network_drags_fast_along_the_ground_is_held_at_the_swing_clearance() {
+        let (tree, morph) = spot();
+        let l = character_body_length(&tree, &morph);
+        let c = FootLockConfig::default();
+        // The network's first foot is up in the air, then skims the ground, 1 mm up, at 1.5 L/s: too
+        // fast to plant.
+        let standing = tree.standing_pose();
+        let chain = Chain::new(&tree, &morph, morph.feet[0]);
+        let mut scratch = ChainScratch::default();
+        let start = chain.tip_point(&tree, &standing.q, &mut scratch);
+        let raw: Vec<CharacterPose> = (0..12)
+            .map(|t| {
+                let mut p = standing.clone();
+                let up = if t < 4 { 0.2 * l } else { 0.001 };
+                let target = start + Vector3::new((-0.3 + 0.05 * t as f32) * l, 0.0, up);
+                chain.solve(&tree, &mut p.q, &target, 1e-5, 60, &mut scratch);
+                p
+            })
+            .collect();
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
+        let ground = first_foot(&tree, &morph, &[standing])[0].z;
+        for (t, p) in first_foot(&tree, &morph, &clean).iter().enumerate().skip(4) {
+            assert!(p.z > ground + 0.9 * c.swing_clearance * l, "frame {t}: foot {} m above its standing height", p.z - ground);
+        }
+    }
+
+    #[test]
     fn a_foot_that_only_needs_to_move_a_little_stays_planted() {
         let (tree, morph) = spot();
         let raw = quick_step(&tree, &morph, 0.08, 0.04);
