@@ -89,8 +89,14 @@ pub struct AceConfig {
     pub adam_beta1: f64,
     /// Human windows (and real transitions) per step.
     pub batch_size: usize,
-    /// Frames per human window: G and π are rolled out over this many frames.
+    /// Frames per human window: G and π are rolled out over this many frames (gradients reach back
+    /// this far).
     pub window: usize,
+    /// Consecutive windows a rollout continues for: each step picks the human clip up where the last
+    /// window ended and the character where G left it, and every this many steps (or when its clip
+    /// ends) a rollout starts again from a random window and a random dataset state. 1 starts every
+    /// window afresh.
+    pub rollout_windows: usize,
     /// Generator steps.
     pub steps: usize,
     /// Discriminator updates per generator step (0 keeps D fixed; it is still evaluated for the log).
@@ -126,6 +132,7 @@ impl Default for AceConfig {
             adam_beta1: 0.5,
             batch_size: 128,
             window: 8,
+            rollout_windows: 8,
             steps: 4000,
             discriminator_steps: 1,
             checkpoint_every: 250,
@@ -155,6 +162,7 @@ impl AceConfig {
         let bad = |m: String| Err(LearnError::Config(m));
         in_range("batch_size", self.batch_size, 1, limits::BATCH_SIZE)?;
         in_range("window", self.window, 1, limits::WINDOW)?;
+        in_range("rollout_windows", self.rollout_windows, 1, limits::STEPS)?;
         in_range("steps", self.steps, 1, limits::STEPS)?;
         in_range("checkpoint_every", self.checkpoint_every, 1, limits::STEPS)?;
         in_range("discriminator_steps", self.discriminator_steps, 0, 1_000)?;

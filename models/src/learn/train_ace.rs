@@ -2,9 +2,16 @@
 //! motion, against a discriminator D that tells its transitions from the character dataset's.
 //!
 //! Each generator step:
-//! 1. draws `batch_size` windows of `window` consecutive frames from the training human clips (uniform
-//!    over all windows, so longer clips count more) and as many start states from the character
-//!    dataset (real frames, normalised);
+//! 1. takes `batch_size` windows of `window` consecutive frames from the training human clips and as
+//!    many start states. Rollouts are persistent: a rollout continues where its last window ended,
+//!    the human clip at the next frame and the character in the state G left it in (detached), for
+//!    [`AceConfig::rollout_windows`] steps; then, or when its clip has no further window, it starts
+//!    again from a random window (uniform over all windows, so longer clips count more) and a random
+//!    character dataset state (a real frame, normalised). A retargeter runs G on its own states along
+//!    a whole clip from one start; trained only from random dataset states, whose arm or feet have
+//!    nothing to do with the human's frame, G learned to pull towards the human's features from
+//!    anywhere instead of following them, and a Stretch arm that moved with the hand in training
+//!    ignored it at retargeting (vertical correlation 0.03 over the held-out clips);
 //! 2. rolls G and π out over the window, `x̂_t = π(G(x^h_t, x̂_{t−1}), x̂_{t−1})` from the start
 //!    state, keeping the whole rollout in the graph so that gradients reach G through every step
 //!    (π's weights are frozen, its inputs are not);
@@ -28,7 +35,8 @@
 //! is cumulative over sessions). A run started in a directory that holds an ACE checkpoint of the same
 //! configuration, character, correspondence and human data resumes from it: weights and step are
 //! restored and the draws continue as in an uninterrupted run, but Adam's moment estimates restart
-//! from zero (they are not saved), so a resumed run is not bit-identical to an uninterrupted one.
+//! from zero (they are not saved) and the rollouts start afresh, so a resumed run is not bit-identical
+//! to an uninterrupted one.
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -199,6 +207,13 @@ pub fn train_ace(
     let mut opt_d = adam.build(discriminator.var_store(), cfg.discriminator_lr)?;
     let (b, window) = (cfg.batch_size, cfg.window);
     let clock = Instant::now();
+    // Whether a window may start at a human row (it stays inside its clip).
+    let mut window_fits = vec![false; humans.states.size()[0] as usize];
+    humans.starts.iter().for_each(|&r| window_fits[r] = true);
+    // The persistent rollouts: each one's next human row, and the state G left its character in.
+    let mut lanes: Vec<Option<usize>> = vec![None; b];
+    let mut lane_states = Tensor::zeros([b as i64, data.size()[1]], (Kind::Float, device));
+    let record_start = record.step;
 
     for step in record.step..cfg.steps {
         let mut rng = step_rng(cfg.seed, RNG_STREAM, step);
@@ -208,9 +223,25 @@ pub fn train_ace(
                 .collect();
             Tensor::from_slice(&v).to_device(device)
         };
-        let human = draw(&mut rng, &humans.starts);
-        let starts: Vec<i64> = (0..b).map(|_| rng.random_range(0..set.len()) as i64).collect();
-        let mut prev = data.index_select(0, &Tensor::from_slice(&starts).to_device(device));
+        // Rollouts that go on keep their row and state; the others start from a random window and a
+        // random dataset state (both drawn for every lane, so the draws do not depend on the lanes).
+        let fresh_rows: Vec<usize> = (0..b).map(|_| humans.starts[rng.random_range(0..humans.starts.len())]).collect();
+        let fresh_states: Vec<i64> = (0..b).map(|_| rng.random_range(0..set.len()) as i64).collect();
+        let restart_all = (step - record_start) % cfg.rollout_windows == 0;
+        let mut go_on = vec![false; b];
+        for (k, lane) in lanes.iter_mut().enumerate() {
+            match lane {
+                Some(row) if !restart_all && window_fits.get(*row).copied().unwrap_or(false) => go_on[k] = true,
+                _ => *lane = Some(fresh_rows[k]),
+            }
+        }
+        let human = Tensor::from_slice(&lanes.iter().map(|r| r.expect("every lane has a row") as i64).collect::<Vec<_>>())
+            .to_device(device);
+        let fresh = data.index_select(0, &Tensor::from_slice(&fresh_states).to_device(device));
+        let keep = Tensor::from_slice(&go_on.iter().map(|&g| if g { 1.0f32 } else { 0.0 }).collect::<Vec<_>>())
+            .view([b as i64, 1])
+            .to_device(device);
+        let mut prev = &lane_states * &keep + fresh * (1.0 - &keep);
 
         // Generator step through the rollout, with D fixed.
         discriminator.var_store_mut().freeze();
@@ -233,6 +264,8 @@ pub fn train_ace(
             fake_cur.push(cur.detach());
             prev = cur;
         }
+        lane_states = prev.detach();
+        lanes.iter_mut().for_each(|r| *r = r.map(|r| r + window));
         let (fea, adv) = (fea / window as f64, adv / window as f64);
         let g_loss = weighted_sum(&[(cfg.w_adv, &adv), (cfg.w_fea, &fea)]);
         opt_g.backward_step(&g_loss);
