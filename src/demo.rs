@@ -108,11 +108,12 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Op
             files.commit()?;
             let glb = out.join(&rel);
             println!(
-                "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  UFR {:5.2} %  → {}",
+                "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  following {:5.2}  UFR {:5.2} %  → {}",
                 tree.name,
                 clip.name,
                 w.report.frames,
                 w.report.feature_loss.unwrap_or(f32::NAN),
+                crate::eval::following_score(&w.report).unwrap_or(f32::NAN),
                 100.0 * w.report.ufr.rates.ufr,
                 glb.display()
             );
@@ -138,16 +139,17 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Op
 
 fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String {
     let mut s = String::from(
-        "| character | clip | frames | L_fea | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| character | clip | frames | L_fea | following | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let opt = |v: Option<f32>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
     for (c, clip, r, _) in rows {
         let u = &r.ufr.rates;
         let _ = writeln!(
             s,
-            "| {c} | {clip} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
+            "| {c} | {clip} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
             r.frames,
             opt(r.feature_loss),
+            opt(crate::eval::following_score(r)),
             100.0 * u.ufr,
             100.0 * u.self_collision,
             100.0 * u.penetration,

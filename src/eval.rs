@@ -15,8 +15,8 @@
 //!   feature** and **ACE w/o adversarial**, trained first when missing, each scored exactly as ACE (the
 //!   same scorer, correspondence, body lengths and cleanup).
 //!
-//! Columns: DIV, FID against the training dataset's Ψ fit, L_fea against the human (not for the
-//! dataset) and UFR with its detectors. Each learned system is also rolled out for `--seconds` (60 by
+//! Columns: DIV, FID against the training dataset's Ψ fit, L_fea and following against the human (not
+//! for the dataset) and UFR with its detectors; following is also broken down by end effector. Each learned system is also rolled out for `--seconds` (60 by
 //! default) on the held-out clips played back to back, and checked for non-finite values and for the
 //! root leaving a plausible height. Everything is written to `eval.md`, `eval.csv`, `eval.json` and
 //! `eval.png` in the output folder.
@@ -32,6 +32,7 @@ use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::nkn::NknCheckpoint;
 use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
 use ace::models::metrics::MetricsReport;
+use ace::models::metrics::following::MOVING_VERTICAL_M;
 use ace::models::morphology::Morphology;
 use ace::plot::{BarChart, Figure};
 use anyhow::{Context, Result, bail};
@@ -39,7 +40,7 @@ use serde::Serialize;
 
 use crate::baselines::{self, Baseline};
 use crate::output::Outputs;
-use crate::scoring::{FidSplit, Scorer};
+use crate::scoring::{FidSplit, HumanSource, Scorer};
 use crate::{characters, humans, progress, retarget, train};
 
 /// The FID table's row of the human clips themselves ([`Evaluation::source_fid`]).
@@ -213,12 +214,14 @@ pub fn evaluate(
     }
     bar.finish_and_clear();
     let human_psi: Vec<Vec<f32>> = clips.iter().flat_map(|c| scorer.human_psi(&c.states, c.body_length)).collect();
+    let bodies: Vec<f32> = clips.iter().map(|c| scorer.human_body(c.body_length)).collect();
+    let human = HumanSource { psi: &human_psi, bodies: &bodies };
     for (name, motions) in &systems {
         let (states, poses, episodes) = concat(motions);
         let psi = scorer.character_psi(&states);
         rows.push(Row {
             system: name.to_string(),
-            metrics: scorer.report(tree, morph, &psi, Some(&human_psi), &poses, &episodes),
+            metrics: scorer.report(tree, morph, &psi, Some(human), &poses, &episodes),
             feature_loss_by_block: scorer.feature_loss_by_block(&psi, &human_psi),
             fid_split: scorer.fid_split(&psi),
         });
@@ -364,6 +367,11 @@ fn stability(system: &str, m: &RetargetedMotion, body: f32) -> Stability {
     }
 }
 
+/// A motion's following score (median over its clips), when it has a source human.
+pub fn following_score(m: &MetricsReport) -> Option<f32> {
+    m.following.as_ref().and_then(|f| f.score)
+}
+
 fn opt(v: Option<f32>) -> String {
     v.map_or("n/a".into(), |v| format!("{v:.3}"))
 }
@@ -373,7 +381,7 @@ pub fn markdown(e: &Evaluation) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|",
+        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|",
         e.character,
         e.held_out_clips.len(),
         e.frames
@@ -383,16 +391,39 @@ pub fn markdown(e: &Evaluation) -> String {
         let u = &m.ufr.rates;
         let _ = writeln!(
             s,
-            "| {} | {:.3} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            "| {} | {:.3} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
             r.system,
             m.div,
             opt(m.fid),
             opt(m.feature_loss),
+            opt(following_score(m)),
             100.0 * u.ufr,
             100.0 * u.self_collision,
             100.0 * u.penetration,
             100.0 * u.sliding
         );
+    }
+    if e.rows.iter().any(|r| r.metrics.following.is_some()) {
+        let _ = writeln!(
+            s,
+            "\nFollowing by end effector (`ace_models::metrics::following`; medians over the held-out clips): vertical correlation and amplitude ratio over the clips where the human's end effector moves ≥ {MOVING_VERTICAL_M} m vertically (their count in brackets), combined correlation over all clips, stillness (body lengths moved while the human's is still within 5 cm for 1 s):\n\n| system | end effector | human | vertical corr. ↑ | amplitude (1 = same) | combined ↑ | stillness ↓ |\n|---|---|---|---:|---:|---:|---:|"
+        );
+        for r in &e.rows {
+            for p in r.metrics.following.iter().flat_map(|f| &f.pairs) {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} ({}) | {} | {} | {} |",
+                    r.system,
+                    p.character,
+                    p.human.name(),
+                    opt(p.vertical_correlation),
+                    p.moving_clips,
+                    opt(p.amplitude_ratio),
+                    opt(p.combined),
+                    opt(p.stillness)
+                );
+            }
+        }
     }
     if e.rows.iter().any(|r| r.metrics.gait.is_some()) {
         let _ = writeln!(
@@ -476,20 +507,21 @@ pub fn markdown(e: &Evaluation) -> String {
 
 /// The table as CSV (one row per system).
 pub fn csv(e: &Evaluation) -> String {
-    let mut s = String::from("character,system,frames,div,fid,l_fea,ufr,self_collision,penetration,sliding\n");
+    let mut s = String::from("character,system,frames,div,fid,l_fea,following,ufr,self_collision,penetration,sliding\n");
     for r in &e.rows {
         let m = &r.metrics;
         let u = &m.ufr.rates;
         let o = |v: Option<f32>| v.map_or(String::new(), |v| v.to_string());
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             e.character,
             r.system,
             m.frames,
             m.div,
             o(m.fid),
             o(m.feature_loss),
+            o(following_score(m)),
             u.ufr,
             u.self_collision,
             u.penetration,
@@ -511,10 +543,11 @@ pub fn write(e: &Evaluation, out: &Path) -> Result<()> {
     put("eval.json", serde_json::to_string_pretty(e)?)?;
     // One panel per metric: their scales differ by orders of magnitude.
     let v = |x: Option<f32>| x.map_or(f64::NAN, f64::from);
-    let metrics: [(&str, fn(&MetricsReport) -> Option<f32>); 4] = [
+    let metrics: [(&str, fn(&MetricsReport) -> Option<f32>); 5] = [
         ("DIV (closest to the dataset's is best)", |m| Some(m.div)),
         ("FID (lower is better)", |m| m.fid),
         ("L_fea (lower is better)", |m| m.feature_loss),
+        ("following (higher is better)", following_score),
         ("UFR % (lower is better)", |m| Some(100.0 * m.ufr.rates.ufr)),
     ];
     let mut fig = Figure::new(900);

@@ -22,7 +22,7 @@ use anyhow::{Context, Result, bail};
 
 use crate::characters;
 use crate::output::Outputs;
-use crate::scoring::Scorer;
+use crate::scoring::{HumanSource, Scorer};
 
 /// Where a bundled character's shipped checkpoint lives.
 pub fn shipped_checkpoint(name: &str) -> PathBuf {
@@ -137,9 +137,10 @@ pub fn retarget_and_score(
     let human: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
     let motion = retargeter.retarget_states(tree, morph, &human)?;
     let psi = scorer.character_psi(&motion.states);
-    let human_psi = scorer.human_psi(&human, human_body_length(clip));
-    let (report, ufr) =
-        scorer.report_with_flags(tree, morph, &psi, Some(&human_psi), &motion.poses, &[0..motion.poses.len()]);
+    let body = scorer.human_body(human_body_length(clip));
+    let human_psi = scorer.human_psi(&human, body);
+    let source = HumanSource { psi: &human_psi, bodies: &[body] };
+    let (report, ufr) = scorer.report_with_flags(tree, morph, &psi, Some(source), &motion.poses, &[0..motion.poses.len()]);
     Ok(Retargeted { human, motion, report, flagged: ufr.any })
 }
 

@@ -1,7 +1,8 @@
 //! The paper's metrics (§7.3) of character motion under one checkpoint's conventions: its end-effector
 //! correspondence and body lengths for Ψ and L_fea, its feature weights, and the Gaussian fit of its
 //! training dataset's Ψ (`reference.json`) for FID. `ace retarget` scores one clip with it, `ace eval`
-//! whole systems over the held-out clips.
+//! whole systems over the held-out clips. Following ([`ace::models::metrics::following`]) is measured
+//! clip by clip on each mapped pair.
 
 use std::ops::Range;
 use std::path::Path;
@@ -11,12 +12,13 @@ use ace::models::features::{
     EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, centre_human_features, character_features, human_features,
     human_speed_factor, mean_feature_loss, scale_human_speed,
 };
+use ace::models::human::EndEffector;
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::{
-    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport, frechet_distance, gait_of_poses,
-    ufr_episodes,
+    DivConfig, FollowingConfig, FollowingSummary, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport,
+    following, frechet_distance, gait_of_poses, ufr_episodes,
 };
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -33,10 +35,21 @@ pub struct FidSplit {
     pub blocks: Vec<(&'static str, f64)>,
 }
 
+/// Ψ of the human clips a motion was retargeted from, aligned with its frames.
+#[derive(Clone, Copy)]
+pub struct HumanSource<'a> {
+    /// Ψ of every frame ([`Scorer::human_psi`]).
+    pub psi: &'a [Vec<f32>],
+    /// The body length (m) of each episode's human.
+    pub bodies: &'a [f32],
+}
+
 /// Scores motions of one checkpoint's character (see the module docs).
 pub struct Scorer {
     layout: CharacterLayout,
     mapping: EndEffectorMapping,
+    /// The mapped pairs in Ψ's end-effector order: character link, human end effector.
+    pairs: Vec<(String, EndEffector)>,
     /// Ψ's index map for `mapping`.
     features: FeatureLayout,
     body: f32,
@@ -61,9 +74,12 @@ impl Scorer {
         } else {
             None
         };
+        let links = &retargeter.prior().character.end_effector_links;
+        let mapping = &record.correspondence.mapping;
         Ok(Scorer {
             layout: retargeter.prior().character.layout,
-            mapping: record.correspondence.mapping.clone(),
+            pairs: mapping.selected().map(|(k, h)| (links[k].clone(), h)).collect(),
+            mapping: mapping.clone(),
             features: FeatureLayout::new(&record.correspondence.mapping),
             body: record.body_lengths.character,
             human_body_override: record.body_lengths.human_override,
@@ -88,7 +104,7 @@ impl Scorer {
     /// character as the checkpoint was trained (its `speed_scale` and `feature_offset`); the
     /// checkpoint's fixed human body length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
-        let body = self.human_body_override.unwrap_or(clip_body);
+        let body = self.human_body(clip_body);
         let speed = self.speed_scale.map(|s| human_speed_factor(s, body, self.body));
         x_h.iter()
             .map(|x| {
@@ -100,6 +116,12 @@ impl Scorer {
                 psi
             })
             .collect()
+    }
+
+    /// The human body length (m) Ψ is measured in for a clip whose human is `clip_body` metres: the
+    /// checkpoint's fixed one when it was trained with one.
+    pub fn human_body(&self, clip_body: f32) -> f32 {
+        self.human_body_override.unwrap_or(clip_body)
     }
 
     /// L_fea split by feature block (each block's weighted share; they add up to L_fea).
@@ -127,19 +149,38 @@ impl Scorer {
         Some(FidSplit { total: frechet_distance(&fit, reference), blocks })
     }
 
-    /// DIV, FID, L_fea (when `human_psi` is given, aligned with `psi`), UFR and the gait measure (legged
-    /// characters; contacts from the UFR's band) over `poses`, which hold `episodes` back to back (at
-    /// the project frame rate).
+    /// The following of the motion `psi` over each of its `episodes` against the human's.
+    ///
+    /// # Panics
+    /// If `human` is not aligned with `psi` or has no body length per episode.
+    pub fn following(&self, psi: &[Vec<f32>], human: HumanSource<'_>, episodes: &[Range<usize>]) -> FollowingSummary {
+        assert_eq!(human.bodies.len(), episodes.len(), "one human body length per episode");
+        let config = FollowingConfig::new(PROJECT_FPS);
+        FollowingSummary::new(
+            episodes
+                .iter()
+                .zip(human.bodies)
+                .map(|(e, &body)| {
+                    let (c, h) = (&psi[e.clone()], &human.psi[e.clone()]);
+                    (following(&self.features, &self.pairs, c, h, body, &config), body)
+                })
+                .collect(),
+        )
+    }
+
+    /// DIV, FID, L_fea and following (when `human` is given, aligned with `psi`), UFR and the gait
+    /// measure (legged characters; contacts from the UFR's band) over `poses`, which hold `episodes`
+    /// back to back (at the project frame rate).
     pub fn report(
         &self,
         tree: &KinematicTree,
         morph: &Morphology,
         psi: &[Vec<f32>],
-        human_psi: Option<&[Vec<f32>]>,
+        human: Option<HumanSource<'_>>,
         poses: &[CharacterPose],
         episodes: &[Range<usize>],
     ) -> MetricsReport {
-        self.report_with_flags(tree, morph, psi, human_psi, poses, episodes).0
+        self.report_with_flags(tree, morph, psi, human, poses, episodes).0
     }
 
     /// [`Scorer::report`] with the UFR detectors' per-frame flags.
@@ -148,7 +189,7 @@ impl Scorer {
         tree: &KinematicTree,
         morph: &Morphology,
         psi: &[Vec<f32>],
-        human_psi: Option<&[Vec<f32>]>,
+        human: Option<HumanSource<'_>>,
         poses: &[CharacterPose],
         episodes: &[Range<usize>],
     ) -> (MetricsReport, UfrReport) {
@@ -157,7 +198,7 @@ impl Scorer {
             &MetricsInput {
                 features: psi,
                 reference: self.reference.as_ref(),
-                source_features: human_psi,
+                source_features: human.map(|h| h.psi),
                 layout: self.features,
                 weights: self.weights,
                 div: DivConfig::default(),
@@ -165,6 +206,7 @@ impl Scorer {
             &ufr,
         );
         report.gait = gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None).map(|g| g.summary);
+        report.following = human.map(|h| self.following(psi, h, episodes));
         (report, ufr)
     }
 }

@@ -291,6 +291,7 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, s
     egui::Grid::new("metrics").striped(true).show(ui, |ui| {
         for (name, value) in [
             ("L_fea (lower is better)", opt(r.feature_loss)),
+            ("following (higher is better)", opt(r.following.as_ref().and_then(|f| f.score))),
             ("UFR (lower is better)", format!("{:.2} %", 100.0 * rates.ufr)),
             ("  self-collision", format!("{:.2} %", 100.0 * rates.self_collision)),
             ("  foot penetration", format!("{:.2} %", 100.0 * rates.penetration)),
@@ -303,6 +304,22 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, s
             ui.end_row();
         }
     });
+    if let Some(clip) = r.following.as_ref().and_then(|f| f.clips.first()) {
+        ui.label("Following the human (correlation 1 = does what the human does; amplitude 1 = same size; stillness: body lengths moved while the human's is still):");
+        egui::Grid::new("following").striped(true).show(ui, |ui| {
+            for h in ["end effector", "vertical", "forward", "amplitude", "stillness"] {
+                ui.strong(h);
+            }
+            ui.end_row();
+            for p in &clip.0.pairs {
+                ui.label(format!("{} ~ {}", p.character, p.human.name()));
+                for v in [p.correlation.vertical, p.correlation.forward, p.amplitude_ratio, p.stillness] {
+                    ui.label(opt(v));
+                }
+                ui.end_row();
+            }
+        });
+    }
     ui.small(format!("checkpoint {}", result.inputs.checkpoint.display()));
     ui.separator();
     ui.heading("Export");

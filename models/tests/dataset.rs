@@ -395,3 +395,39 @@ fn speed_scales_bring_a_humans_speed_to_the_pace_of_each_dataset() {
         assert!(range.contains(&f), "{name}: factor {f} (speed scale {s})");
     }
 }
+
+#[test]
+fn arms_make_small_and_large_moves_at_varied_speeds_within_their_velocity_limits() {
+    // Stretch's lift: 0.9 m of travel at up to 0.3 m/s. A human hand mostly makes small moves, some
+    // quick: the dataset's arm must show both for the prior to offer them.
+    let (tree, morph) = character("stretch");
+    let set = generate(&tree, &morph, &small(12000, 31), &mut |_| {}).unwrap();
+    let lift = tree.dof_index("joint_lift").unwrap();
+    let limits = tree.limits(lift).unwrap();
+    let range = limits.upper - limits.lower;
+    let (mut speeds, mut moves) = (Vec::new(), Vec::new());
+    for e in &set.episodes {
+        let q: Vec<f32> = e.clone().map(|i| set.pose(i).q[lift]).collect();
+        let mut start = None;
+        for t in 1..q.len() {
+            let v = (q[t] - q[t - 1]).abs() * set.fps;
+            speeds.push(v);
+            match (v > 1e-4, start) {
+                (true, None) => start = Some(t - 1),
+                (false, Some(s)) => {
+                    moves.push((q[t - 1] - q[s]).abs());
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+    }
+    speeds.sort_by(f32::total_cmp);
+    let fastest = *speeds.last().unwrap();
+    let p99 = speeds[speeds.len() * 99 / 100];
+    assert!(fastest <= limits.velocity * 1.01, "lift at {fastest} m/s, limit {}", limits.velocity);
+    assert!(p99 > 0.22, "the quickest moves reach only {p99} m/s");
+    let small = moves.iter().filter(|&&m| m < 0.15 * range).count() as f32 / moves.len() as f32;
+    assert!(moves.len() > 30, "{} lift moves", moves.len());
+    assert!(small > 0.45, "{:.0} % of {} lift moves are under 15 % of its range", 100.0 * small, moves.len());
+}

@@ -2,7 +2,13 @@
 //! reachable targets, holds, and moves on.
 //!
 //! Targets are joint configurations drawn within the limits (or the stowed nominal configuration, with
-//! [`ReachConfig::stow_probability`]); the end-effector target is their forward kinematics, so it is
+//! [`ReachConfig::stow_probability`]). A human's hand mostly makes small moves near where it is, at
+//! speeds from a slow reach to a quick wave, and a motion prior can only offer what its dataset shows:
+//! so with [`ReachConfig::local_probability`] a target is drawn near the current configuration
+//! (each DoF within [`ReachConfig::local_fraction`] of its range), otherwise anywhere within the
+//! limits, and each move's speed is drawn between [`ReachConfig::speed_fraction`] and
+//! [`ReachConfig::max_speed_fraction`] of the velocity limits. The end-effector target is the
+//! targets' forward kinematics, so it is
 //! reachable by construction. A draw is accepted only if the whole path to it — a minimum-jerk
 //! interpolation in joint space, sampled at [`PATH_SAMPLES`] points — keeps the group's links clear of
 //! the body, of the legs anywhere in their workspace, of the paths the other groups are following, and
@@ -108,8 +114,17 @@ pub struct ReachConfig {
     pub stow_probability: f32,
     /// How long a target is held (s).
     pub hold_seconds: [f32; 2],
-    /// Fraction of each joint's velocity limit used by the slowest-finishing joint.
+    /// Fraction of each joint's velocity limit used by the slowest-finishing joint on the slowest moves.
     pub speed_fraction: f32,
+    /// The same on the fastest moves; each move draws its fraction uniformly between the two. A
+    /// minimum-jerk move peaks at 1.875 times its mean speed, so fractions up to 0.53 keep every joint
+    /// within its velocity limit.
+    pub max_speed_fraction: f32,
+    /// Probability that a target is drawn near the current configuration rather than anywhere.
+    pub local_probability: f32,
+    /// How far a near target may lie from the current configuration, per DoF, as a fraction of the
+    /// DoF's range.
+    pub local_fraction: f32,
     /// Velocity assumed for revolute joints without a limit (rad/s).
     pub default_angular_speed: f32,
     /// Velocity assumed for prismatic joints without a limit (m/s).
@@ -126,7 +141,10 @@ impl Default for ReachConfig {
         ReachConfig {
             stow_probability: 0.2,
             hold_seconds: [0.2, 2.0],
-            speed_fraction: 0.35,
+            speed_fraction: 0.2,
+            max_speed_fraction: 0.5,
+            local_probability: 0.5,
+            local_fraction: 0.15,
             default_angular_speed: 2.0,
             default_linear_speed: 0.5,
             min_duration: 0.6,
@@ -284,16 +302,23 @@ fn plan<R: rand::Rng + ?Sized>(
     }
     let stowed: Vec<f32> = group.dofs.iter().map(|&d| rig.nominal_q[d]).collect();
     let mut chosen = None;
+    let local = rng.random::<f32>() < cfg.local_probability;
     for attempt in 0..ATTEMPTS {
-        let target: Vec<f32> = if attempt == 0 && rng.random::<f32>() < cfg.stow_probability {
+        let target: Vec<f32> = if attempt == 0 && !local && rng.random::<f32>() < cfg.stow_probability {
             stowed.clone()
         } else {
             group
                 .dofs
                 .iter()
-                .map(|&d| {
+                .zip(&current)
+                .map(|(&d, &now)| {
                     let (lo, hi) = finite_limits(tree, d, rig.nominal_q[d]);
-                    uniform(rng, lo, hi)
+                    if local {
+                        let r = cfg.local_fraction * (hi - lo);
+                        uniform(rng, (now - r).max(lo), (now + r).min(hi))
+                    } else {
+                        uniform(rng, lo, hi)
+                    }
                 })
                 .collect()
         };
@@ -314,6 +339,7 @@ fn plan<R: rand::Rng + ?Sized>(
     }
     let found = chosen.is_some();
     let to = chosen.unwrap_or(stowed);
+    let speed = uniform(rng, cfg.speed_fraction, cfg.max_speed_fraction.max(cfg.speed_fraction));
     let duration = group
         .dofs
         .iter()
@@ -326,7 +352,7 @@ fn plan<R: rand::Rng + ?Sized>(
                 cfg.default_angular_speed
             };
             let v = j.limits.map_or(default, |l| l.velocity).min(default * 3.0);
-            (b - a).abs() / (cfg.speed_fraction * v).max(1e-3)
+            (b - a).abs() / (speed * v).max(1e-3)
         })
         .fold(cfg.min_duration, f32::max);
     states[g] = ReachState {

@@ -28,7 +28,7 @@ use std::ops::Range;
 
 use serde::{Deserialize, Serialize};
 
-use super::UfrConfig;
+use super::{UfrConfig, median};
 use crate::dynamic_similarity::{WALKING_FROUDE, froude, hip_height, stride_frequency};
 use crate::features::character_body_length;
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -297,19 +297,6 @@ pub struct GaitReport {
     pub summary: GaitSummary,
 }
 
-/// Median of `v` (sorted in place; 0 when empty).
-fn median(v: &mut [f32]) -> f32 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f32::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
-}
 
 /// The gait measure of `tracks` cut into `episodes` (ranges of continuous frames).
 ///

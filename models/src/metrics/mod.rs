@@ -6,6 +6,8 @@
 //!   between Gaussian fits of two Ψ sets);
 //! - [`mod@gait`]: swing durations, stride frequency beside the law of dynamic similarity, duty factor,
 //!   foot pops and micro-steps of legged characters;
+//! - [`mod@following`]: whether each character end effector follows its human end effector
+//!   (correlation, amplitude ratio, stillness), which L_fea's average cannot see;
 //! - L_fea is [`crate::features::mean_feature_loss`];
 //! - [`MetricsReport`] gathers them for `ace metrics` (`--json` through serde).
 //!
@@ -34,6 +36,7 @@
 
 pub mod collision;
 pub mod distribution;
+pub mod following;
 pub mod gait;
 pub mod ufr;
 
@@ -44,6 +47,7 @@ use nalgebra::{Isometry3, Translation3};
 use serde::{Deserialize, Serialize};
 
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
+pub use following::{FollowingConfig, FollowingReport, FollowingSummary, PairFollowing, PairSummary, following};
 pub use gait::{FootTracks, GaitConfig, GaitReport, GaitSummary, gait_of_labelled_poses, gait_of_poses, gait_quality};
 pub use ufr::{
     PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes,
@@ -87,6 +91,9 @@ pub struct MetricsReport {
     /// The gait measure of a legged character ([`mod@gait`]; `None` without feet or when not measured).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gait: Option<GaitSummary>,
+    /// How the end effectors follow the human's ([`mod@following`]; `None` without a source human).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub following: Option<FollowingSummary>,
 }
 
 impl MetricsReport {
@@ -109,6 +116,7 @@ impl MetricsReport {
                 .map(|s| mean_feature_loss(&input.layout, features, s, &input.weights)),
             ufr: ufr.summary(),
             gait: None,
+            following: None,
         }
     }
 }
@@ -135,7 +143,24 @@ impl fmt::Display for MetricsReport {
         if let Some(g) = &self.gait {
             write!(f, "\n{g}")?;
         }
+        if let Some(fo) = &self.following {
+            write!(f, "\n{fo}")?;
+        }
         Ok(())
+    }
+}
+
+/// Median of `v` (sorted in place; 0 when empty).
+pub(crate) fn median(v: &mut [f32]) -> f32 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f32::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
     }
 }
 

@@ -1,0 +1,333 @@
+//! Following: does each character end effector do what its human end effector does?
+//!
+//! L_fea cannot tell: it averages squared differences over all of Ψ, so an arm that never moves scores
+//! well wherever the human's hand moves little. This measure looks at each mapped pair on its own,
+//! from the poses alone (no network, no training statistics), over one clip:
+//!
+//! - **Positions.** Each end effector in its own body's heading frame (x forward, y left, z up; origin
+//!   at the root), divided by its own body length: the end-effector block of Ψ
+//!   ([`crate::features`]), uncentred. Only displacements over the clip matter below, so any constant
+//!   offset between the bodies (their rest poses differ) drops out.
+//! - **Correlation per axis**: Pearson's correlation of the character's coordinate with the human's over
+//!   the clip's frames. It is left out (`None`) where the human's range on that axis is below
+//!   [`FollowingConfig::min_motion`] (there is nothing to follow); a character that stays still there
+//!   scores 0. 1 is perfect following, −1 is moving against the human.
+//! - **Combined score**: the per-axis correlations averaged with the human's range on each axis as
+//!   weights, so the axes the human actually moves along count most.
+//! - **Amplitude ratio**: the character's extent (length of the per-axis ranges) over the human's, both in
+//!   their own body lengths, i.e. the character's range against the human's range scaled to the
+//!   character. Left out when the human's extent is below `min_motion`. 1 is the same relative size.
+//! - **Stillness**: the character's extent (body lengths) within windows of
+//!   [`FollowingConfig::window_s`] where the human's end effector stays within
+//!   [`FollowingConfig::still_extent_m`] metres, median over those windows (`None` when there is no
+//!   such window). 0 is a character that stays still when the human does.
+//!
+//! A clip's [`FollowingReport::score`] is the mean combined score of its pairs. Over many clips,
+//! [`FollowingSummary`] gives per pair the median vertical correlation and amplitude ratio over the
+//! clips where the human's end effector moves at least [`MOVING_VERTICAL_M`] up and down, and the
+//! median stillness over the clips with still windows.
+
+use serde::{Deserialize, Serialize};
+
+use super::median;
+use crate::features::FeatureLayout;
+use crate::human::EndEffector;
+
+/// Thresholds of the following measure.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FollowingConfig {
+    /// The human's least range on an axis (body lengths) for that axis to be scored.
+    pub min_motion: f32,
+    /// The human's largest extent (m) within a window for it to count as still.
+    pub still_extent_m: f32,
+    /// Length of the stillness windows (s); consecutive windows overlap by half.
+    pub window_s: f32,
+    /// Frame rate of the poses (frames per second).
+    pub fps: f32,
+}
+
+impl FollowingConfig {
+    /// The project's thresholds at `fps`: axes where the human moves at least 0.02 body lengths,
+    /// still when within 5 cm over 1 s.
+    pub fn new(fps: f32) -> Self {
+        FollowingConfig {
+            min_motion: 0.02,
+            still_extent_m: 0.05,
+            window_s: 1.0,
+            fps,
+        }
+    }
+}
+
+/// A value per heading axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Axes<T> {
+    pub forward: T,
+    pub lateral: T,
+    pub vertical: T,
+}
+
+impl<T: Copy> Axes<T> {
+    fn from_array(a: [T; 3]) -> Self {
+        Axes {
+            forward: a[0],
+            lateral: a[1],
+            vertical: a[2],
+        }
+    }
+}
+
+/// The following of one mapped pair over one clip (see the module docs).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairFollowing {
+    /// The character end effector (its link name).
+    pub character: String,
+    /// The human end effector it follows.
+    pub human: EndEffector,
+    /// Correlation of the displacements per axis.
+    pub correlation: Axes<Option<f32>>,
+    /// The range-weighted mean of the per-axis correlations.
+    pub combined: Option<f32>,
+    /// The human's range per axis (human body lengths).
+    pub human_range: Axes<f32>,
+    /// The character's range per axis (character body lengths).
+    pub character_range: Axes<f32>,
+    /// The character's extent over the human's.
+    pub amplitude_ratio: Option<f32>,
+    /// The character's median extent (body lengths) while the human's end effector stays still.
+    pub stillness: Option<f32>,
+}
+
+impl PairFollowing {
+    /// The human's range on the vertical axis in metres, for a human of `body` metres.
+    pub fn human_vertical_range_m(&self, body: f32) -> f32 {
+        self.human_range.vertical * body
+    }
+}
+
+/// The following of every mapped pair over one clip.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FollowingReport {
+    /// One entry per mapped pair, in character end-effector order.
+    pub pairs: Vec<PairFollowing>,
+    /// Mean combined correlation over the pairs that have one.
+    pub score: Option<f32>,
+}
+
+/// The following of a clip from the character's Ψ and the human's Ψ (same [`FeatureLayout`], aligned
+/// frame for frame; centring and speed scaling of the human's Ψ do not matter), with `pairs` naming
+/// the mapped pairs in Ψ's end-effector order and `human_body` the human's body length (m).
+///
+/// # Panics
+/// If the two sequences differ in length, a row is shorter than the layout, `pairs` does not match the
+/// layout's end effectors, or `human_body` is not positive.
+pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
+    layout: &FeatureLayout,
+    pairs: &[(String, EndEffector)],
+    character: &[R],
+    human: &[S],
+    human_body: f32,
+    config: &FollowingConfig,
+) -> FollowingReport {
+    assert_eq!(character.len(), human.len(), "character and human features must be aligned");
+    assert_eq!(pairs.len(), layout.end_effectors, "one pair per end effector of Ψ");
+    assert!(human_body > 0.0, "the human's body length must be positive");
+    let ee = layout.ee_positions().start;
+    let track = |rows: &[Vec<f32>], k: usize, axis: usize| -> Vec<f32> { rows.iter().map(|r| r[3 * k + axis]).collect() };
+    let (c_rows, h_rows) = (cut_rows(character, ee, pairs.len()), cut_rows(human, ee, pairs.len()));
+    let window = ((config.window_s * config.fps).round() as usize).max(2);
+    let still = config.still_extent_m / human_body;
+    let out: Vec<PairFollowing> = pairs
+        .iter()
+        .enumerate()
+        .map(|(k, (name, end))| {
+            let c: [Vec<f32>; 3] = std::array::from_fn(|a| track(&c_rows, k, a));
+            let h: [Vec<f32>; 3] = std::array::from_fn(|a| track(&h_rows, k, a));
+            let h_range: [f32; 3] = std::array::from_fn(|a| range(&h[a]));
+            let c_range: [f32; 3] = std::array::from_fn(|a| range(&c[a]));
+            let corr: [Option<f32>; 3] =
+                std::array::from_fn(|a| (h_range[a] >= config.min_motion).then(|| correlation(&c[a], &h[a])));
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for a in 0..3 {
+                if let Some(r) = corr[a] {
+                    sum += h_range[a] * r;
+                    weight += h_range[a];
+                }
+            }
+            let h_extent = norm(h_range);
+            let stills: Vec<f32> = windows(c_rows.len(), window)
+                .filter(|w| norm(std::array::from_fn(|a| range(&h[a][w.clone()]))) <= still)
+                .map(|w| norm(std::array::from_fn(|a| range(&c[a][w.clone()]))))
+                .collect();
+            PairFollowing {
+                character: name.clone(),
+                human: *end,
+                correlation: Axes::from_array(corr),
+                combined: (weight > 0.0).then(|| sum / weight),
+                human_range: Axes::from_array(h_range),
+                character_range: Axes::from_array(c_range),
+                amplitude_ratio: (h_extent >= config.min_motion).then(|| norm(c_range) / h_extent),
+                stillness: (!stills.is_empty()).then(|| median(&mut stills.clone())),
+            }
+        })
+        .collect();
+    let combined: Vec<f32> = out.iter().filter_map(|p| p.combined).collect();
+    FollowingReport {
+        score: (!combined.is_empty()).then(|| combined.iter().sum::<f32>() / combined.len() as f32),
+        pairs: out,
+    }
+}
+
+/// The first `n` end-effector triples of each row, from entry `start`.
+fn cut_rows<S: AsRef<[f32]>>(rows: &[S], start: usize, n: usize) -> Vec<Vec<f32>> {
+    rows.iter().map(|r| r.as_ref()[start..start + 3 * n].to_vec()).collect()
+}
+
+/// Windows of `len` frames every `len / 2` frames over `n` frames (the whole clip when shorter).
+fn windows(n: usize, len: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
+    let hop = (len / 2).max(1);
+    let count = if n <= len { usize::from(n > 0) } else { (n - len) / hop + 1 };
+    (0..count).map(move |i| {
+        let start = i * hop;
+        start..(start + len).min(n)
+    })
+}
+
+fn range(v: &[f32]) -> f32 {
+    let (lo, hi) = v.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    if v.is_empty() { 0.0 } else { hi - lo }
+}
+
+fn norm(v: [f32; 3]) -> f32 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Pearson's correlation of `a` and `b`; 0 when either is constant.
+fn correlation(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len() as f64;
+    let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let (ma, mb) = (mean(a), mean(b));
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    // A range below a micrometre in body lengths is numerical noise of a still end effector.
+    if saa <= 1e-12 * n || sbb <= 1e-12 * n {
+        return 0.0;
+    }
+    (sab / (saa * sbb).sqrt()) as f32
+}
+
+/// The human's least vertical range (m) for a clip to count towards a pair's
+/// [`PairSummary::vertical_correlation`] and [`PairSummary::amplitude_ratio`].
+pub const MOVING_VERTICAL_M: f32 = 0.3;
+
+/// One pair's following over many clips.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairSummary {
+    /// The character end effector.
+    pub character: String,
+    /// The human end effector it follows.
+    pub human: EndEffector,
+    /// Clips where the human's end effector moves at least [`MOVING_VERTICAL_M`] vertically.
+    pub moving_clips: usize,
+    /// Median vertical correlation over those clips.
+    pub vertical_correlation: Option<f32>,
+    /// Median amplitude ratio over those clips.
+    pub amplitude_ratio: Option<f32>,
+    /// Median combined correlation over all clips that have one.
+    pub combined: Option<f32>,
+    /// Clips with at least one still window of the human's end effector.
+    pub still_clips: usize,
+    /// Median of those clips' stillness (character body lengths).
+    pub stillness: Option<f32>,
+}
+
+/// The following of a motion made of one or more clips: each clip's report and, per pair, medians over
+/// the clips.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FollowingSummary {
+    /// Median of the clips' scores.
+    pub score: Option<f32>,
+    /// Per pair, in character end-effector order.
+    pub pairs: Vec<PairSummary>,
+    /// Each clip's report, in order, with its human's body length (m).
+    pub clips: Vec<(FollowingReport, f32)>,
+}
+
+impl FollowingSummary {
+    /// Summarises `clips`: each clip's report with its human's body length (m). All reports must come
+    /// from the same mapping.
+    pub fn new(clips: Vec<(FollowingReport, f32)>) -> Self {
+        let med = |v: Vec<f32>| (!v.is_empty()).then(|| median(&mut v.clone()));
+        let n = clips.first().map_or(0, |c| c.0.pairs.len());
+        let pairs = (0..n)
+            .map(|k| {
+                let of = |c: &(FollowingReport, f32)| c.0.pairs[k].clone();
+                let moving: Vec<PairFollowing> = clips
+                    .iter()
+                    .filter(|c| of(c).human_vertical_range_m(c.1) >= MOVING_VERTICAL_M)
+                    .map(of)
+                    .collect();
+                let still: Vec<f32> = clips.iter().filter_map(|c| of(c).stillness).collect();
+                let first = &clips[0].0.pairs[k];
+                PairSummary {
+                    character: first.character.clone(),
+                    human: first.human,
+                    moving_clips: moving.len(),
+                    vertical_correlation: med(moving.iter().filter_map(|p| p.correlation.vertical).collect()),
+                    amplitude_ratio: med(moving.iter().filter_map(|p| p.amplitude_ratio).collect()),
+                    combined: med(clips.iter().filter_map(|c| of(c).combined).collect()),
+                    still_clips: still.len(),
+                    stillness: med(still),
+                }
+            })
+            .collect();
+        FollowingSummary {
+            score: med(clips.iter().filter_map(|c| c.0.score).collect()),
+            pairs,
+            clips,
+        }
+    }
+}
+
+impl std::fmt::Display for FollowingSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let opt = |v: Option<f32>| v.map_or("n/a".to_string(), |v| format!("{v:.2}"));
+        write!(f, "following {} (median correlation of the end effectors with the human's)", opt(self.score))?;
+        let single = self.clips.len() == 1;
+        for (k, p) in self.pairs.iter().enumerate() {
+            if single {
+                let c = &self.clips[0].0.pairs[k];
+                write!(
+                    f,
+                    "\n        {} ~ {}: vertical {}, forward {}, combined {}, amplitude {}, stillness {}",
+                    p.character,
+                    p.human.name(),
+                    opt(c.correlation.vertical),
+                    opt(c.correlation.forward),
+                    opt(c.combined),
+                    opt(c.amplitude_ratio),
+                    opt(c.stillness)
+                )?;
+            } else {
+                write!(
+                    f,
+                    "\n        {} ~ {}: vertical {} ({} clips moving ≥ {MOVING_VERTICAL_M} m), amplitude {}, combined {}, stillness {} ({} clips)",
+                    p.character,
+                    p.human.name(),
+                    opt(p.vertical_correlation),
+                    p.moving_clips,
+                    opt(p.amplitude_ratio),
+                    opt(p.combined),
+                    opt(p.stillness),
+                    p.still_clips
+                )?;
+            }
+        }
+        Ok(())
+    }
+}

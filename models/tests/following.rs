@@ -1,0 +1,153 @@
+//! The following measure on a real clip and a real robot: Stretch's gripper driven by its lift to do
+//! what the human's right hand does in the bundled `reach` clip (or the opposite, or nothing), scored
+//! from the poses alone.
+
+use std::path::PathBuf;
+
+use ace_models::character_state::{CharacterLayout, character_state};
+use ace_models::features::{
+    EndEffectorMapping, FeatureLayout, character_body_length, character_features, human_body_length, human_features,
+};
+use ace_models::human::{EndEffector, HumanClip, ImportOptions, layout as hl};
+use ace_models::kinematics::{CharacterPose, KinematicTree};
+use ace_models::metrics::{FollowingConfig, FollowingReport, FollowingSummary, following};
+use ace_models::morphology::{Morphology, load_character};
+use nalgebra::Isometry3;
+
+const FPS: f32 = 30.0;
+
+fn repo(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+struct Fixture {
+    tree: KinematicTree,
+    morph: Morphology,
+    mapping: EndEffectorMapping,
+    /// x^h of the clip.
+    human: Vec<Vec<f32>>,
+    human_body: f32,
+    character_body: f32,
+}
+
+fn fixture() -> Fixture {
+    let (tree, morph) = load_character(&repo("assets/characters/stretch.urdf")).unwrap();
+    let text = std::fs::read_to_string(repo("assets/motions/reach.bvh")).unwrap();
+    let clip = HumanClip::from_bvh_str(&text, "reach.bvh", &ImportOptions::default()).unwrap().resampled(FPS);
+    let human: Vec<Vec<f32>> = clip.states().into_iter().map(|s| s.0.to_vec()).collect();
+    // Stretch has one end effector, its gripper: it follows the right hand.
+    assert_eq!(morph.end_effector_links(&tree), ["grasp_center"]);
+    Fixture {
+        mapping: EndEffectorMapping::new(vec![Some(EndEffector::RightHand)]),
+        human_body: human_body_length(&clip),
+        character_body: character_body_length(&tree, &morph),
+        tree,
+        morph,
+        human,
+    }
+}
+
+impl Fixture {
+    /// The right hand's height above the pelvis per frame (m).
+    fn hand_height(&self) -> Vec<f32> {
+        self.human.iter().map(|x| x[hl::ee_position(EndEffector::RightHand)][2]).collect()
+    }
+
+    /// Stretch standing still with its lift at `lift(t)` metres, scored against the clip.
+    fn score(&self, lift: impl Fn(usize) -> f32) -> FollowingReport {
+        let d = self.tree.dof_index("joint_lift").unwrap();
+        let poses: Vec<CharacterPose> = (0..self.human.len())
+            .map(|t| {
+                let mut p = self.tree.neutral_pose(Isometry3::identity());
+                p.q[d] = lift(t);
+                p
+            })
+            .collect();
+        let layout = CharacterLayout::new(&self.tree, &self.morph);
+        let psi: Vec<Vec<f32>> = (0..poses.len())
+            .map(|t| {
+                let x = character_state(&self.tree, &self.morph, &poses[t.saturating_sub(1)], &poses[t], 1.0 / FPS);
+                character_features(&layout, &x, self.character_body, &self.mapping)
+            })
+            .collect();
+        let human_psi: Vec<Vec<f32>> =
+            self.human.iter().map(|x| human_features(x, self.human_body, &self.mapping)).collect();
+        let pairs = [("grasp_center".to_string(), EndEffector::RightHand)];
+        following(&FeatureLayout::new(&self.mapping), &pairs, &psi, &human_psi, self.human_body, &FollowingConfig::new(FPS))
+    }
+
+    /// The lift that moves the gripper up and down as the hand does, scaled from the human's body to
+    /// Stretch's, around 0.4 m; `sign` −1 moves it the opposite way.
+    fn mirroring(&self, sign: f32) -> impl Fn(usize) -> f32 + '_ {
+        let h = self.hand_height();
+        let scale = self.character_body / self.human_body;
+        move |t| 0.4 + sign * scale * (h[t] - h[0])
+    }
+}
+
+#[test]
+fn a_gripper_that_moves_with_the_hand_follows_it() {
+    let f = fixture();
+    let h = f.hand_height();
+    let hand_range = h.iter().cloned().fold(f32::MIN, f32::max) - h.iter().cloned().fold(f32::MAX, f32::min);
+    assert!(hand_range > 0.3, "the reach clip's right hand moves {hand_range} m up and down");
+    let r = f.score(f.mirroring(1.0));
+    let p = &r.pairs[0];
+    assert!(p.correlation.vertical.unwrap() > 0.999, "{p:?}");
+    // The same vertical range in each body's lengths.
+    assert!((p.character_range.vertical / p.human_range.vertical - 1.0).abs() < 0.01, "{p:?}");
+    // The lift moves nothing forward or sideways: a character still on an axis the human moves along
+    // scores 0 there.
+    if let Some(c) = p.correlation.forward {
+        assert_eq!(c, 0.0);
+    }
+    assert!(p.combined.unwrap() > 0.0 && p.combined.unwrap() < p.correlation.vertical.unwrap());
+    // Amplitude: the character's vertical range against the human's whole extent.
+    let h_extent = (p.human_range.forward.powi(2) + p.human_range.lateral.powi(2) + p.human_range.vertical.powi(2)).sqrt();
+    assert!((p.amplitude_ratio.unwrap() - p.character_range.vertical / h_extent).abs() < 1e-3, "{p:?}");
+    assert_eq!(r.score, p.combined);
+}
+
+#[test]
+fn a_gripper_moving_against_the_hand_scores_minus_one_and_a_parked_one_zero() {
+    let f = fixture();
+    let against = f.score(f.mirroring(-1.0));
+    assert!(against.pairs[0].correlation.vertical.unwrap() < -0.999, "{:?}", against.pairs[0]);
+    let parked = f.score(|_| 0.0);
+    let p = &parked.pairs[0];
+    assert_eq!(p.correlation.vertical, Some(0.0));
+    assert_eq!(p.amplitude_ratio, Some(0.0));
+    assert_eq!(p.character_range.vertical, 0.0);
+}
+
+#[test]
+fn a_gripper_moving_while_the_hand_is_still_is_caught_by_stillness() {
+    let mut f = fixture();
+    // The human holds the clip's first pose for 4 s.
+    f.human = vec![f.human[0].clone(); 120];
+    let amplitude = 0.1; // m, up and down once a second
+    let r = f.score(|t| 0.4 + amplitude * (std::f32::consts::TAU * t as f32 / FPS).sin());
+    let p = &r.pairs[0];
+    assert_eq!(p.correlation.vertical, None, "nothing to follow");
+    assert_eq!(p.amplitude_ratio, None);
+    let expected = 2.0 * amplitude / f.character_body;
+    assert!((p.stillness.unwrap() - expected).abs() < 0.02 * expected, "{p:?} against {expected}");
+    let still = f.score(|_| 0.4);
+    assert_eq!(still.pairs[0].stillness, Some(0.0));
+}
+
+#[test]
+fn a_summary_takes_medians_over_the_clips_where_the_hand_moves() {
+    let f = fixture();
+    let (with, against, parked) = (f.score(f.mirroring(1.0)), f.score(f.mirroring(-1.0)), f.score(|_| 0.0));
+    let s = FollowingSummary::new(vec![(with.clone(), f.human_body), (against, f.human_body), (parked, f.human_body)]);
+    let p = &s.pairs[0];
+    assert_eq!(p.moving_clips, 3);
+    // Median of (≈1, ≈−1, 0).
+    assert_eq!(p.vertical_correlation, Some(0.0));
+    assert_eq!(p.amplitude_ratio, with.pairs[0].amplitude_ratio);
+    // A clip whose hand moves less than 0.3 m (here: a human 10 times smaller) does not count.
+    let tiny = FollowingSummary::new(vec![(with, f.human_body / 10.0)]);
+    assert_eq!(tiny.pairs[0].moving_clips, 0);
+    assert_eq!(tiny.pairs[0].vertical_correlation, None);
+}
