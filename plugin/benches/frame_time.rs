@@ -33,7 +33,7 @@ fn app(characters: usize, retarget: bool) -> (App, Vec<Entity>) {
     let server = app.world().resource::<AssetServer>().clone();
     let player = app.world_mut().spawn(HumanClipPlayer::new(server.load("motions/walk.bvh"))).id();
     let checkpoint: Handle<CheckpointAsset> = server.load("checkpoints/spot/ace.json");
-    let urdf: Handle<UrdfAsset> = server.load("characters/spot.urdf");
+    let urdf: Handle<CharacterAsset> = server.load("characters/spot.urdf");
     let entities = (0..characters)
         .map(|i| {
             let mut e = app.world_mut().spawn((Character::new(urdf.clone()), Transform::from_xyz(i as f32, 0.0, 0.0)));
