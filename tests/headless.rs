@@ -424,32 +424,54 @@ fn creature_assets() -> &'static Path {
         for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
             std::fs::copy(asset_path("checkpoints/spot").join(f), dir.join("checkpoints/spot").join(f)).unwrap();
         }
-        let (prior, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("checkpoints/hound"));
-        std::fs::write(&prior, "steps = 60\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n").unwrap();
-        std::fs::write(&ace_cfg, "steps = 20\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n").unwrap();
-        let glb = dir.join("creatures/hound.glb");
-        let s = |p: &Path| p.to_str().unwrap().to_string();
-        for args in [
-            vec!["--threads", "1", "train-prior", "--character", &s(&glb), "--frames", "2000", "--config", &s(&prior), "--checkpoint", &s(&ck)],
-            vec!["--threads", "1", "train", "--character", &s(&glb), "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"],
-        ] {
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_ace"))
-                .args(&args)
-                .current_dir(env!("CARGO_MANIFEST_DIR"))
-                .output()
-                .unwrap();
-            assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-        }
+        train_tiny(&dir, "creatures/hound.glb", "checkpoints/hound");
         dir
     })
 }
 
+/// Trains a tiny checkpoint for the creature `dir/glb` into `dir/checkpoint` (a few seconds).
+fn train_tiny(dir: &Path, glb: &str, checkpoint: &str) {
+    let (prior, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join(checkpoint));
+    std::fs::write(&prior, "steps = 60\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n").unwrap();
+    std::fs::write(&ace_cfg, "steps = 20\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n").unwrap();
+    let glb = dir.join(glb);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    for args in [
+        vec!["--threads", "1", "train-prior", "--character", &s(&glb), "--frames", "2000", "--config", &s(&prior), "--checkpoint", &s(&ck)],
+        vec!["--threads", "1", "train", "--character", &s(&glb), "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"],
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ace"))
+            .args(&args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+}
+
+/// A file of the shared data beside the project; `None` (skip) only with `ACE_ALLOW_MISSING_DATA=1`.
+fn shared(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+        eprintln!("skipping: {} is missing", p.display());
+        return None;
+    }
+    panic!("{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)", p.display());
+}
+
 /// A headless app that also loads glTF scenes (Bevy's loader, without a renderer).
 fn creature_app() -> App {
+    creature_app_in(creature_assets())
+}
+
+fn creature_app_in(assets: &Path) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
-        AssetPlugin { file_path: creature_assets().to_str().unwrap().into(), ..default() },
+        AssetPlugin { file_path: assets.to_str().unwrap().into(), ..default() },
         TransformPlugin,
         WorldSerializationPlugin,
         bevy::mesh::MeshPlugin,
@@ -465,6 +487,69 @@ fn creature_app() -> App {
     app.finish();
     app.cleanup();
     app
+}
+
+/// Bevy's animation beside a Retargeter: the Fox plays its own Walk clip through its `AnimationPlayer`
+/// while a Retargeter drives it; the bones show the Retargeter's poses (it writes after the animation).
+#[test]
+fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
+    use bevy::animation::{AnimationClip, AnimationPlayer, graph::{AnimationGraph, AnimationGraphHandle}};
+    use bevy::gltf::GltfAssetLabel;
+    let Some(fox_glb) = shared("creatures/Fox/Fox.glb") else { return };
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-fox");
+    let _ = std::fs::remove_dir_all(&dir);
+    for sub in ["creatures", "motions"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    std::fs::copy(&fox_glb, dir.join("creatures/Fox.glb")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), dir.join("motions/walk.bvh")).unwrap();
+    train_tiny(&dir, "creatures/Fox.glb", "checkpoints/fox");
+    let c = load_creature(&dir.join("creatures/Fox.glb")).unwrap();
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
+    let r = Offline::load(&dir.join("checkpoints/fox"), ace::models::learn::Device::Cpu).unwrap();
+    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+
+    let mut app = creature_app_in(&dir);
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let fox = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(server.load("creatures/Fox.glb#Scene0")),
+            Retargeter::new(server.load("checkpoints/fox/ace.json"), player),
+        ))
+        .id();
+    let mut animated = None;
+    update_until(&mut app, |w| {
+        animated = w.query_filtered::<Entity, With<AnimationPlayer>>().iter(w).next();
+        animated.is_some()
+    });
+    let animated = animated.unwrap();
+    let walk: Handle<AnimationClip> = server.load(GltfAssetLabel::Animation(1).from_asset("creatures/Fox.glb"));
+    let (graph, node) = AnimationGraph::from_clip(walk.clone());
+    let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
+    app.world_mut().entity_mut(animated).insert(AnimationGraphHandle(graph));
+    app.world_mut().get_mut::<AnimationPlayer>(animated).unwrap().play(node).repeat();
+    start_together(&mut app, player, &[fox]);
+    for _ in 0..45 {
+        app.update();
+        let t = tick(&app, fox).unwrap();
+        let (d, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+        assert!(d < 1e-4 / c.rig.scale && a < 1e-3, "tick {t}: bones {d} file units and {a} rad from the offline motion");
+    }
+    // Paused, the pose stays the Retargeter's while the Fox's clip keeps playing.
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    for _ in 0..10 {
+        app.update();
+    }
+    let t = tick(&app, fox).unwrap();
+    let (d, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+    assert!(d < 1e-4 / c.rig.scale && a < 1e-3, "paused at tick {t}: bones {d} file units and {a} rad from the offline motion");
+    // The Fox's own clip did play all along.
+    assert!(app.world().resource::<Assets<AnimationClip>>().get(&walk).is_some(), "the Walk clip loaded");
+    let elapsed = app.world().get::<AnimationPlayer>(animated).unwrap().animation(node).map(|a| a.elapsed());
+    assert!(elapsed.is_some_and(|e| e > 1.0), "the Walk clip played for {elapsed:?} s");
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
 }
 
 fn hound() -> Creature {
@@ -634,7 +719,7 @@ fn scenes_and_checkpoints_that_do_not_belong_together_are_errors_not_panics() {
     ));
     app.world_mut()
         .entity_mut(wrong_joints)
-        .insert(CreatureScene { asset: server.load("creatures/hound.glb"), joints: None });
+        .insert(CreatureScene::new(server.load("creatures/hound.glb")));
     // The hound's checkpoint on a URDF robot.
     let hound_on_spot = app
         .world_mut()

@@ -247,7 +247,8 @@ pub(crate) fn request_poses(
     let mut jobs: HashMap<AssetId<CheckpointAsset>, Vec<Job>> = HashMap::new();
     for (entity, retargeter, character, scene, mut status, mut progress) in &mut characters {
         let id = retargeter.checkpoint.id();
-        if retargeter.is_changed() || stale.contains(&id) {
+        // (Not when just added: the defaults are that, and a scene found faulty this frame stays failed.)
+        if (retargeter.is_changed() && !retargeter.is_added()) || stale.contains(&id) {
             progress.sent = None;
             *status = RetargetStatus::Loading;
             for list in forget.values_mut() {

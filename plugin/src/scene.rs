@@ -29,10 +29,12 @@
 //!   written to the entity's [`Transform`] as [`RootOrigin`] × travel; the rest of the pose goes on the
 //!   joints. [`RootOrigin`] is the entity's transform when the first pose arrives (insert it yourself to
 //!   place the creature's world elsewhere, or change it to move that world).
-//! - **Bevy's animation.** The plugin writes the joints after Bevy's animation systems
-//!   (`AnimationSystems`), in [`crate::AceSystems::Apply`]: on the nodes the Retargeter drives, its
-//!   pose is what shows, every frame; a playing `AnimationPlayer` of the scene still animates every
-//!   other node (and morph weights). Stop the player (or remove the Retargeter) to choose one.
+//! - **Bevy's animation.** The Retargeter owns the skeleton: every frame, after Bevy's animation
+//!   systems (`AnimationSystems`), in [`crate::AceSystems::Apply`], the plugin writes the driven joints
+//!   from the pose and holds the skeleton's other nodes (the skin's other joints and their ancestors,
+//!   found by name) at rest. A playing `AnimationPlayer` of the scene is overridden there and still
+//!   shows on everything else (nodes outside the skeleton, morph weights). Stop the player, or remove
+//!   the Retargeter, to let the model's own clip show.
 //!
 //! The scene is shown as authored: y up, facing the file's forward axis, in the file's units (scale
 //! the entity to resize it). A URDF character's links face +x instead.
@@ -58,6 +60,15 @@ pub struct CreatureScene {
     /// The entity of each driven node (in [`ace_models::character::RigPose::driven`]'s order), once
     /// found.
     pub joints: Option<Vec<Entity>>,
+    /// The entities of the skeleton's other nodes found by name, with their node index: held at rest.
+    pub held: Vec<(Entity, usize)>,
+}
+
+impl CreatureScene {
+    /// A scene showing the character `asset`, its joints yet to be found.
+    pub fn new(asset: Handle<CharacterAsset>) -> Self {
+        Self { asset, joints: None, held: Vec::new() }
+    }
 }
 
 /// Where a driven scene's world stands: the entity's [`Transform`] is this times the pose's ground
@@ -91,18 +102,20 @@ pub(crate) fn bind_scenes(
             continue;
         }
         let asset: Handle<CharacterAsset> = server.load(path.without_label().clone_owned());
-        commands.entity(entity).insert(CreatureScene { asset, joints: None });
+        commands.entity(entity).insert(CreatureScene::new(asset));
     }
 }
 
 /// Finds the joints of scenes that have spawned.
 pub(crate) fn find_joints(
     mut scenes: Query<(Entity, &mut CreatureScene, &WorldInstance, &mut RetargetStatus)>,
-    spawner: Res<WorldInstanceSpawner>,
+    spawner: Option<Res<WorldInstanceSpawner>>,
     names: Query<&Name>,
     characters: Res<Assets<CharacterAsset>>,
     mut errors: MessageWriter<RetargetError>,
 ) {
+    // Without Bevy's world serialization plugin no scene spawns.
+    let Some(spawner) = spawner else { return };
     for (entity, mut scene, instance, mut status) in &mut scenes {
         if scene.joints.is_some() || !spawner.instance_is_ready(**instance) || matches!(*status, RetargetStatus::Failed(_)) {
             continue;
@@ -135,19 +148,26 @@ pub(crate) fn find_joints(
         }
         match problem {
             Some(message) => fail(entity, message, &mut status, &mut errors),
-            None => scene.joints = Some(joints),
+            None => {
+                scene.held = rig
+                    .held()
+                    .iter()
+                    .filter_map(|(node, name)| match by_name.get(name.as_str()).map(Vec::as_slice) {
+                        Some([e]) => Some((*e, *node)),
+                        _ => None,
+                    })
+                    .collect();
+                scene.joints = Some(joints);
+            }
         }
     }
 }
 
-/// Writes the joints' [`Transform`]s and the entity's root motion from each driven scene's [`Pose`].
-#[allow(clippy::type_complexity)]
+/// Writes the joints' [`Transform`]s and the entity's root motion from each driven scene's [`Pose`],
+/// every frame (a playing `AnimationPlayer` writes the joints every frame too).
 pub(crate) fn apply_scene_poses(
     mut commands: Commands,
-    mut scenes: Query<
-        (Entity, &CreatureScene, &Pose, Option<&RootOrigin>, &mut Transform),
-        Or<(Changed<Pose>, Changed<CreatureScene>)>,
-    >,
+    mut scenes: Query<(Entity, &CreatureScene, &Pose, Option<&RootOrigin>, &mut Transform)>,
     mut joints: Query<&mut Transform, Without<CreatureScene>>,
     characters: Res<Assets<CharacterAsset>>,
     mut scratch: Local<(RigScratch, Vec<NodeTransform>)>,
@@ -169,6 +189,11 @@ pub(crate) fn apply_scene_poses(
         for (&joint, local) in entities.iter().zip(locals.iter()) {
             if let Ok(mut t) = joints.get_mut(joint) {
                 *t = bevy_transform(local);
+            }
+        }
+        for &(e, node) in &scene.held {
+            if let Ok(mut t) = joints.get_mut(e) {
+                t.set_if_neq(bevy_transform(rig.rest(node)));
             }
         }
         let origin = match origin {

@@ -83,6 +83,8 @@ pub struct RigPose {
     order: Vec<usize>,
     rest: Vec<NodeTransform>,
     driven: Vec<DrivenBone>,
+    /// The skeleton's other nodes: index and name.
+    held: Vec<(usize, String)>,
     /// Index into `driven` of each node.
     driven_of: Vec<Option<usize>>,
     /// `R_b⁻¹ · C · F_b` per driven bone: its rest taken out in the character frame.
@@ -177,6 +179,18 @@ impl RigPose {
         for (k, d) in driven.iter().enumerate() {
             driven_of[d.node] = Some(k);
         }
+        let mut skeleton = vec![false; n];
+        for b in &rig.bones {
+            let mut i = Some(b.node);
+            while let Some(k) = i.filter(|&k| !skeleton[k]) {
+                skeleton[k] = true;
+                i = parent[k];
+            }
+        }
+        let held = (0..n)
+            .filter(|&i| skeleton[i] && driven_of[i].is_none())
+            .map(|i| (i, nodes[i].name().map_or_else(|| format!("node{i}"), str::to_owned)))
+            .collect();
 
         let s = rig.scale;
         let mut to_char = Matrix4::identity();
@@ -192,6 +206,7 @@ impl RigPose {
             order,
             rest,
             driven,
+            held,
             driven_of,
             unrest,
             from_char,
@@ -205,6 +220,13 @@ impl RigPose {
     /// root.
     pub fn driven(&self) -> &[DrivenBone] {
         &self.driven
+    }
+
+    /// The skeleton's nodes that poses do not move (the skin's other joints and every ancestor of a
+    /// joint), as index and name (`node{index}` when unnamed): [`RigPose::write`] keeps them at rest.
+    /// A player that owns the skeleton holds them at [`RigPose::rest`].
+    pub fn held(&self) -> &[(usize, String)] {
+        &self.held
     }
 
     /// The rest (file) transform of node `node`.
