@@ -131,10 +131,14 @@ pub(crate) fn find_joints(
                 by_name.entry(name.as_str()).or_default().push(e);
             }
         }
+        // Unnamed nodes are `node<i>` to the core and `GltfNode<i>` to Bevy's glTF loader.
+        let lookup = |node: usize, name: &str| {
+            by_name.get(name).or_else(|| (name == format!("node{node}")).then(|| by_name.get(format!("GltfNode{node}").as_str())).flatten())
+        };
         let mut joints = Vec::with_capacity(rig.driven().len());
         let mut problem = None;
         for d in rig.driven() {
-            match by_name.get(d.name.as_str()).map(Vec::as_slice) {
+            match lookup(d.node, &d.name).map(Vec::as_slice) {
                 Some([e]) => joints.push(*e),
                 found => {
                     let what = if found.is_none() { "has no joint named" } else { "has several nodes named" };
@@ -152,7 +156,7 @@ pub(crate) fn find_joints(
                 scene.held = rig
                     .held()
                     .iter()
-                    .filter_map(|(node, name)| match by_name.get(name.as_str()).map(Vec::as_slice) {
+                    .filter_map(|(node, name)| match lookup(*node, name).map(Vec::as_slice) {
                         Some([e]) => Some((*e, *node)),
                         _ => None,
                     })
