@@ -52,11 +52,11 @@ fn assert_close(a: &Transform, b: &Transform, what: &str) {
 fn character_link_transforms_equal_models_forward_kinematics() {
     let mut app = app();
     let placement = Transform::from_xyz(1.0, 0.0, -2.0).with_rotation(Quat::from_rotation_y(0.7));
-    let handle: Handle<UrdfAsset> = app.world().resource::<AssetServer>().load("characters/spot.urdf");
+    let handle: Handle<CharacterAsset> = app.world().resource::<AssetServer>().load("characters/spot.urdf");
     let character = app.world_mut().spawn((Character::new(handle.clone()), placement)).id();
     update_until(&mut app, |w| w.get::<CharacterLinks>(character).is_some());
 
-    let urdf = app.world().resource::<Assets<UrdfAsset>>().get(&handle).unwrap().clone();
+    let urdf = app.world().resource::<Assets<CharacterAsset>>().get(&handle).unwrap().clone();
     // Every joint away from zero, inside its limits; root lifted, turned and tilted.
     let mut q: Vec<f32> = (0..urdf.tree.dof()).map(|i| 0.4 * ((i as f32) * 1.3).sin()).collect();
     urdf.tree.clamp(&mut q);
@@ -89,8 +89,8 @@ fn every_bundled_character_spawns_one_entity_per_link() {
     update_until(&mut app, |w| entities.iter().all(|&e| w.get::<CharacterLinks>(e).is_some()));
     app.update();
     for (&e, name) in entities.iter().zip(names) {
-        let character = app.world().get::<Character>(e).unwrap().urdf.clone();
-        let urdf = app.world().resource::<Assets<UrdfAsset>>().get(&character).unwrap().clone();
+        let character = app.world().get::<Character>(e).unwrap().asset.clone();
+        let urdf = app.world().resource::<Assets<CharacterAsset>>().get(&character).unwrap().clone();
         let links = &app.world().get::<CharacterLinks>(e).unwrap().0;
         assert_eq!(links.len(), urdf.tree.links.len(), "{name}");
         // The neutral pose stands on the ground: the root link sits at the standing height.
@@ -151,7 +151,7 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
     )
     .unwrap();
     let mut app = app_with_assets(dir.to_str().unwrap());
-    let handle: Handle<UrdfAsset> = app.world().resource::<AssetServer>().load("loop.urdf");
+    let handle: Handle<CharacterAsset> = app.world().resource::<AssetServer>().load("loop.urdf");
     let character = app.world_mut().spawn(Character::new(handle.clone())).id();
     let mut state = LoadState::Loading;
     update_until(&mut app, |w| {
@@ -224,8 +224,8 @@ fn tick(app: &App, e: Entity) -> Option<i64> {
 /// rounding `angle_between` suffers near zero) between the character's link transforms and those of `pose`
 /// placed by the character's transform.
 fn link_gap(app: &App, e: Entity, pose: &CharacterPose) -> (f32, f32) {
-    let character = app.world().get::<Character>(e).unwrap().urdf.clone();
-    let urdf = app.world().resource::<Assets<UrdfAsset>>().get(&character).unwrap().clone();
+    let character = app.world().get::<Character>(e).unwrap().asset.clone();
+    let urdf = app.world().resource::<Assets<CharacterAsset>>().get(&character).unwrap().clone();
     let placement = *app.world().get::<Transform>(e).unwrap();
     let expected = urdf.tree.forward_kinematics(pose);
     let links = &app.world().get::<CharacterLinks>(e).unwrap().0;
@@ -389,4 +389,356 @@ fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
     update_until(&mut app, |w| failed(w, spot));
     let Some(RetargetStatus::Failed(m)) = app.world().get::<RetargetStatus>(spot) else { unreachable!() };
     assert!(m.contains("generator.safetensors"), "{m}");
+}
+
+// ---- Rigged glTF creatures driven through their own glTF scene ----
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use ace::models::character::{Creature, load_creature};
+use ace::models::nalgebra::{Matrix4, Vector3};
+use bevy::gltf::{Gltf, GltfPlugin};
+use bevy::world_serialization::{WorldAsset, WorldAssetRoot, WorldSerializationPlugin};
+
+/// A folder of assets for the creature tests: the bundled hound, a copy of it with its last tail bone
+/// renamed (`Tale3`), the walk clip, Spot's URDF and checkpoint, and a tiny hound checkpoint trained
+/// once per run with `ace train-prior` and `ace train` (as the CLI tests' tiny trainings).
+fn creature_assets() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-creature");
+        let _ = std::fs::remove_dir_all(&dir);
+        for sub in ["creatures", "motions", "characters", "checkpoints/spot", "checkpoints/hound"] {
+            std::fs::create_dir_all(dir.join(sub)).unwrap();
+        }
+        let hound = std::fs::read(asset_path("creatures/hound.glb")).unwrap();
+        std::fs::write(dir.join("creatures/hound.glb"), &hound).unwrap();
+        let json_len = u32::from_le_bytes(hound[12..16].try_into().unwrap()) as usize;
+        let at = hound[20..20 + json_len].windows(7).position(|w| w == b"\"Tail3\"").expect("the hound has a bone Tail3") + 20;
+        let mut renamed = hound.clone();
+        renamed[at..at + 7].copy_from_slice(b"\"Tale3\"");
+        std::fs::write(dir.join("creatures/renamed.glb"), renamed).unwrap();
+        std::fs::copy(asset_path("motions/walk.bvh"), dir.join("motions/walk.bvh")).unwrap();
+        std::fs::copy(asset_path("characters/spot.urdf"), dir.join("characters/spot.urdf")).unwrap();
+        for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
+            std::fs::copy(asset_path("checkpoints/spot").join(f), dir.join("checkpoints/spot").join(f)).unwrap();
+        }
+        train_tiny(&dir, "creatures/hound.glb", "checkpoints/hound");
+        dir
+    })
+}
+
+/// Trains a tiny checkpoint for the creature `dir/glb` into `dir/checkpoint` (a few seconds).
+fn train_tiny(dir: &Path, glb: &str, checkpoint: &str) {
+    let (prior, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join(checkpoint));
+    std::fs::write(&prior, "steps = 60\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n").unwrap();
+    std::fs::write(&ace_cfg, "steps = 20\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n").unwrap();
+    let glb = dir.join(glb);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    for args in [
+        vec!["--threads", "1", "train-prior", "--character", &s(&glb), "--frames", "2000", "--config", &s(&prior), "--checkpoint", &s(&ck)],
+        vec!["--threads", "1", "train", "--character", &s(&glb), "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"],
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ace"))
+            .args(&args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+}
+
+/// A file of the shared data beside the project; `None` (skip) only with `ACE_ALLOW_MISSING_DATA=1`.
+fn shared(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+        eprintln!("skipping: {} is missing", p.display());
+        return None;
+    }
+    panic!("{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)", p.display());
+}
+
+/// A headless app that also loads glTF scenes (Bevy's loader, without a renderer).
+fn creature_app() -> App {
+    creature_app_in(creature_assets())
+}
+
+fn creature_app_in(assets: &Path) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin { file_path: assets.to_str().unwrap().into(), ..default() },
+        TransformPlugin,
+        WorldSerializationPlugin,
+        bevy::mesh::MeshPlugin,
+        bevy::image::ImagePlugin::default(),
+        bevy::animation::AnimationPlugin,
+        GltfPlugin::default(),
+        AcePlugin,
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)))
+    .init_resource::<SeenErrors>()
+    .add_systems(Last, record_errors);
+    // Bevy's glTF loader is registered when the plugins finish (`App::run` does this).
+    app.finish();
+    app.cleanup();
+    app
+}
+
+/// Bevy's animation beside a Retargeter: the Fox plays its own Walk clip through its `AnimationPlayer`
+/// while a Retargeter drives it; the bones show the Retargeter's poses (it writes after the animation).
+#[test]
+fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
+    use bevy::animation::{AnimationClip, AnimationPlayer, graph::{AnimationGraph, AnimationGraphHandle}};
+    use bevy::gltf::GltfAssetLabel;
+    let Some(fox_glb) = shared("creatures/Fox/Fox.glb") else { return };
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-fox");
+    let _ = std::fs::remove_dir_all(&dir);
+    for sub in ["creatures", "motions"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    std::fs::copy(&fox_glb, dir.join("creatures/Fox.glb")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), dir.join("motions/walk.bvh")).unwrap();
+    train_tiny(&dir, "creatures/Fox.glb", "checkpoints/fox");
+    let c = load_creature(&dir.join("creatures/Fox.glb")).unwrap();
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
+    let r = Offline::load(&dir.join("checkpoints/fox"), ace::models::learn::Device::Cpu).unwrap();
+    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+
+    let mut app = creature_app_in(&dir);
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let fox = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(server.load("creatures/Fox.glb#Scene0")),
+            Retargeter::new(server.load("checkpoints/fox/ace.json"), player),
+        ))
+        .id();
+    let mut animated = None;
+    update_until(&mut app, |w| {
+        animated = w.query_filtered::<Entity, With<AnimationPlayer>>().iter(w).next();
+        animated.is_some()
+    });
+    let animated = animated.unwrap();
+    let walk: Handle<AnimationClip> = server.load(GltfAssetLabel::Animation(1).from_asset("creatures/Fox.glb"));
+    let (graph, node) = AnimationGraph::from_clip(walk.clone());
+    let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
+    app.world_mut().entity_mut(animated).insert(AnimationGraphHandle(graph));
+    app.world_mut().get_mut::<AnimationPlayer>(animated).unwrap().play(node).repeat();
+    start_together(&mut app, player, &[fox]);
+    for _ in 0..45 {
+        app.update();
+        let t = tick(&app, fox).unwrap();
+        let (d, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+        assert!(d < 1e-4 / c.rig.scale && a < 1e-3, "tick {t}: bones {d} file units and {a} rad from the offline motion");
+    }
+    // Paused, the pose stays the Retargeter's while the Fox's clip keeps playing.
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    for _ in 0..10 {
+        app.update();
+    }
+    let t = tick(&app, fox).unwrap();
+    let (d, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+    assert!(d < 1e-4 / c.rig.scale && a < 1e-3, "paused at tick {t}: bones {d} file units and {a} rad from the offline motion");
+    // The Fox's own clip did play all along.
+    assert!(app.world().resource::<Assets<AnimationClip>>().get(&walk).is_some(), "the Walk clip loaded");
+    let elapsed = app.world().get::<AnimationPlayer>(animated).unwrap().animation(node).map(|a| a.elapsed());
+    assert!(elapsed.is_some_and(|e| e > 1.0), "the Walk clip played for {elapsed:?} s");
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+}
+
+fn hound() -> Creature {
+    load_creature(&creature_assets().join("creatures/hound.glb")).unwrap()
+}
+
+/// The world matrix (file frame and units) of each rig bone of `c` in `pose`, straight from the tree:
+/// `C⁻¹ · W_b · R_b⁻¹ · C · F_b` (see `ace_models::character::rig_pose`).
+fn bone_worlds(c: &Creature, pose: &CharacterPose) -> Vec<(String, Matrix4<f32>)> {
+    let fk = c.tree.forward_kinematics(pose);
+    // F_b: each node's world matrix at rest, from the file.
+    let (doc, _) = ace::models::character::gltf::open(c.tree.source.as_deref().unwrap()).unwrap();
+    let mut parent = vec![None; doc.nodes().len()];
+    for nd in doc.nodes() {
+        for ch in nd.children() {
+            parent[ch.index()] = Some(nd.index());
+        }
+    }
+    let file_world = |mut i: usize| {
+        let mut m = Matrix4::from(doc.nodes().nth(i).unwrap().transform().matrix());
+        while let Some(p) = parent[i] {
+            m = Matrix4::from(doc.nodes().nth(p).unwrap().transform().matrix()) * m;
+            i = p;
+        }
+        m
+    };
+    let rot = c.rig.to_character.matrix();
+    let mut to_char = Matrix4::identity();
+    to_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(rot * c.rig.scale));
+    let mut from_char = Matrix4::identity();
+    from_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(rot.transpose() / c.rig.scale));
+    c.rig
+        .bones
+        .iter()
+        .filter_map(|b| {
+            let link = c.tree.link_index(&b.name)?;
+            let rest = file_world(b.node);
+            Some((b.name.clone(), from_char * fk[link].to_homogeneous() * b.rest.inverse().to_homogeneous() * to_char * rest))
+        })
+        .collect()
+}
+
+fn named(app: &mut App, name: &str) -> Entity {
+    let mut q = app.world_mut().query::<(Entity, &Name)>();
+    let found: Vec<Entity> = q.iter(app.world()).filter(|(_, n)| n.as_str() == name).map(|(e, _)| e).collect();
+    assert_eq!(found.len(), 1, "one entity named {name}");
+    found[0]
+}
+
+/// Largest distance (file units) and rotation difference between the scene's bone entities and the
+/// bones of `pose` placed by `origin`.
+fn bone_gap(app: &mut App, c: &Creature, origin: &Transform, pose: &CharacterPose) -> (f32, f32) {
+    let (mut d, mut a) = (0.0f32, 0.0f32);
+    for (name, m) in bone_worlds(c, pose) {
+        let e = named(app, &name);
+        let got = app.world().get::<GlobalTransform>(e).unwrap().compute_transform();
+        let want = *origin * Transform::from_matrix(Mat4::from_cols_slice(m.as_slice()));
+        d = d.max(got.translation.distance(want.translation));
+        a = a.max((got.rotation - want.rotation).length().min((got.rotation + want.rotation).length()));
+    }
+    (d, a)
+}
+
+/// The hound's glTF scene, driven by its checkpoint through a Retargeter, moves its bones (every rig
+/// bone in the tree, driven or not) as `ace retarget`'s poses say, frame for frame; root motion moves
+/// the entity.
+#[test]
+fn a_creature_scene_moves_as_ace_retarget_writes_it() {
+    let c = hound();
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
+    let r = Offline::load(&creature_assets().join("checkpoints/hound"), ace::models::learn::Device::Cpu).unwrap();
+    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+    let size = 1.0 / c.rig.scale; // a metre in file units
+
+    let mut app = creature_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let placement = Transform::from_xyz(1.0, 0.0, -2.0).with_rotation(Quat::from_rotation_y(0.7));
+    let hound = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(server.load("creatures/hound.glb#Scene0")),
+            Retargeter::new(server.load("checkpoints/hound/ace.json"), player),
+            placement,
+        ))
+        .id();
+    start_together(&mut app, player, &[hound]);
+    let mut seen = Vec::new();
+    for _ in 0..90 {
+        app.update();
+        let t = tick(&app, hound).unwrap();
+        let pose = &want.poses[t as usize];
+        let (d, a) = bone_gap(&mut app, &c, &placement, pose);
+        assert!(d < 1e-4 * size && a < 1e-3, "tick {t}: bones {d} file units and {a} rad from the offline motion");
+        // Root motion: the entity stands over the root, in the character's world placed by `placement`.
+        let at = app.world().get::<Transform>(hound).unwrap().translation;
+        let local = placement.compute_affine().inverse().transform_point3(at);
+        let ground = c.rig.to_character * Vector3::new(local.x, local.y, local.z) * c.rig.scale;
+        let root = pose.root.translation.vector;
+        assert!((ground - Vector3::new(root.x, root.y, 0.0)).norm() < 1e-4, "tick {t}: entity at {ground}, root at {root}");
+        seen.push(t);
+    }
+    assert_eq!(seen, (0..90).collect::<Vec<i64>>());
+    // The clip moves the hound's bones away from its rest pose (so the comparison above can fail).
+    let (_, turned) = bone_gap(&mut app, &c, &placement, &c.tree.standing_pose());
+    assert!(turned > 0.05, "the bones are {turned} rad from rest");
+    assert_eq!(app.world().get::<RootOrigin>(hound).map(|o| o.0), Some(placement));
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+}
+
+/// `load::<CharacterAsset>("x.glb")` is the plugin's loader; `"x.glb#Scene0"` and `load::<Gltf>` stay
+/// Bevy's, whichever comes first.
+#[test]
+fn glb_files_load_as_characters_by_type_and_as_scenes_by_label() {
+    for character_first in [true, false] {
+        let mut app = creature_app();
+        let server = app.world().resource::<AssetServer>().clone();
+        let (character, scene, gltf): (Handle<CharacterAsset>, Handle<WorldAsset>, Handle<Gltf>) = if character_first {
+            let c = server.load("creatures/hound.glb");
+            (c, server.load("creatures/hound.glb#Scene0"), server.load("creatures/hound.glb"))
+        } else {
+            let s = server.load("creatures/hound.glb#Scene0");
+            let g = server.load("creatures/hound.glb");
+            (server.load("creatures/hound.glb"), s, g)
+        };
+        update_until(&mut app, |w| {
+            let s = w.resource::<AssetServer>();
+            [character.id().untyped(), scene.id().untyped(), gltf.id().untyped()]
+                .iter()
+                .all(|&id| matches!(s.get_load_state(id), Some(LoadState::Loaded | LoadState::Failed(_))))
+        });
+        let c = app.world().resource::<Assets<CharacterAsset>>().get(&character).expect("a CharacterAsset");
+        assert_eq!(c.tree.name, "hound");
+        assert_eq!(c.tree.dof(), hound().tree.dof());
+        assert!(c.rig.is_some(), "a glTF character has its rig");
+        assert!(app.world().resource::<Assets<WorldAsset>>().get(&scene).is_some(), "Bevy's scene");
+        assert_eq!(app.world().resource::<Assets<Gltf>>().get(&gltf).map(|g| g.scenes.len()), Some(1));
+    }
+}
+
+fn failure(app: &App, e: Entity) -> String {
+    let errors: Vec<&RetargetError> = app.world().resource::<SeenErrors>().0.iter().filter(|r| r.entity == e).collect();
+    assert_eq!(errors.len(), 1, "one message per failure: {errors:?}");
+    errors[0].message.clone()
+}
+
+#[test]
+fn scenes_and_checkpoints_that_do_not_belong_together_are_errors_not_panics() {
+    let mut app = creature_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let mut spawn = |bundle: (WorldAssetRoot, Retargeter)| app.world_mut().spawn(bundle).id();
+    // A URDF robot's checkpoint on the hound's scene.
+    let spot_on_hound = spawn((
+        WorldAssetRoot(server.load("creatures/hound.glb#Scene0")),
+        Retargeter::new(server.load("checkpoints/spot/ace.json"), player),
+    ));
+    // The hound's checkpoint on a scene whose bones are not the hound's.
+    let hound_on_renamed = spawn((
+        WorldAssetRoot(server.load("creatures/renamed.glb#Scene0")),
+        Retargeter::new(server.load("checkpoints/hound/ace.json"), player),
+    ));
+    // A scene whose joints are not those of the character it is said to be.
+    let wrong_joints = spawn((
+        WorldAssetRoot(server.load("creatures/renamed.glb#Scene0")),
+        Retargeter::new(server.load("checkpoints/hound/ace.json"), player),
+    ));
+    app.world_mut()
+        .entity_mut(wrong_joints)
+        .insert(CreatureScene::new(server.load("creatures/hound.glb")));
+    // The hound's checkpoint on a URDF robot.
+    let hound_on_spot = app
+        .world_mut()
+        .spawn((
+            Character::new(server.load("characters/spot.urdf")),
+            Retargeter::new(server.load("checkpoints/hound/ace.json"), player),
+        ))
+        .id();
+    let all = [spot_on_hound, hound_on_renamed, wrong_joints, hound_on_spot];
+    let failed = |w: &mut World, e: Entity| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Failed(_)));
+    update_until(&mut app, |w| all.iter().all(|&e| failed(w, e)));
+    app.update();
+    let m = failure(&app, spot_on_hound);
+    assert!(m.contains("checkpoints/spot") && m.contains("does not fit character hound (a glTF creature)"), "{m}");
+    assert!(m.contains("`spot`"), "{m}");
+    let m = failure(&app, hound_on_renamed);
+    assert!(m.contains("does not fit character renamed (a glTF creature)"), "{m}");
+    let m = failure(&app, wrong_joints);
+    assert!(m.contains("has no joint named `Tail3`") && m.contains("creature hound"), "{m}");
+    let m = failure(&app, hound_on_spot);
+    assert!(m.contains("checkpoints/hound") && m.contains("does not fit character spot (a URDF character)"), "{m}");
 }

@@ -42,7 +42,7 @@ pub fn panels(
     mut retrain: ResMut<Retrain>,
     mut players: Query<&mut HumanClipPlayer>,
     characters: Query<&Character>,
-    urdfs: Res<Assets<UrdfAsset>>,
+    urdfs: Res<Assets<CharacterAsset>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     // The text fields follow the session when it changes from elsewhere (a finished training).
@@ -64,7 +64,7 @@ pub fn panels(
         .show(ctx, |ui| {
             files(ui, &mut session, &mut state, &preview, &mut retrain);
             ui.separator();
-            let urdf = scene.as_ref().and_then(|s| characters.get(s.character).ok()).and_then(|c| urdfs.get(&c.urdf));
+            let urdf = scene.as_ref().and_then(|s| characters.get(s.character).ok()).and_then(|c| urdfs.get(&c.asset));
             if let Some(urdf) = urdf {
                 let names = |v: &[usize]| v.iter().map(|&i| urdf.tree.links[i].name.as_str()).collect::<Vec<_>>().join(", ");
                 ui.label(format!("{}: {} links, {} DoF; feet: {}; manipulators: {}", urdf.tree.name, urdf.tree.links.len(), urdf.tree.dof(), names(&urdf.morphology.feet), names(&urdf.morphology.manipulators)));

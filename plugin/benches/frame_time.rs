@@ -1,16 +1,21 @@
 //! Frame time a headless Bevy app spends on [`Retargeter`]s (issue targets: one character at most
-//! 1 ms median added, 16 characters at most 4 ms), printed as a table.
+//! 1 ms median added, 16 characters at most 4 ms, 16 rigged creatures at most 4 ms), printed as a table.
 //!
 //! ```text
 //! cargo bench -p bevy_ace --bench frame_time
 //! ```
 //!
 //! Each row is a headless app (`MinimalPlugins`, the asset, transform and ACE plugins, a fixed
-//! 1/30 s step so that every frame is one network tick) with one walk clip player and N Spot
-//! characters, timed over 600 frames after the assets load. The baseline has the same characters
-//! spawned and posed by the plugin but no retargeter; "added" is the difference of the medians.
+//! 1/30 s step so that every frame is one network tick) with one walk clip player and N characters,
+//! timed over 600 frames after the assets load. The baseline has the same characters spawned and
+//! posed by the plugin but no retargeter; "added" is the difference of the medians.
 //! The worker runs while the rest of a frame does, so in a real game part of its time is hidden;
 //! this loop has no other work, so the figures are the worst case. libtorch uses one thread.
+//!
+//! Rows: Spot (URDF, link entities spawned by the plugin), and with feature `scene` the bundled hound
+//! as Bevy's own glTF scene (`WorldAssetRoot`, Bevy's glTF loader, no renderer) whose skin joints the
+//! retargeters drive. The hound's checkpoint is `assets/checkpoints/hound`, or the folder
+//! `ACE_BENCH_HOUND_CHECKPOINT` names.
 
 use std::time::{Duration, Instant};
 
@@ -20,20 +25,25 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_ace::prelude::*;
 
 const FRAMES: usize = 600;
+const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets");
 
-fn app(characters: usize, retarget: bool) -> (App, Vec<Entity>) {
+fn base_app() -> App {
     let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin { file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/../assets").into(), ..default() },
-        TransformPlugin,
-        AcePlugin,
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(1.0 / 30.0)));
+    // ACE_BENCH_HOUND_CHECKPOINT may name a folder outside the assets.
+    let unapproved_path_mode = bevy::asset::UnapprovedPathMode::Allow;
+    app.add_plugins((MinimalPlugins, AssetPlugin { file_path: ASSETS.into(), unapproved_path_mode, ..default() }, TransformPlugin))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(1.0 / 30.0)));
+    app
+}
+
+/// N Spot characters, with or without retargeters.
+fn spot_app(characters: usize, retarget: bool) -> (App, Vec<Entity>) {
+    let mut app = base_app();
+    app.add_plugins(AcePlugin);
     let server = app.world().resource::<AssetServer>().clone();
     let player = app.world_mut().spawn(HumanClipPlayer::new(server.load("motions/walk.bvh"))).id();
     let checkpoint: Handle<CheckpointAsset> = server.load("checkpoints/spot/ace.json");
-    let urdf: Handle<UrdfAsset> = server.load("characters/spot.urdf");
+    let urdf: Handle<CharacterAsset> = server.load("characters/spot.urdf");
     let entities = (0..characters)
         .map(|i| {
             let mut e = app.world_mut().spawn((Character::new(urdf.clone()), Transform::from_xyz(i as f32, 0.0, 0.0)));
@@ -46,16 +56,41 @@ fn app(characters: usize, retarget: bool) -> (App, Vec<Entity>) {
     (app, entities)
 }
 
-/// Median and 90th percentile frame time (ms) once everything runs.
-fn time(characters: usize, retarget: bool) -> (f64, f64) {
-    let (mut app, entities) = app(characters, retarget);
+/// N hound scenes, with or without retargeters (checkpoint `checkpoint`, an asset path).
+#[cfg(feature = "scene")]
+fn hound_app(characters: usize, checkpoint: Option<&str>) -> (App, Vec<Entity>) {
+    let mut app = base_app();
+    app.add_plugins((
+        bevy::world_serialization::WorldSerializationPlugin,
+        bevy::mesh::MeshPlugin,
+        bevy::image::ImagePlugin::default(),
+        bevy::animation::AnimationPlugin,
+        bevy::gltf::GltfPlugin::default(),
+        AcePlugin,
+    ));
+    app.finish();
+    app.cleanup();
+    let server = app.world().resource::<AssetServer>().clone();
+    let player = app.world_mut().spawn(HumanClipPlayer::new(server.load("motions/walk.bvh"))).id();
+    let checkpoint: Option<Handle<CheckpointAsset>> = checkpoint.map(|c| server.load(format!("{c}/ace.json")));
+    let scene = server.load("creatures/hound.glb#Scene0");
+    let entities = (0..characters)
+        .map(|i| {
+            let mut e = app.world_mut().spawn((WorldAssetRoot(scene.clone()), Transform::from_xyz(i as f32, 0.0, 0.0)));
+            if let Some(c) = &checkpoint {
+                e.insert(Retargeter::new(c.clone(), player));
+            }
+            e.id()
+        })
+        .collect();
+    (app, entities)
+}
+
+/// Median and 90th percentile frame time (ms) once every entity is `ready`.
+fn time((mut app, entities): (App, Vec<Entity>), ready: impl Fn(&World, Entity) -> bool) -> (f64, f64) {
     for _ in 0..5000 {
         app.update();
-        let ready = entities.iter().all(|&e| {
-            app.world().get::<CharacterLinks>(e).is_some()
-                && (!retarget || matches!(app.world().get::<RetargetStatus>(e), Some(RetargetStatus::Running { .. })))
-        });
-        if ready {
+        if entities.iter().all(|&e| ready(app.world(), e)) {
             break;
         }
         std::thread::sleep(Duration::from_millis(1));
@@ -64,6 +99,7 @@ fn time(characters: usize, retarget: bool) -> (f64, f64) {
         if let Some(RetargetStatus::Failed(m)) = app.world().get::<RetargetStatus>(e) {
             panic!("retargeter failed: {m}");
         }
+        assert!(ready(app.world(), e), "not ready after 5000 frames");
     }
     let mut times: Vec<f64> = (0..FRAMES)
         .map(|_| {
@@ -76,13 +112,36 @@ fn time(characters: usize, retarget: bool) -> (f64, f64) {
     (times[FRAMES / 2], times[FRAMES * 9 / 10])
 }
 
+fn running(w: &World, e: Entity) -> bool {
+    matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Running { .. }))
+}
+
+fn row(what: &str, n: usize, (base, base90): (f64, f64), (with, with90): (f64, f64)) {
+    println!("| {what} | {n} | {base:.3} / {base90:.3} ms | {with:.3} / {with90:.3} ms | {:.3} ms |", with - base);
+}
+
 fn main() {
     set_threads(1);
-    println!("| characters | frame without retargeters (median / p90) | with retargeters (median / p90) | added (median) |");
-    println!("|---:|---:|---:|---:|");
+    println!("| characters | N | frame without retargeters (median / p90) | with retargeters (median / p90) | added (median) |");
+    println!("|---|---:|---:|---:|---:|");
     for n in [1usize, 4, 16] {
-        let (base, base90) = time(n, false);
-        let (with, with90) = time(n, true);
-        println!("| {n} | {base:.3} / {base90:.3} ms | {with:.3} / {with90:.3} ms | {:.3} ms |", with - base);
+        let base = time(spot_app(n, false), |w, e| w.get::<CharacterLinks>(e).is_some());
+        let with = time(spot_app(n, true), |w, e| w.get::<CharacterLinks>(e).is_some() && running(w, e));
+        row("Spot (URDF)", n, base, with);
+    }
+    #[cfg(feature = "scene")]
+    {
+        let checkpoint = std::env::var("ACE_BENCH_HOUND_CHECKPOINT").unwrap_or_else(|_| "checkpoints/hound".into());
+        if std::path::Path::new(ASSETS).join(&checkpoint).join("ace.json").is_file() {
+            // A scene has spawned when its entity has children (the glTF's root nodes).
+            let spawned = |w: &World, e: Entity| w.get::<Children>(e).is_some_and(|c| !c.is_empty());
+            for n in [1usize, 16] {
+                let base = time(hound_app(n, None), spawned);
+                let with = time(hound_app(n, Some(&checkpoint)), |w, e| spawned(w, e) && running(w, e));
+                row("hound (glTF scene)", n, base, with);
+            }
+        } else {
+            println!("| hound (glTF scene) | — | no checkpoint at {ASSETS}/{checkpoint}: set ACE_BENCH_HOUND_CHECKPOINT | | |");
+        }
     }
 }

@@ -1,7 +1,16 @@
-//! Asset types and loaders for `.urdf` characters and `.bvh` human clips.
+//! Asset types and loaders for characters (`.urdf` robots, rigged `.glb`/`.gltf` creatures) and `.bvh`
+//! human clips.
+//!
+//! **Which loader.** Bevy's own glTF loader claims `.glb` and `.gltf` too. The character loader claims
+//! only `.urdf` by extension and is otherwise chosen by the asset type: `assets.load::<CharacterAsset>
+//! ("Fox.glb")` (or a `Handle<CharacterAsset>` the call's type names) gets a [`CharacterAsset`], while
+//! `"Fox.glb#Scene0"` and untyped loads of `.glb` stay Bevy's (a labelled path is resolved by its
+//! extension only).
 
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use ace_models::character::{RigPose, creature_from_document, gltf, is_gltf};
 use ace_models::human::{HumanClip, ImportOptions};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
@@ -9,18 +18,21 @@ use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
-/// A character loaded from a URDF file: its kinematic tree and morphology.
+/// A character: a URDF robot or a rigged glTF creature, as its kinematic tree and morphology.
 ///
-/// When a profile file `<stem>.profile.toml` stands beside the URDF it sets the rest pose and
-/// overrides the automatic morphology analysis (feet, manipulators, wheels, head), as
-/// `ace_models::morphology::load_character` does for files. Mesh files are not read here, so
-/// mesh-only links have no extent in the analysis.
+/// When a profile file `<stem>.profile.toml` stands beside the file it sets the rest pose and
+/// overrides the automatic morphology analysis (feet, manipulators, wheels, head; for creatures also
+/// the scale, the facing axis and which bones move), as `ace_models::morphology::load_character` does
+/// for files. A URDF's mesh files are not read here, so mesh-only links have no extent in the analysis.
 #[derive(Asset, TypePath, Clone, Debug)]
-pub struct UrdfAsset {
+pub struct CharacterAsset {
     /// Links in topological order, joints, geometry.
     pub tree: Arc<KinematicTree>,
     /// Feet, manipulators, wheels and head, as link indices into `tree`.
     pub morphology: Arc<Morphology>,
+    /// For a glTF creature, how a pose becomes its bone nodes' transforms (see
+    /// [`ace_models::character::rig_pose`]); `None` for a URDF.
+    pub rig: Option<Arc<RigPose>>,
 }
 
 /// A human clip loaded from a BVH file, mapped to the canonical 17-joint skeleton.
@@ -51,12 +63,13 @@ async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<Str
     String::from_utf8(bytes).map_err(|_| AceAssetError::NotText { path })
 }
 
-/// Loads `.urdf` files into [`UrdfAsset`]s.
+/// Loads `.urdf` files, and `.glb`/`.gltf` files when a [`CharacterAsset`] is asked for (see the module
+/// docs), into [`CharacterAsset`]s.
 #[derive(Default, TypePath)]
-pub struct UrdfLoader;
+pub struct CharacterLoader;
 
-impl AssetLoader for UrdfLoader {
-    type Asset = UrdfAsset;
+impl AssetLoader for CharacterLoader {
+    type Asset = CharacterAsset;
     type Settings = ();
     type Error = AceAssetError;
 
@@ -65,28 +78,68 @@ impl AssetLoader for UrdfLoader {
         reader: &mut dyn Reader,
         _settings: &(),
         ctx: &mut LoadContext<'_>,
-    ) -> Result<UrdfAsset, AceAssetError> {
-        let xml = read_text(reader, ctx).await?;
+    ) -> Result<CharacterAsset, AceAssetError> {
         let path = ctx.path().to_string();
         let import = |message: String| AceAssetError::Import { path: path.clone(), message };
-        let mut tree = KinematicTree::from_urdf_str(&xml).map_err(|e| import(e.to_string()))?;
-        let profile_path = ctx.path().path().with_extension("profile.toml");
-        let morphology = match ctx.read_asset_bytes(profile_path.clone()).await {
+        let profile_path = Profile::path_beside(ctx.path().path());
+        let profile = match ctx.read_asset_bytes(profile_path.clone()).await {
             Ok(bytes) => {
                 let text = String::from_utf8(bytes)
                     .map_err(|_| import(format!("profile {} is not UTF-8 text", profile_path.display())))?;
-                let profile = Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?;
+                Some(Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?)
+            }
+            Err(_) => None,
+        };
+        if is_gltf(ctx.path().path()) {
+            return load_creature(reader, ctx, profile.unwrap_or_default()).await;
+        }
+        let xml = read_text(reader, ctx).await?;
+        let mut tree = KinematicTree::from_urdf_str(&xml).map_err(|e| import(e.to_string()))?;
+        let morphology = match profile {
+            Some(profile) => {
+                profile.check_urdf().map_err(|e| import(e.to_string()))?;
                 profile.apply_rest_pose(&mut tree).map_err(|e| import(e.to_string()))?;
                 Morphology::with_profile(&tree, &profile).map_err(|e| import(e.to_string()))?
             }
-            Err(_) => Morphology::analyze(&tree),
+            None => Morphology::analyze(&tree),
         };
-        Ok(UrdfAsset { tree: Arc::new(tree), morphology: Arc::new(morphology) })
+        Ok(CharacterAsset { tree: Arc::new(tree), morphology: Arc::new(morphology), rig: None })
     }
 
     fn extensions(&self) -> &[&str] {
+        // Not "glb" or "gltf": those stay Bevy's for untyped and labelled loads (see the module docs).
         &["urdf"]
     }
+}
+
+/// A rigged glTF creature, its buffers in other files read through the asset reader.
+async fn load_creature(
+    reader: &mut dyn Reader,
+    ctx: &mut LoadContext<'_>,
+    profile: Profile,
+) -> Result<CharacterAsset, AceAssetError> {
+    let path = ctx.path().to_string();
+    let import = |message: String| AceAssetError::Import { path: path.clone(), message };
+    let mut bytes = Vec::new();
+    reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+    let file: PathBuf = ctx.path().path().to_path_buf();
+    let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut external = Vec::new();
+    for uri in gltf::external_buffers(&bytes, &file).map_err(|e| import(e.problem.to_string()))? {
+        let data = ctx.read_asset_bytes(dir.join(&uri)).await.map_err(|e| e.to_string());
+        external.push((uri, data));
+    }
+    let find = |uri: &str| {
+        external.iter().find(|(u, _)| u == uri).map_or_else(|| Err("not read".to_string()), |(_, d)| d.clone())
+    };
+    let (doc, buffers) = gltf::open_bytes(&bytes, &file, &find).map_err(|e| import(e.problem.to_string()))?;
+    let creature = creature_from_document(&doc, &buffers, &file, &profile).map_err(|e| import(e.to_string()))?;
+    let rig = RigPose::new(&creature, &doc).map_err(|e| import(e.to_string()))?;
+    Ok(CharacterAsset {
+        tree: Arc::new(creature.tree),
+        morphology: Arc::new(creature.morphology),
+        rig: Some(Arc::new(rig)),
+    })
 }
 
 /// Settings of the BVH loader (set them in a `.bvh.meta` file or with `load_with_settings`).

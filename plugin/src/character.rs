@@ -1,13 +1,15 @@
-//! Characters: a URDF asset spawned as one entity per link, posed by a [`Pose`] component.
+//! Characters: a [`CharacterAsset`] spawned as one entity per link, posed by a [`Pose`] component. (A
+//! rigged glTF creature can also be driven through its own glTF scene: see [`crate::scene`].)
 
 use ace_models::kinematics::CharacterPose;
 use ace_models::nalgebra::Isometry3;
 use bevy::prelude::*;
 
-use crate::assets::UrdfAsset;
+use crate::assets::CharacterAsset;
 use crate::convert;
 
-/// A character driven by this plugin. Spawn it with a handle to a URDF asset; once the asset is
+/// A character driven by this plugin. Spawn it with a handle to a character asset (a URDF, or a glTF
+/// creature shown as its links' capsules); once the asset is
 /// loaded, one child entity per link is spawned ([`CharacterLinks`]) and a neutral [`Pose`] is
 /// inserted unless one is already there.
 ///
@@ -16,24 +18,24 @@ use crate::convert;
 #[derive(Component, Clone, Debug)]
 #[require(Transform)]
 pub struct Character {
-    /// The character's URDF.
-    pub urdf: Handle<UrdfAsset>,
+    /// The character's file.
+    pub asset: Handle<CharacterAsset>,
 }
 
 impl Character {
-    /// A character from a URDF handle.
-    pub fn new(urdf: Handle<UrdfAsset>) -> Self {
-        Self { urdf }
+    /// A character from a character asset's handle.
+    pub fn new(asset: Handle<CharacterAsset>) -> Self {
+        Self { asset }
     }
 }
 
 /// The pose a character shows: root link pose (in the character's z-up world) and one position per
-/// actuated DoF, in the URDF's DoF order. Write it from any system; [`crate::AceSystems::Apply`] turns
+/// actuated DoF, in the tree's DoF order. Write it from any system; [`crate::AceSystems::Apply`] turns
 /// it into link [`Transform`]s before transform propagation.
 #[derive(Component, Clone, Debug, PartialEq, Deref, DerefMut)]
 pub struct Pose(pub CharacterPose);
 
-/// Link entities of a spawned character, in the URDF's topological link order.
+/// Link entities of a spawned character, in the tree's topological link order.
 #[derive(Component, Clone, Debug)]
 pub struct CharacterLinks(pub Vec<Entity>);
 
@@ -46,17 +48,17 @@ pub struct CharacterLink {
     pub index: usize,
 }
 
-/// Spawns link entities for characters whose URDF has finished loading.
+/// Spawns link entities for characters whose asset has finished loading.
 pub(crate) fn spawn_characters(
     mut commands: Commands,
     characters: Query<(Entity, &Character, Option<&Pose>), Without<CharacterLinks>>,
-    urdfs: Res<Assets<UrdfAsset>>,
+    assets: Res<Assets<CharacterAsset>>,
     #[cfg(feature = "render")] mut visuals: crate::render::VisualAssets,
 ) {
     for (entity, character, pose) in &characters {
-        let Some(urdf) = urdfs.get(&character.urdf) else { continue };
-        let mut links: Vec<Entity> = Vec::with_capacity(urdf.tree.links.len());
-        for (index, link) in urdf.tree.links.iter().enumerate() {
+        let Some(asset) = assets.get(&character.asset) else { continue };
+        let mut links: Vec<Entity> = Vec::with_capacity(asset.tree.links.len());
+        for (index, link) in asset.tree.links.iter().enumerate() {
             let parent = link.parent.map_or(entity, |p| links[p]);
             let id = commands
                 .spawn((Name::new(link.name.clone()), CharacterLink { character: entity, index }, Transform::default(), ChildOf(parent)))
@@ -71,7 +73,7 @@ pub(crate) fn spawn_characters(
         let mut e = commands.entity(entity);
         e.insert(CharacterLinks(links));
         if pose.is_none() {
-            e.insert(Pose(urdf.tree.standing_pose()));
+            e.insert(Pose(asset.tree.standing_pose()));
         }
         #[cfg(feature = "render")]
         e.insert_if_new(Visibility::default());
@@ -82,17 +84,17 @@ pub(crate) fn spawn_characters(
 pub(crate) fn apply_poses(
     characters: Query<(&Character, &Pose, &CharacterLinks), Or<(Changed<Pose>, Added<CharacterLinks>)>>,
     mut transforms: Query<&mut Transform, With<CharacterLink>>,
-    urdfs: Res<Assets<UrdfAsset>>,
+    assets: Res<Assets<CharacterAsset>>,
     mut world_poses: Local<Vec<Isometry3<f32>>>,
 ) {
     for (character, pose, links) in &characters {
-        let Some(urdf) = urdfs.get(&character.urdf) else { continue };
-        if pose.q.len() != urdf.tree.dof() {
-            warn_once!("a Pose with {} joint positions was given to a character with {} DoF", pose.q.len(), urdf.tree.dof());
+        let Some(asset) = assets.get(&character.asset) else { continue };
+        if pose.q.len() != asset.tree.dof() {
+            warn_once!("a Pose with {} joint positions was given to a character with {} DoF", pose.q.len(), asset.tree.dof());
             continue;
         }
-        urdf.tree.forward_kinematics_into(pose, &mut world_poses);
-        for (index, link) in urdf.tree.links.iter().enumerate() {
+        asset.tree.forward_kinematics_into(pose, &mut world_poses);
+        for (index, link) in asset.tree.links.iter().enumerate() {
             let local = match link.parent {
                 Some(p) => world_poses[p].inv_mul(&world_poses[index]),
                 None => world_poses[index],

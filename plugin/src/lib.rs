@@ -1,9 +1,11 @@
 //! # bevy_ace
 //!
-//! The Bevy layer of ACE retargeting: asset loaders for `.urdf` characters, `.bvh` human clips and
-//! trained checkpoints, characters spawned as one entity per link and posed from a [`Pose`]
-//! component, a human clip player, and the [`Retargeter`] component that drives a character from a
-//! human source with a checkpoint every frame (feature `learn`, on by default). The core
+//! The Bevy layer of ACE retargeting: asset loaders for characters (`.urdf` robots, rigged `.glb`/`.gltf`
+//! creatures), `.bvh` human clips and trained checkpoints, characters spawned as one entity per link and
+//! posed from a [`Pose`] component, a human clip player, and the [`Retargeter`] component that drives a
+//! character from a human source with a checkpoint every frame (feature `learn`, on by default). With
+//! feature `scene` (on by default) a Retargeter also drives a rigged creature's own glTF scene: its
+//! skinned mesh deforms (see [`scene`]). The core
 //! (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
 //!
 //! ```no_run
@@ -35,6 +37,8 @@ pub mod human;
 pub mod render;
 #[cfg(feature = "learn")]
 pub mod retarget;
+#[cfg(feature = "scene")]
+pub mod scene;
 #[cfg(feature = "learn")]
 mod worker;
 
@@ -45,7 +49,9 @@ use bevy::transform::TransformSystems;
 
 /// Commonly used items.
 pub mod prelude {
-    pub use crate::assets::{BvhAsset, BvhSettings, UrdfAsset};
+    pub use crate::assets::{BvhAsset, BvhSettings, CharacterAsset};
+    #[cfg(feature = "scene")]
+    pub use crate::scene::{CreatureScene, RootOrigin};
     pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
     #[cfg(feature = "learn")]
     pub use crate::checkpoint::CheckpointAsset;
@@ -55,10 +61,13 @@ pub mod prelude {
     pub use crate::{AcePlugin, AceSystems};
 }
 
-/// The plugin's systems, chained in this order in `PostUpdate`, before transform propagation.
+/// The plugin's systems, chained in this order in `PostUpdate`, after Bevy's animation
+/// (`AnimationSystems`: on the nodes a Retargeter drives, its pose wins) and before transform
+/// propagation.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum AceSystems {
-    /// Spawn link and joint entities for newly loaded characters and clips.
+    /// Spawn link and joint entities for newly loaded characters and clips; find a driven glTF scene's
+    /// joints.
     Spawn,
     /// Advance clip players and sample their clips.
     Advance,
@@ -69,20 +78,23 @@ pub enum AceSystems {
     Apply,
 }
 
-/// Registers the `.urdf` and `.bvh` assets (and with feature `learn` the checkpoint asset) and the
+/// Registers the character (`.urdf`, and `.glb`/`.gltf` by asset type) and `.bvh` assets (and with feature `learn` the checkpoint asset) and the
 /// systems that spawn, play, retarget and pose them.
 /// Needs an `AssetPlugin` and Bevy's transform plugin (both in `DefaultPlugins`).
 pub struct AcePlugin;
 
 impl Plugin for AcePlugin {
     fn build(&self, app: &mut App) {
-        app.init_asset::<assets::UrdfAsset>()
+        app.init_asset::<assets::CharacterAsset>()
             .init_asset::<assets::BvhAsset>()
-            .register_asset_loader(assets::UrdfLoader)
+            .register_asset_loader(assets::CharacterLoader)
             .register_asset_loader(assets::BvhLoader)
             .configure_sets(
                 PostUpdate,
-                (AceSystems::Spawn, AceSystems::Advance, AceSystems::Retarget, AceSystems::Apply).chain().before(TransformSystems::Propagate),
+                (AceSystems::Spawn, AceSystems::Advance, AceSystems::Retarget, AceSystems::Apply)
+                    .chain()
+                    .after(bevy::app::AnimationSystems)
+                    .before(TransformSystems::Propagate),
             )
             .add_systems(
                 PostUpdate,
@@ -104,5 +116,13 @@ impl Plugin for AcePlugin {
                     .chain()
                     .in_set(AceSystems::Retarget),
             );
+        #[cfg(feature = "scene")]
+        app.add_systems(
+            PostUpdate,
+            (
+                (scene::bind_scenes, scene::find_joints).chain().in_set(AceSystems::Spawn),
+                scene::apply_scene_poses.in_set(AceSystems::Apply),
+            ),
+        );
     }
 }

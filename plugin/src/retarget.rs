@@ -1,6 +1,7 @@
 //! Characters driven by a trained checkpoint (feature `learn`): the [`Retargeter`] component.
 //!
-//! A character entity ([`Character`]) with a [`Retargeter`] follows a human source: an entity with a
+//! A character entity ([`Character`]) with a [`Retargeter`], or a rigged glTF creature's scene (feature
+//! `scene`, see `crate::scene`), follows a human source: an entity with a
 //! [`HumanClipPlayer`] (play, pause, scrub and speed act on the player) or a [`LiveHuman`] fed by
 //! [`LiveHumanFrame`] messages (a mocap stream, or frames made in code). One source can drive any
 //! number of characters.
@@ -31,7 +32,7 @@ use ace_models::learn::checkpoint::CharacterInfo;
 use bevy::asset::LoadState;
 use bevy::prelude::*;
 
-use crate::assets::{BvhAsset, UrdfAsset};
+use crate::assets::{BvhAsset, CharacterAsset};
 use crate::character::{Character, Pose};
 use crate::checkpoint::CheckpointAsset;
 use crate::human::HumanClipPlayer;
@@ -40,8 +41,8 @@ use crate::worker::{Job, Worker};
 /// Source ticks a character catches up on in one frame before it starts over instead (half a second).
 pub const MAX_CATCH_UP: i64 = 15;
 
-/// Drives the [`Character`] on the same entity from a human source with a trained checkpoint (see
-/// the module docs).
+/// Drives the [`Character`] or the glTF creature scene on the same entity from a human source with a
+/// trained checkpoint (see the module docs).
 #[derive(Component, Clone, Debug)]
 #[require(RetargetStatus, Progress)]
 pub struct Retargeter {
@@ -61,7 +62,7 @@ impl Retargeter {
 /// Where a [`Retargeter`] stands.
 #[derive(Component, Clone, Debug, Default, PartialEq)]
 pub enum RetargetStatus {
-    /// Waiting for the checkpoint, the character's URDF or the source's clip.
+    /// Waiting for the checkpoint, the character's file (and a scene's joints) or the source's clip.
     #[default]
     Loading,
     /// Driving: [`Pose`] holds the pose of source tick `tick` (time `tick / 30` s).
@@ -187,15 +188,41 @@ pub(crate) fn collect_poses(
 pub(crate) struct RetargetAssets<'w> {
     server: Res<'w, AssetServer>,
     checkpoints: Res<'w, Assets<CheckpointAsset>>,
-    urdfs: Res<'w, Assets<UrdfAsset>>,
+    characters: Res<'w, Assets<CharacterAsset>>,
     clips: Res<'w, Assets<BvhAsset>>,
+}
+
+/// A retargeter's glTF scene, with feature `scene`.
+#[cfg(feature = "scene")]
+type Scene = (Option<&'static crate::scene::CreatureScene>, Has<bevy::world_serialization::WorldAssetRoot>);
+#[cfg(not(feature = "scene"))]
+type Scene = ();
+
+/// The scene's character asset and whether its joints are found; `None` without a bound scene.
+#[cfg(feature = "scene")]
+fn scene_handle<'a>(scene: (Option<&'a crate::scene::CreatureScene>, bool)) -> Option<(&'a Handle<CharacterAsset>, bool)> {
+    scene.0.map(|s| (&s.asset, s.joints.is_some()))
+}
+#[cfg(not(feature = "scene"))]
+fn scene_handle<'a>(_: ()) -> Option<(&'a Handle<CharacterAsset>, bool)> {
+    None
+}
+
+/// Whether there is a scene that [`crate::scene`] has yet to bind, or has failed to.
+#[cfg(feature = "scene")]
+fn scene_pending(scene: (Option<&crate::scene::CreatureScene>, bool)) -> bool {
+    scene.1
+}
+#[cfg(not(feature = "scene"))]
+fn scene_pending(_: ()) -> bool {
+    false
 }
 
 /// Sends each character's due ticks to its checkpoint's worker (see the module docs).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn request_poses(
     mut workers: ResMut<Workers>,
-    mut characters: Query<(Entity, Ref<Retargeter>, &Character, &mut RetargetStatus, &mut Progress)>,
+    mut characters: Query<(Entity, Ref<Retargeter>, Option<&Character>, Scene, &mut RetargetStatus, &mut Progress)>,
     players: Query<&HumanClipPlayer>,
     live: Query<&LiveHuman>,
     assets: RetargetAssets,
@@ -218,9 +245,10 @@ pub(crate) fn request_poses(
     }
 
     let mut jobs: HashMap<AssetId<CheckpointAsset>, Vec<Job>> = HashMap::new();
-    for (entity, retargeter, character, mut status, mut progress) in &mut characters {
+    for (entity, retargeter, character, scene, mut status, mut progress) in &mut characters {
         let id = retargeter.checkpoint.id();
-        if retargeter.is_changed() || stale.contains(&id) {
+        // (Not when just added: the defaults are that, and a scene found faulty this frame stays failed.)
+        if (retargeter.is_changed() && !retargeter.is_added()) || stale.contains(&id) {
             progress.sent = None;
             *status = RetargetStatus::Loading;
             for list in forget.values_mut() {
@@ -238,7 +266,25 @@ pub(crate) fn request_poses(
             fail(format!("checkpoint failed to load: {e}"), &mut status);
             continue;
         }
-        let (Some(checkpoint), Some(urdf)) = (assets.checkpoints.get(id), assets.urdfs.get(&character.urdf)) else {
+        // The character's asset: the Character's, or a glTF scene's once its joints are found.
+        let (handle, ready) = match (character, scene_handle(scene)) {
+            (Some(c), _) => (&c.asset, true),
+            (None, Some(s)) => s,
+            (None, None) => {
+                if !scene_pending(scene) {
+                    fail(format!("{entity} has a Retargeter but neither a Character nor a glTF scene"), &mut status);
+                }
+                continue;
+            }
+        };
+        if let Some(LoadState::Failed(e)) = assets.server.get_load_state(handle) {
+            fail(format!("the character failed to load: {e}"), &mut status);
+            continue;
+        }
+        if !ready {
+            continue;
+        }
+        let (Some(checkpoint), Some(urdf)) = (assets.checkpoints.get(id), assets.characters.get(handle)) else {
             continue;
         };
         // The source's clock and frames.
@@ -267,8 +313,13 @@ pub(crate) fn request_poses(
             }
             _ => {
                 if let Some(problem) = checkpoint.character.difference(&CharacterInfo::of_character(&urdf.tree, &urdf.morphology)) {
+                    let kind = if urdf.rig.is_some() { "glTF creature" } else { "URDF character" };
                     fail(
-                        format!("checkpoint {} does not fit character {}: {problem}", checkpoint.dir().display(), urdf.tree.name),
+                        format!(
+                            "checkpoint {} does not fit character {} (a {kind}): {problem}",
+                            checkpoint.dir().display(),
+                            urdf.tree.name
+                        ),
                         &mut status,
                     );
                     continue;

@@ -263,9 +263,20 @@ fn name_of(node: &::gltf::Node) -> String {
 /// Reads the file and the bones of its main skin. `scale` (metres per file unit) overrides the
 /// unit detection; `forward` says which file axis the creature faces.
 pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, GltfError> {
-    let fail = |p: GltfProblem| p.in_file(path);
     let (document, buffers) = open(path)?;
-    let doc = &document;
+    read_document(&document, &buffers, path, scale, forward)
+}
+
+/// [`read`] for a document already opened (see [`open`], [`open_bytes`]); `path` names the file in
+/// errors.
+pub fn read_document(
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    scale: Option<f32>,
+    forward: Forward,
+) -> Result<Rig, GltfError> {
+    let fail = |p: GltfProblem| p.in_file(path);
     let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
 
     // Hierarchy: one parent per node, no cycles; world transforms in parent-first order.
@@ -690,9 +701,50 @@ pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> 
         return Err(fail(GltfProblem::TooLarge(meta.len())));
     }
     let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    open_bytes(&bytes, path, &|uri| {
+        let file = base.join(uri);
+        let meta = std::fs::metadata(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+        if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
+            return Err(format!(
+                "{}: not a regular file of at most {MAX_FILE_BYTES} bytes",
+                file.display()
+            ));
+        }
+        std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))
+    })
+}
+
+/// The files a glTF file's buffers name (their URIs percent-decoded, relative to the file), in buffer
+/// order: what [`open_bytes`] will ask for. Data URIs and the GLB chunk are not files.
+pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<String>, GltfError> {
+    let gltf = ::gltf::Gltf::from_slice(bytes)
+        .map_err(|e| GltfProblem::Parse(e.to_string()).in_file(path))?;
+    Ok(gltf
+        .document
+        .buffers()
+        .filter_map(|b| match b.source() {
+            ::gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => Some(percent_decode(uri)),
+            _ => None,
+        })
+        .collect())
+}
+
+/// [`open`] for a file's bytes (at most [`MAX_FILE_BYTES`]): `file(uri)` gives the bytes of a buffer
+/// stored in another file (its URI percent-decoded, relative to the glTF file) or why it cannot.
+/// `path` names the file in errors.
+pub fn open_bytes(
+    bytes: &[u8],
+    path: &Path,
+    file: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
+    let fail = |p: GltfProblem| p.in_file(path);
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(fail(GltfProblem::TooLarge(bytes.len() as u64)));
+    }
     let gltf =
-        ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
-    let buffers = read_buffers(&gltf.document, path, gltf.blob)?;
+        ::gltf::Gltf::from_slice(bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
+    let buffers = read_buffers(&gltf.document, path, gltf.blob, file)?;
     Ok((gltf.document, buffers))
 }
 
@@ -701,8 +753,8 @@ fn read_buffers(
     doc: &::gltf::Document,
     path: &Path,
     mut blob: Option<Vec<u8>>,
+    file: &dyn Fn(&str) -> Result<Vec<u8>, String>,
 ) -> Result<Vec<Vec<u8>>, GltfError> {
-    let base = path.parent().unwrap_or(Path::new("."));
     let mut out = Vec::new();
     for b in doc.buffers() {
         let index = b.index();
@@ -728,27 +780,15 @@ fn read_buffers(
                 ("a data URI".to_owned(), data)
             }
             ::gltf::buffer::Source::Uri(uri) => {
-                let file = base.join(percent_decode(uri));
-                let err = |reason: String| {
+                let data = file(&percent_decode(uri)).map_err(|reason| {
                     GltfProblem::Buffer {
                         index,
                         uri: uri.to_owned(),
                         reason,
                     }
                     .in_file(path)
-                };
-                let meta = std::fs::metadata(&file)
-                    .map_err(|e| err(format!("{}: {e}", file.display())))?;
-                if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
-                    return Err(err(format!(
-                        "{}: not a regular file of at most {MAX_FILE_BYTES} bytes",
-                        file.display()
-                    )));
-                }
-                (
-                    uri.to_owned(),
-                    std::fs::read(&file).map_err(|e| err(format!("{}: {e}", file.display())))?,
-                )
+                })?;
+                (uri.to_owned(), data)
             }
         };
         if data.len() < b.length() {

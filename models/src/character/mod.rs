@@ -5,6 +5,7 @@
 pub mod body_plan;
 pub mod clips;
 pub mod gltf;
+pub mod rig_pose;
 
 use std::path::Path;
 
@@ -13,6 +14,7 @@ use crate::morphology::{CharacterError, Morphology, Profile, ProfileError, Profi
 
 pub use body_plan::BodyPlan;
 pub use gltf::{AnimationInfo, GltfError, SkinInfo};
+pub use rig_pose::{NodeTransform, RigPose};
 
 /// Whether `path` names a glTF file (`.glb` or `.gltf`, any case).
 pub fn is_gltf(path: &Path) -> bool {
@@ -42,7 +44,20 @@ pub fn load_creature(path: &Path) -> Result<Creature, CharacterError> {
 
 /// Loads a glTF creature with `profile`.
 pub fn load_creature_with(path: &Path, profile: &Profile) -> Result<Creature, CharacterError> {
-    let rig = gltf::read(path, profile.scale, profile.forward.unwrap_or_default())?;
+    let (doc, buffers) = gltf::open(path)?;
+    creature_from_document(&doc, &buffers, path, profile)
+}
+
+/// A creature from a glTF document already opened (see [`gltf::open_bytes`] for files read by other
+/// means than the file system, such as Bevy's asset reader) with `profile`. `path` names the file in
+/// errors and becomes the tree's [`KinematicTree::source`].
+pub fn creature_from_document(
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    profile: &Profile,
+) -> Result<Creature, CharacterError> {
+    let rig = gltf::read_document(doc, buffers, path, profile.scale, profile.forward.unwrap_or_default())?;
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

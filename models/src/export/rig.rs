@@ -3,21 +3,12 @@
 //! new animation on its joint nodes, ready for Blender, three.js or Bevy.
 //!
 //! Decisions, documented once:
-//! - **Inverse of the import.** The import ([`crate::character::gltf`]) folds the armature's
-//!   transforms, the file's units (×100, ×300 armatures) and its axes into the z-up, metres character
-//!   frame: a file point `p` is `C·p` there, with `C` the file → character rotation scaled by the
-//!   creature's metres per unit. A bone's link in the tree has the bone's frame, so the tree's pose of
-//!   bone `b` moves it by `Δ = W_b · R_b⁻¹` (its link's world pose times the inverse of its rest pose),
-//!   and the bone's world matrix in the file becomes `C⁻¹ · Δ · C · F_b` (`F_b` its world matrix at
-//!   rest). Its new local transform is its parent's world matrix (as a player composes it, frame by
-//!   frame) inverted times that. Every scale (node scales, the armature's units) stays where it was.
-//! - **Channels.** A rotation channel on every bone that carries DoFs; bones held at rest keep their
-//!   node transform. Root motion goes on the **body root's node** (translation and rotation), not on
-//!   the armature root: the armature also holds the IK and pole helpers hanging off it, and its ×100
-//!   scale and axis change would have to be folded out of the motion. Deforming helpers (an IK-driven
-//!   foot hanging off the armature root) follow their host bone in the tree, so they get translation
-//!   and rotation channels that put them where the tree does. Every channel has one LINEAR key per
-//!   pose at `k / fps` s; rotations stay in one hemisphere from key to key.
+//! - **Pose → bone nodes.** The tree's poses become the bones' local transforms in the file's own frame
+//!   and units through [`crate::character::rig_pose`] (the conversion the Bevy plugin uses too): see its
+//!   docs for the inverse of the import and which nodes move. A rotation channel goes on every driven
+//!   bone, a translation channel too on those that translate (root motion on the body root's node,
+//!   deforming helpers); bones held at rest keep their node transform. Every channel has one LINEAR key
+//!   per pose at `k / fps` s; rotations stay in one hemisphere from key to key.
 //! - **One buffer.** The file's buffers (a GLB's binary chunk, data URIs, `.bin` files beside a
 //!   `.gltf`) and its external or data-URI images are laid end to end in the GLB's one binary chunk, so
 //!   the output stands alone wherever it is written. The model's own animations are dropped unless
@@ -33,12 +24,13 @@ use gltf_json as json;
 use json::Index;
 use json::animation::Property;
 use json::validation::USize64;
-use nalgebra::{Matrix3, Matrix4, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::character::Creature;
-use crate::character::gltf::{MAX_FILE_BYTES, decode_base64, open, percent_decode, polar_rotation};
+use crate::character::gltf::{MAX_FILE_BYTES, decode_base64, open, percent_decode};
+use crate::character::rig_pose::{RigMismatch, RigPose, RigScratch};
 use crate::kinematics::CharacterPose;
 
 /// Name of the clip's animation when [`RigClipOptions::name`] gives none.
@@ -91,25 +83,9 @@ pub fn write_rig_clip(
     Ok(out)
 }
 
-/// A bone the clip animates.
-struct Driven {
-    node: usize,
-    /// Its rig bone and tree link.
-    bone: usize,
-    link: usize,
-    /// Whether it gets a translation channel too (the body root, deforming helpers).
-    translates: bool,
-}
-
-/// The file's node hierarchy at rest.
+/// The file's node hierarchy (parents), for the skeleton-only output.
 struct Hierarchy {
     parent: Vec<Option<usize>>,
-    /// Parents before children.
-    order: Vec<usize>,
-    /// Local translation, rotation and scale of each node.
-    trs: Vec<(Vector3<f32>, UnitQuaternion<f32>, Vector3<f32>)>,
-    /// World matrix of each node.
-    world: Vec<Matrix4<f32>>,
 }
 
 fn build(
@@ -125,9 +101,11 @@ fn build(
     if doc.skins().len() == 0 {
         return Err(ExportProblem::NoSkin { model });
     }
-    let h = hierarchy(&doc, &model)?;
-    let driven = driven_bones(c, &doc, &model)?;
-    let tracks = tracks(c, &h, &driven, poses, &model)?;
+    let not_it = |e: RigMismatch| ExportProblem::NotTheCreature { model: model.clone(), why: e.0 };
+    let rig_pose = RigPose::new(c, &doc).map_err(not_it)?;
+    let h = hierarchy(&doc);
+    let driven = rig_pose.driven();
+    let tracks = tracks(c, &rig_pose, poses).map_err(not_it)?;
 
     let (mut b, map) = if opts.animation_only {
         skeleton(&doc, &buffers, c, &h)
@@ -152,144 +130,35 @@ fn build(
     })
 }
 
-/// The file's nodes at rest, checked: one parent each, no cycle, finite transforms.
-fn hierarchy(doc: &::gltf::Document, model: &str) -> Result<Hierarchy, ExportProblem> {
-    let not_it = |why: String| ExportProblem::NotTheCreature { model: model.to_owned(), why };
-    let nodes: Vec<::gltf::Node> = doc.nodes().collect();
-    let n = nodes.len();
-    let mut parent = vec![None; n];
-    for nd in &nodes {
+/// The parent of each of the file's nodes (checked for one parent each and no cycle by [`RigPose::new`]).
+fn hierarchy(doc: &::gltf::Document) -> Hierarchy {
+    let mut parent = vec![None; doc.nodes().len()];
+    for nd in doc.nodes() {
         for ch in nd.children() {
-            if parent[ch.index()].replace(nd.index()).is_some() || ch.index() == nd.index() {
-                return Err(not_it(format!("node {} has several parents", ch.index())));
-            }
+            parent[ch.index()] = Some(nd.index());
         }
     }
-    let mut order = Vec::with_capacity(n);
-    let mut stack: Vec<usize> = (0..n).filter(|&i| parent[i].is_none()).collect();
-    while let Some(i) = stack.pop() {
-        order.push(i);
-        stack.extend(nodes[i].children().map(|c| c.index()));
-    }
-    if order.len() < n {
-        return Err(not_it("its node hierarchy has a cycle".into()));
-    }
-    let trs = nodes
-        .iter()
-        .map(|nd| {
-            let (t, r, s) = nd.transform().decomposed();
-            (
-                Vector3::from(t),
-                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(r[3], r[0], r[1], r[2])),
-                Vector3::from(s),
-            )
-        })
-        .collect();
-    let mut world = vec![Matrix4::identity(); n];
-    for &i in &order {
-        let local = Matrix4::from(nodes[i].transform().matrix());
-        world[i] = parent[i].map_or(local, |p| world[p] * local);
-        if !world[i].iter().all(|v| v.is_finite()) {
-            return Err(not_it(format!("node {i} has a non-finite transform")));
-        }
-    }
-    Ok(Hierarchy { parent, order, trs, world })
-}
-
-/// The bones the clip animates (see the module docs), checked against the file's nodes.
-fn driven_bones(c: &Creature, doc: &::gltf::Document, model: &str) -> Result<Vec<Driven>, ExportProblem> {
-    let not_it = |why: String| ExportProblem::NotTheCreature { model: model.to_owned(), why };
-    let rig = &c.rig;
-    for b in &rig.bones {
-        let name = doc
-            .nodes()
-            .nth(b.node)
-            .map(|nd| nd.name().map_or_else(|| format!("node{}", nd.index()), str::to_owned));
-        if name.as_deref() != Some(b.name.as_str()) {
-            return Err(not_it(format!("node {} is not the bone `{}`", b.node, b.name)));
-        }
-    }
-    let link = |b: usize| {
-        c.tree
-            .link_index(&rig.bones[b].name)
-            .ok_or_else(|| not_it(format!("the creature's tree has no link for bone `{}`", rig.bones[b].name)))
-    };
-    let root = c.plan.root_bone;
-    let mut out = vec![Driven { node: rig.bones[root].node, bone: root, link: link(root)?, translates: true }];
-    for j in &c.plan.joints {
-        if j.dofs.iter().any(Option::is_some) {
-            out.push(Driven { node: rig.bones[j.bone].node, bone: j.bone, link: j.link, translates: false });
-        }
-    }
-    // Deforming helpers are the helpers that have a link (the others are dropped from the tree).
-    for (b, bone) in rig.bones.iter().enumerate() {
-        if c.plan.helpers.contains(&bone.name) && c.tree.link_index(&bone.name).is_some() {
-            out.push(Driven { node: bone.node, bone: b, link: link(b)?, translates: true });
-        }
-    }
-    Ok(out)
+    Hierarchy { parent }
 }
 
 /// Per driven bone, its local translation and rotation in every frame (file frame and units).
 #[allow(clippy::type_complexity)]
 fn tracks(
     c: &Creature,
-    h: &Hierarchy,
-    driven: &[Driven],
+    rig_pose: &RigPose,
     poses: &[CharacterPose],
-    model: &str,
-) -> Result<Vec<(Vec<Vector3<f32>>, Vec<UnitQuaternion<f32>>)>, ExportProblem> {
-    let degenerate = |node: usize| ExportProblem::NotTheCreature {
-        model: model.to_owned(),
-        why: format!("node {node} has a degenerate transform: its pose cannot be written"),
-    };
-    let n = h.parent.len();
-    let mut driven_of = vec![None; n];
-    for (k, d) in driven.iter().enumerate() {
-        driven_of[d.node] = Some(k);
-    }
-    // File → character frame (C) and back.
-    let s = c.rig.scale;
-    let mut to_char = Matrix4::identity();
-    to_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(c.rig.to_character.matrix() * s));
-    let mut from_char = Matrix4::identity();
-    from_char.fixed_view_mut::<3, 3>(0, 0).copy_from(&(c.rig.to_character.matrix().transpose() / s));
-    // C · F_b per driven bone, and R_b⁻¹ · C · F_b: the rest pose taken out in the character frame.
-    let rest: Vec<Matrix4<f32>> = driven
-        .iter()
-        .map(|d| c.rig.bones[d.bone].rest.inverse().to_homogeneous() * to_char * h.world[d.node])
-        .collect();
-    let mut out: Vec<_> = driven
-        .iter()
-        .map(|_| (Vec::with_capacity(poses.len()), Vec::with_capacity(poses.len())))
-        .collect();
-    let mut world = vec![Matrix4::<f32>::identity(); n];
-    let mut fk = Vec::new();
+) -> Result<Vec<(Vec<Vector3<f32>>, Vec<UnitQuaternion<f32>>)>, RigMismatch> {
+    let n = rig_pose.driven().len();
+    let mut out: Vec<_> = (0..n).map(|_| (Vec::with_capacity(poses.len()), Vec::with_capacity(poses.len()))).collect();
+    let (mut scratch, mut locals) = (RigScratch::default(), Vec::new());
     for pose in poses {
-        c.tree.forward_kinematics_into(pose, &mut fk);
-        for &i in &h.order {
-            let parent = h.parent[i].map_or_else(Matrix4::identity, |p| world[p]);
-            let (t0, r0, s0) = h.trs[i];
-            let Some(k) = driven_of[i] else {
-                world[i] = parent * local_matrix(&t0, &r0, &s0);
-                continue;
-            };
-            let d = &driven[k];
-            let want = from_char * fk[d.link].to_homogeneous() * rest[k];
-            let local = parent.try_inverse().ok_or_else(|| degenerate(i))? * want;
-            let t = if d.translates { local.fixed_view::<3, 1>(0, 3).into_owned() } else { t0 };
-            let unscale = Matrix3::from_diagonal(&s0.map(|v| 1.0 / v));
-            let r = polar_rotation(&(local.fixed_view::<3, 3>(0, 0) * unscale)).ok_or_else(|| degenerate(i))?;
-            world[i] = parent * local_matrix(&t, &r, &s0);
-            out[k].0.push(t);
-            out[k].1.push(r);
+        rig_pose.write(&c.tree, pose, &mut scratch, &mut locals)?;
+        for (o, l) in out.iter_mut().zip(&locals) {
+            o.0.push(l.translation);
+            o.1.push(l.rotation);
         }
     }
     Ok(out)
-}
-
-fn local_matrix(t: &Vector3<f32>, r: &UnitQuaternion<f32>, s: &Vector3<f32>) -> Matrix4<f32> {
-    Translation3::from(*t).to_homogeneous() * r.to_homogeneous() * Matrix4::new_nonuniform_scaling(s)
 }
 
 /// The whole model: the file's document with its buffers and images in one binary buffer, and its own
