@@ -58,7 +58,7 @@ enum Command {
     /// and the metrics per pair, a report over all of them and a picture per character.
     Demo {
         /// Bundled characters to retarget onto.
-        #[arg(long, value_delimiter = ',', default_value = "spot,crab,stretch")]
+        #[arg(long, value_delimiter = ',', default_value = "spot,crab,stretch,hound")]
         characters: Vec<String>,
         /// Human clips (BVH) [default: every clip in assets/motions].
         #[arg(long)]
