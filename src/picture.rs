@@ -13,8 +13,9 @@ use image::{Rgb, RgbImage};
 /// A coloured 3-D line segment (metres, z up).
 pub type Segment = (Vector3<f32>, Vector3<f32>, [u8; 3]);
 
-/// Segments outlining the visual geometry of a posed character (meshes as their bounding boxes),
-/// plus a line from each link to its parent.
+/// Segments outlining the visual geometry of a posed character (meshes as their bounding boxes; a
+/// link without visuals, such as a creature's bone, by its collision shapes), plus a line from each
+/// link to its parent.
 pub fn character_segments(tree: &KinematicTree, pose: &CharacterPose, color: [u8; 3]) -> Vec<Segment> {
     let world = tree.forward_kinematics(pose);
     let mut out = Vec::new();
@@ -22,7 +23,8 @@ pub fn character_segments(tree: &KinematicTree, pose: &CharacterPose, color: [u8
         if let Some(p) = link.parent {
             out.push((world[p].translation.vector, world[i].translation.vector, [120, 120, 120]));
         }
-        for g in &link.visuals {
+        let shapes = if link.visuals.is_empty() { &link.collisions } else { &link.visuals };
+        for g in shapes {
             shape_segments(&(world[i] * g.origin), &g.shape, color, &mut out);
         }
     }
