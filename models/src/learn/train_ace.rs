@@ -840,13 +840,14 @@ mod tests {
     /// The ablations of the paper's Table 1: with one weight zero, the other term alone drives G, its
     /// loss falls, and the zero-weighted term is still logged (finite) without entering the loss.
     /// L_adv alone is a game whose loss need not fall while D learns too (it hovers near log 2), so
-    /// for that ablation D is held fixed here: G must then learn to fool it.
+    /// for that ablation D is held fixed here: G must then learn to fool it, from fresh dataset states
+    /// at every step (on its own rollouts the states it is judged on move as it learns).
     #[test]
     fn each_ablation_lowers_its_own_loss() {
         for (name, column) in [("w_fea", 5), ("w_adv", 6)] {
             let mut cfg = tiny_config(60);
             if name == "w_fea" {
-                (cfg.w_fea, cfg.discriminator_steps) = (0.0, 0);
+                (cfg.w_fea, cfg.discriminator_steps, cfg.rollout_windows) = (0.0, 0, 1);
             } else {
                 cfg.w_adv = 0.0;
             }
