@@ -210,8 +210,9 @@ pub fn train_ace(
     // Whether a window may start at a human row (it stays inside its clip).
     let mut window_fits = vec![false; humans.states.size()[0] as usize];
     humans.starts.iter().for_each(|&r| window_fits[r] = true);
-    // The persistent rollouts: each one's next human row, and the state G left its character in.
-    let mut lanes: Vec<Option<usize>> = vec![None; b];
+    // The persistent rollouts: each one's next human row, and the state G left its character in (both
+    // set afresh at the session's first step, which restarts every rollout).
+    let mut lanes: Vec<usize> = vec![0; b];
     let mut lane_states = Tensor::zeros([b as i64, data.size()[1]], (Kind::Float, device));
     let record_start = record.step;
 
@@ -229,14 +230,14 @@ pub fn train_ace(
         let fresh_states: Vec<i64> = (0..b).map(|_| rng.random_range(0..set.len()) as i64).collect();
         let restart_all = (step - record_start) % cfg.rollout_windows == 0;
         let mut go_on = vec![false; b];
-        for (k, lane) in lanes.iter_mut().enumerate() {
-            match lane {
-                Some(row) if !restart_all && window_fits.get(*row).copied().unwrap_or(false) => go_on[k] = true,
-                _ => *lane = Some(fresh_rows[k]),
+        for (k, row) in lanes.iter_mut().enumerate() {
+            if !restart_all && window_fits.get(*row).copied().unwrap_or(false) {
+                go_on[k] = true;
+            } else {
+                *row = fresh_rows[k];
             }
         }
-        let human = Tensor::from_slice(&lanes.iter().map(|r| r.expect("every lane has a row") as i64).collect::<Vec<_>>())
-            .to_device(device);
+        let human = Tensor::from_slice(&lanes.iter().map(|&r| r as i64).collect::<Vec<_>>()).to_device(device);
         let fresh = data.index_select(0, &Tensor::from_slice(&fresh_states).to_device(device));
         let keep = Tensor::from_slice(&go_on.iter().map(|&g| if g { 1.0f32 } else { 0.0 }).collect::<Vec<_>>())
             .view([b as i64, 1])
@@ -265,7 +266,7 @@ pub fn train_ace(
             prev = cur;
         }
         lane_states = prev.detach();
-        lanes.iter_mut().for_each(|r| *r = r.map(|r| r + window));
+        lanes.iter_mut().for_each(|r| *r += window);
         let (fea, adv) = (fea / window as f64, adv / window as f64);
         let g_loss = weighted_sum(&[(cfg.w_adv, &adv), (cfg.w_fea, &fea)]);
         opt_g.backward_step(&g_loss);

@@ -155,7 +155,7 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
                 }
             }
             let h_extent = norm(h_range);
-            let stills: Vec<f32> = windows(c_rows.len(), window)
+            let mut stills: Vec<f32> = windows(c_rows.len(), window)
                 .filter(|w| norm(std::array::from_fn(|a| range(&h[a][w.clone()]))) <= still)
                 .map(|w| norm(std::array::from_fn(|a| range(&c[a][w.clone()]))))
                 .collect();
@@ -167,7 +167,7 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
                 human_range: Axes::from_array(h_range),
                 character_range: Axes::from_array(c_range),
                 amplitude_ratio: (h_extent >= config.min_motion).then(|| norm(c_range) / h_extent),
-                stillness: (!stills.is_empty()).then(|| median(&mut stills.clone())),
+                stillness: (!stills.is_empty()).then(|| median(&mut stills)),
             }
         })
         .collect();
@@ -262,25 +262,26 @@ impl FollowingSummary {
     /// Summarises `clips`: each clip's report with its human's body length (m). All reports must come
     /// from the same mapping.
     pub fn new(clips: Vec<(FollowingReport, f32)>) -> Self {
-        let med = |v: Vec<f32>| (!v.is_empty()).then(|| median(&mut v.clone()));
+        let med = |mut v: Vec<f32>| (!v.is_empty()).then(|| median(&mut v));
         let n = clips.first().map_or(0, |c| c.0.pairs.len());
         let pairs = (0..n)
             .map(|k| {
-                let of = |c: &(FollowingReport, f32)| c.0.pairs[k].clone();
-                let moving: Vec<PairFollowing> = clips
+                // This pair in every clip, with the clip's human body length.
+                let each: Vec<(&PairFollowing, f32)> = clips.iter().map(|c| (&c.0.pairs[k], c.1)).collect();
+                let moving: Vec<&PairFollowing> = each
                     .iter()
-                    .filter(|c| of(c).human_vertical_range_m(c.1) >= MOVING_VERTICAL_M)
-                    .map(of)
+                    .filter(|(p, body)| p.human_vertical_range_m(*body) >= MOVING_VERTICAL_M)
+                    .map(|(p, _)| *p)
                     .collect();
-                let still: Vec<f32> = clips.iter().filter_map(|c| of(c).stillness).collect();
-                let first = &clips[0].0.pairs[k];
+                let still: Vec<f32> = each.iter().filter_map(|(p, _)| p.stillness).collect();
+                let first = each[0].0;
                 PairSummary {
                     character: first.character.clone(),
                     human: first.human,
                     moving_clips: moving.len(),
                     vertical_correlation: med(moving.iter().filter_map(|p| p.correlation.vertical).collect()),
                     amplitude_ratio: med(moving.iter().filter_map(|p| p.amplitude_ratio).collect()),
-                    combined: med(clips.iter().filter_map(|c| of(c).combined).collect()),
+                    combined: med(each.iter().filter_map(|(p, _)| p.combined).collect()),
                     still_clips: still.len(),
                     stillness: med(still),
                 }
