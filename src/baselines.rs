@@ -111,6 +111,8 @@ pub fn train_missing(
         let inputs = AceInputs {
             prior: &prior,
             dataset: &set,
+            tree,
+            morph,
             humans: &humans,
             correspondence: &record.correspondence,
             character_body_length: character_body_length(tree, morph),
@@ -124,7 +126,7 @@ pub fn train_missing(
             if slug == "nkn" {
                 let cfg = nkn_config(ace_cfg, quick);
                 let bar = progress::bar(cfg.steps as u64, "steps");
-                train_nkn(&inputs, tree, morph, &cfg, &dir, &mut |p| {
+                train_nkn(&inputs, &cfg, &dir, &mut |p| {
                     bar.set_position(p.step as u64);
                     bar.set_message(format!("{system}: G {:.3} (adv {:.3}, cycle {:.3}), D {:.3}", p.g_loss, p.adv, p.cycle, p.d_loss));
                 })?;

@@ -96,6 +96,8 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     let inputs = AceInputs {
         prior: &prior,
         dataset: &set,
+        tree: &tree,
+        morph: &morph,
         humans: &humans,
         correspondence: &correspondence,
         character_body_length: body,

@@ -227,6 +227,8 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let inputs = AceInputs {
         prior: &prior,
         dataset: &set,
+        tree: &tree,
+        morph: &morph,
         humans: &humans,
         correspondence: &correspondence,
         character_body_length: body,

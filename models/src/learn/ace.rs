@@ -79,6 +79,11 @@ pub struct AceConfig {
     /// Compare the root's linear velocity in L_fea at the character dataset's speed scale
     /// ([`crate::features`], "Speed"); `false` compares body lengths per second on both sides.
     pub match_speed_scale: bool,
+    /// Compute the end-effector positions of the generated states' Ψ in L_fea from their joint
+    /// positions by forward kinematics ([`super::psi`], "End effectors by forward kinematics");
+    /// `false` reads the prior's predicted end-effector entries, as every run did before this setting
+    /// existed (their `ace.json` has no such field and reads as the default).
+    pub kinematic_features: bool,
     /// Weight of the gradient penalty w_gp (paper: 0.1).
     pub w_gp: f64,
     /// Adam's learning rate for G.
@@ -124,6 +129,7 @@ impl Default for AceConfig {
             feature_weights: FeatureWeights::default(),
             centre_features: true,
             match_speed_scale: true,
+            kinematic_features: true,
             w_gp: 0.1,
             // At 2e-4 the Spot run collapsed after 3,260 steps (D took over, L_adv jumped from 1 to 8);
             // at 1e-4 it stayed balanced to the end and its held-out FID was lower.

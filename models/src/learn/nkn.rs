@@ -365,8 +365,6 @@ pub struct NknProgress {
 /// from an NKN checkpoint of the same configuration there (Adam restarts), and returns it.
 pub fn train_nkn(
     inputs: &AceInputs<'_>,
-    tree: &KinematicTree,
-    morph: &Morphology,
     cfg: &NknConfig,
     run_dir: &Path,
     progress: &mut dyn FnMut(&NknProgress),
@@ -379,7 +377,7 @@ pub fn train_nkn(
     let human_stats = inputs.humans.train_statistics();
     let psi = super::psi::Psi::new(&prior.character.layout, &inputs.correspondence.mapping, inputs.character_body_length, device);
     let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, FeatureMatching::NONE, device)?;
-    let nkn = Nkn::new(cfg, prior, tree, morph);
+    let nkn = Nkn::new(cfg, prior, inputs.tree, inputs.morph);
     let mut discriminator = Discriminator::new(&cfg.discriminator(), prior.prior.state_dim(), &prior.mask, device);
     let mut record = NknRecord {
         kind: KIND.into(),
@@ -525,7 +523,7 @@ mod tests {
             let dir = scratch_dir("nkn_short");
             let mut reports = Vec::new();
             let steps = 60;
-            train_nkn(inputs, tree, morph, &tiny(steps), &dir, &mut |p| reports.push(p.clone())).unwrap();
+            train_nkn(inputs, &tiny(steps), &dir, &mut |p| reports.push(p.clone())).unwrap();
             assert_eq!(reports.len(), steps);
             let mean = |r: &[NknProgress]| r.iter().map(|p| p.g_loss).sum::<f64>() / r.len() as f64;
             let (first, last) = (mean(&reports[..10]), mean(&reports[steps - 10..]));
@@ -546,7 +544,7 @@ mod tests {
                 assert_eq!(clamped, p.q);
             }
             // A finished run is not trained again; a broken record is named.
-            let again = train_nkn(inputs, tree, morph, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
+            let again = train_nkn(inputs, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
             assert_eq!(again.record.step, steps);
             fs::write(dir.join(NKN_FILE), "{").unwrap();
             let e = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap_err().to_string();

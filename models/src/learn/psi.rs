@@ -7,12 +7,24 @@
 //! quaternion, identity for a degenerate one), the same division by the body length — so the feature
 //! loss during training and the L_fea metric afterwards measure one thing. [`feature_loss`] is the
 //! batch mean of [`crate::features::feature_loss`].
+//!
+//! **End effectors by forward kinematics.** The motion prior predicts the end-effector positions of x^r
+//! as numbers of their own, beside the joint positions; nothing ties the two together. On the
+//! dataset they agree, but a generator chasing a human hand finds latents where the predicted entries
+//! move as asked while the joints — what is shown, exported and sent to a robot — do something else:
+//! on Spot the predicted gripper moved 2.7× the hand's amplitude, the gripper of the joints 4.5×.
+//! [`Psi::with_kinematics`] computes the end-effector block from the joint positions instead (clamped
+//! into the joint limits as the retargeter clamps them, through [`FkLayer`]), so L_fea scores the arm
+//! that is shown. On consistent states, such as the dataset's, both give the same Ψ.
 
 use tch::{Device, Kind, Tensor};
 
 use super::ShapeError;
+use super::fk::{FkLayer, quat_to_matrix};
 use crate::character_state::CharacterLayout;
 use crate::features::{EndEffectorMapping, FeatureLayout, FeatureWeights};
+use crate::kinematics::KinematicTree;
+use crate::morphology::Morphology;
 
 /// Ψ of character states for one character, mapping and body length.
 #[derive(Debug)]
@@ -22,6 +34,20 @@ pub struct Psi {
     /// Columns of x^r holding the mapped end effectors' positions, in character order.
     ee_columns: Tensor,
     body_length: f64,
+    /// Forward kinematics of the end effectors, when Ψ takes their positions from the joints
+    /// ([`Psi::with_kinematics`]).
+    kinematics: Option<EeKinematics>,
+}
+
+/// [`FkLayer`] with the joint limits and the mapped end effectors' columns of its output.
+#[derive(Debug)]
+struct EeKinematics {
+    fk: FkLayer,
+    /// Joint limits `[1, dof]` (the float range for unlimited joints).
+    lower: Tensor,
+    upper: Tensor,
+    /// Columns of [`FkLayer::ee_positions`] holding the mapped end effectors, in Ψ's order.
+    columns: Tensor,
 }
 
 impl Psi {
@@ -56,7 +82,30 @@ impl Psi {
             features: FeatureLayout::new(mapping),
             ee_columns: Tensor::from_slice(&columns).to_device(device),
             body_length: f64::from(body_length),
+            kinematics: None,
         }
+    }
+
+    /// This Ψ with the end-effector block computed from the joint positions by forward kinematics of
+    /// `tree` and `morph` (module docs) instead of read from the states' end-effector entries.
+    ///
+    /// # Panics
+    /// If `tree` and `morph` are not the character of this Ψ's layout (other DoF or end-effector
+    /// counts); callers check the character first.
+    pub fn with_kinematics(mut self, tree: &KinematicTree, morph: &Morphology) -> Psi {
+        assert_eq!(CharacterLayout::new(tree, morph), self.layout, "forward kinematics of another character than Ψ's");
+        let device = self.ee_columns.device();
+        let (lower, upper): (Vec<f32>, Vec<f32>) = (0..tree.dof())
+            .map(|d| tree.limits(d).map_or((f32::MIN, f32::MAX), |l| (l.lower, l.upper)))
+            .unzip();
+        let limits = |v: &[f32]| Tensor::from_slice(v).view([1, -1]).to_device(device);
+        self.kinematics = Some(EeKinematics {
+            fk: FkLayer::new(tree, morph, device),
+            lower: limits(&lower),
+            upper: limits(&upper),
+            columns: &self.ee_columns - self.layout.ee_positions().start as i64,
+        });
+        self
     }
 
     /// The layout of the output.
@@ -85,7 +134,14 @@ impl Psi {
         let orientation = orientation_6d(&cols(l.root_orientation()));
         let linear = cols(l.root_linear_velocity()) * inv;
         let angular = cols(l.root_angular_velocity());
-        let ees = x.index_select(1, &self.ee_columns.to_device(x.device())) * inv;
+        let ees = match &self.kinematics {
+            None => x.index_select(1, &self.ee_columns.to_device(x.device())),
+            Some(k) => {
+                let q = cols(l.joint_positions()).maximum(&k.lower).minimum(&k.upper);
+                let root = quat_to_matrix(&cols(l.root_orientation()));
+                k.fk.ee_positions(&root, &q).index_select(1, &k.columns)
+            }
+        } * inv;
         Ok(Tensor::cat(&[height, orientation, linear, angular, ees], 1))
     }
 }
@@ -203,6 +259,42 @@ mod tests {
                 (got - expected).abs() < 1e-5 * expected.max(1.0),
                 "{name}: {got} vs {expected}"
             );
+        }
+    }
+
+    #[test]
+    fn kinematic_end_effectors_follow_the_joints_not_the_predicted_entries() {
+        for name in ["spot", "crab"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
+            let (tree, morph) = load_character(&path).unwrap();
+            let (layout, mapping, body, rows) = generated(name, 600);
+            let plain = Psi::new(&layout, &mapping, body, Device::Cpu);
+            let fk = Psi::new(&layout, &mapping, body, Device::Cpu).with_kinematics(&tree, &morph);
+            let x = rows_to_tensor(&rows, Device::Cpu).unwrap();
+            let flat = |psi: &Psi, x: &Tensor| Vec::<f32>::try_from(psi.features(x).unwrap().flatten(0, -1)).unwrap();
+            let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            // On the dataset the joints and the end-effector entries agree.
+            let want = flat(&plain, &x);
+            assert!(worst(&flat(&fk, &x), &want) < 1e-5, "{name}: {}", worst(&flat(&fk, &x), &want));
+
+            // Predicted entries that disagree with the joints: the kinematic Ψ keeps the joints' points.
+            let ee = layout.ee_positions();
+            let shifted = x.shallow_clone().narrow(1, ee.start as i64, ee.len() as i64) + 0.3;
+            let off = Tensor::cat(&[x.narrow(1, 0, ee.start as i64), shifted, x.narrow(1, ee.end as i64, x.size()[1] - ee.end as i64)], 1);
+            assert!(worst(&flat(&plain, &off), &want) > 0.3 / body - 1e-4, "{name}: the plain Ψ reads the entries");
+            assert!(worst(&flat(&fk, &off), &want) < 1e-5, "{name}: the kinematic Ψ ignores them");
+
+            // Joints beyond their limits count as clamped, as the retargeter clamps them.
+            let d = (0..tree.dof()).find(|&d| tree.limits(d).is_some_and(|l| l.upper < 10.0)).unwrap();
+            let upper = tree.limits(d).unwrap().upper;
+            let q = layout.joint_positions().start as i64 + d as i64;
+            let at = |v: f64| {
+                let y = x.copy();
+                let _ = y.narrow(1, q, 1).fill_(v);
+                flat(&fk, &y)
+            };
+            assert!(worst(&at(f64::from(upper) + 1.0), &at(f64::from(upper))) < 1e-6, "{name}: DoF {d} clamped");
+            assert!(worst(&at(f64::from(upper) - 0.5), &at(f64::from(upper))) > 1e-3, "{name}: DoF {d} moves the points");
         }
     }
 

@@ -67,6 +67,8 @@ use crate::features::{
 };
 use crate::human::layout as human_layout;
 use crate::human_set::{HumanSet, HumanStats};
+use crate::kinematics::KinematicTree;
+use crate::morphology::Morphology;
 
 /// Name of the loss log in a run directory.
 pub const LOSSES_FILE: &str = "ace_losses.csv";
@@ -85,6 +87,11 @@ pub struct AceInputs<'a> {
     pub prior: &'a PriorCheckpoint,
     /// The character dataset the prior was trained on (its normalisation must be the prior's).
     pub dataset: &'a MotionSet,
+    /// The character (the prior's): Ψ's end effectors come from its forward kinematics
+    /// ([`AceConfig::kinematic_features`]).
+    pub tree: &'a KinematicTree,
+    /// The character's morphology (its end effectors and their points).
+    pub morph: &'a Morphology,
     /// The human clips; only the training split is used.
     pub humans: &'a HumanSet,
     /// The end-effector correspondence of Ψ (after any manual overrides).
@@ -166,12 +173,15 @@ pub fn train_ace(
 
     let human_stats = inputs.humans.train_statistics();
     check_human_stats(inputs.humans, &human_stats)?;
-    let psi = Psi::new(
+    let mut psi = Psi::new(
         &prior.character.layout,
         &inputs.correspondence.mapping,
         inputs.character_body_length,
         device,
     );
+    if cfg.kinematic_features {
+        psi = psi.with_kinematics(inputs.tree, inputs.morph);
+    }
     let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, FeatureMatching::of(cfg), device)?;
     let ckpt = start_or_resume(inputs, cfg, &human_stats, &humans, run_dir, device)?;
     if ckpt.record.step >= cfg.steps {
@@ -383,6 +393,12 @@ fn check_inputs(inputs: &AceInputs<'_>, run_dir: &Path) -> Result<(), LearnError
         return Err(LearnError::WrongCharacter {
             path: run_dir.to_path_buf(),
             problem: format!("the dataset and the prior differ: {problem}"),
+        });
+    }
+    if let Some(problem) = CharacterInfo::of_character(inputs.tree, inputs.morph).difference(&prior.character) {
+        return Err(LearnError::WrongCharacter {
+            path: run_dir.to_path_buf(),
+            problem: format!("the character given and the prior's differ: {problem}"),
         });
     }
     if Normaliser::of_set(set) != prior.stats {
@@ -768,6 +784,8 @@ pub(crate) mod test_support {
         f(&AceInputs {
             prior: &prior,
             dataset: set,
+            tree,
+            morph,
             humans: bundled_humans(),
             correspondence: corr,
             character_body_length: character_body_length(tree, morph),
