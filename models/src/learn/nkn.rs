@@ -546,6 +546,13 @@ mod tests {
             // A finished run is not trained again; a broken record is named.
             let again = train_nkn(inputs, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
             assert_eq!(again.record.step, steps);
+            // It holds the saved weights (not fresh ones under the saved step count).
+            let saved = Tensor::read_safetensors(dir.join(NKN_WEIGHTS_FILE)).unwrap();
+            let now = again.nkn.vs.variables();
+            assert_eq!(saved.len(), now.len());
+            for (name, t) in &saved {
+                assert!(t.equal(&now[name]), "{name}: the resumed weights are not the saved ones");
+            }
             fs::write(dir.join(NKN_FILE), "{").unwrap();
             let e = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap_err().to_string();
             assert!(e.contains(NKN_FILE), "{e}");

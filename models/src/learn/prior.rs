@@ -1165,6 +1165,14 @@ mod tests {
             (0..18).collect::<Vec<_>>()
         );
         assert_eq!(PriorCheckpoint::load(&a, Device::Cpu).unwrap().step, 18);
+        // The resumed run started from the step-12 weights, not from fresh ones.
+        let b12 = start_or_resume(set, &mask, &longer, &b, Value::Null, Device::Cpu).unwrap();
+        assert_eq!(b12.step, 12);
+        let resumed = b12.prior.var_store().variables();
+        assert_eq!(resumed.len(), vb.len());
+        for (name, t) in &vb {
+            assert!(t.equal(&resumed[name]), "{name}: the resumed weights are not the saved ones");
+        }
         // A finished run returns at once.
         let mut calls = 0;
         train_prior(set, &mask, &longer, &a, &mut |_| calls += 1).unwrap();

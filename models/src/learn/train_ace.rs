@@ -1051,6 +1051,24 @@ mod tests {
             rows.windows(2).all(|w| w[1][9] >= w[0][9]),
             "seconds are cumulative"
         );
+        // Resuming starts from the saved networks, not from fresh ones with the step count kept.
+        with_spot_inputs("ace_resume", |inputs| {
+            let cfg = tiny_config(90);
+            let stats = inputs.humans.train_statistics();
+            let psi = Psi::new(&inputs.prior.character.layout, &inputs.correspondence.mapping, inputs.character_body_length, Device::Cpu);
+            let humans = human_windows(inputs, &stats, psi.layout(), cfg.window, FeatureMatching::of(&cfg), Device::Cpu).unwrap();
+            let resumed = start_or_resume(inputs, &cfg, &stats, &humans, &dir, Device::Cpu).unwrap();
+            assert_eq!(resumed.record.step, 80);
+            let d = resumed.discriminator.as_ref().unwrap();
+            for (file, vs) in [("generator.safetensors", resumed.generator.var_store()), ("discriminator.safetensors", d.var_store())] {
+                let saved = Tensor::read_safetensors(dir.join(file)).unwrap();
+                let now = vs.variables();
+                assert_eq!(saved.len(), now.len(), "{file}");
+                for (name, t) in &saved {
+                    assert!(t.equal(&now[name]), "{file} {name}: the resumed weights are not the saved ones");
+                }
+            }
+        });
         // A run with other networks refuses the directory.
         let other = AceConfig {
             generator_hidden: vec![16],
