@@ -82,7 +82,7 @@ pub struct AceConfig {
     /// Compute the end-effector positions of the generated states' Ψ in L_fea from their joint
     /// positions by forward kinematics ([`super::psi`], "End effectors by forward kinematics");
     /// `false` reads the prior's predicted end-effector entries, as every run did before this setting
-    /// existed (their `ace.json` has no such field and reads as the default).
+    /// existed (their `ace.json` has no such field and reads as `false`).
     pub kinematic_features: bool,
     /// Weight of the gradient penalty w_gp (paper: 0.1).
     pub w_gp: f64,
@@ -408,6 +408,17 @@ pub struct BodyLengths {
     pub human_clips: BTreeMap<String, f32>,
 }
 
+/// Reads the configuration stored in `ace.json`. One written before [`AceConfig::kinematic_features`]
+/// existed trained on the prior's predicted end-effector entries, so there the missing setting reads as
+/// `false`; a partial configuration a user gives still gets the default.
+fn stored_config<'de, D: serde::Deserializer<'de>>(d: D) -> Result<AceConfig, D::Error> {
+    let mut v = Value::deserialize(d)?;
+    if let Some(o) = v.as_object_mut() {
+        o.entry("kinematic_features").or_insert(Value::Bool(false));
+    }
+    serde_json::from_value(v).map_err(serde::de::Error::custom)
+}
+
 /// Everything `ace.json` holds (see the module docs), in file order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -421,6 +432,7 @@ pub struct AceRecord {
     /// Generator steps done.
     pub step: usize,
     /// The configuration.
+    #[serde(deserialize_with = "stored_config")]
     pub config: AceConfig,
     /// The end-effector correspondence Ψ used, with its scores and source.
     pub correspondence: Correspondence,

@@ -1021,6 +1021,23 @@ mod tests {
     }
 
     #[test]
+    fn runs_before_kinematic_features_read_as_trained_on_the_predicted_entries() {
+        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        assert!(record.config.kinematic_features, "a new run reads Ψ's end effectors from the joints");
+        // The same record without the setting, as every `ace.json` before it was written.
+        let mut v: Value = serde_json::from_slice(&fs::read(trained_ace_dir().join(ACE_FILE)).unwrap()).unwrap();
+        v["config"].as_object_mut().unwrap().remove("kinematic_features").unwrap();
+        let dir = scratch_dir("ace_before_kinematic");
+        fs::write(dir.join(ACE_FILE), serde_json::to_vec(&v).unwrap()).unwrap();
+        let old = super::super::ace::read_record(&dir).unwrap();
+        assert!(!old.config.kinematic_features);
+        assert_eq!(AceConfig { kinematic_features: true, ..old.config }, record.config);
+        // A partial configuration a user writes gets the default.
+        assert!(toml::from_str::<AceConfig>("w_fea = 2.0").unwrap().kinematic_features);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn a_stopped_run_resumes_from_its_checkpoint() {
         let dir = scratch_dir("ace_resume");
         let (_, first) = train_in(&dir, &tiny_config(60)).unwrap();
