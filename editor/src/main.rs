@@ -25,6 +25,7 @@ mod ui;
 mod tests;
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use bevy::asset::AssetPath;
 use bevy::prelude::*;
@@ -113,6 +114,7 @@ fn main() -> AppExit {
     .init_resource::<ui::UiState>()
     .add_systems(Startup, setup)
     .add_systems(Update, (camera::orbit, follow, apply_session, preview::poll, retrain::poll))
+    .add_systems(Last, pace)
     .add_systems(
         PostUpdate,
         (
@@ -174,6 +176,16 @@ fn apply_session(
             clip: session.clip.clone(),
         }),
         None => preview.result = None,
+    }
+}
+
+/// While a training runs and the clip is paused, the editor rests a quarter of a second after each
+/// frame, leaving the CPU to the training: the progress needs no more. (A frame of the debug build with
+/// a software renderer costs about as much CPU as a training step on two cores.)
+fn pace(scene: Option<Res<Scene>>, players: Query<&HumanClipPlayer>, retrain: Res<retrain::Retrain>) {
+    let playing = scene.and_then(|s| players.get(s.player).ok()).is_some_and(|p| !p.paused);
+    if retrain.running() && !playing {
+        std::thread::sleep(Duration::from_millis(250));
     }
 }
 

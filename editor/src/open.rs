@@ -63,7 +63,10 @@ pub fn scene_placement(c: &Creature) -> Transform {
 
 /// One line about a character: its name, links, DoF, feet and manipulators.
 pub fn describe(tree: &KinematicTree, morph: &Morphology) -> String {
-    let names = |v: &[usize]| v.iter().map(|&i| tree.links[i].name.as_str()).collect::<Vec<_>>().join(", ");
+    let names = |v: &[usize]| match v {
+        [] => "none".to_string(),
+        _ => v.iter().map(|&i| tree.links[i].name.as_str()).collect::<Vec<_>>().join(", "),
+    };
     format!(
         "{}: {} links, {} DoF; feet: {}; manipulators: {}",
         tree.name,

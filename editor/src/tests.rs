@@ -170,7 +170,7 @@ fn a_creature_preview_poses_its_gltf_scene_where_the_character_stands() {
     assert_eq!(
         describe(&asset.tree, &asset.morphology),
         format!(
-            "hound: {} links, {} DoF; feet: FrontFoot.L, FrontFoot.R, HindFoot.L, HindFoot.R; manipulators: ",
+            "hound: {} links, {} DoF; feet: FrontFoot.L, FrontFoot.R, HindFoot.L, HindFoot.R; manipulators: none",
             asset.tree.links.len(),
             dofs.len()
         )

@@ -251,7 +251,8 @@ fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retra
         (d - first) as f32 / (n - first).max(1) as f32
     });
     let elapsed = retrain.seconds.unwrap_or_else(|| retrain.started.map_or(0.0, |s| s.elapsed().as_secs_f32()));
-    ui.add(egui::ProgressBar::new(fraction).show_percentage().animate(retrain.running()));
+    // Not animated: an animation asks egui for every frame, and a paused editor redraws ten times a second.
+    ui.add(egui::ProgressBar::new(fraction).show_percentage());
     ui.label(format!("{} ({elapsed:.0} s)", retrain.stage));
     if let Some(e) = &retrain.error {
         ui.colored_label(egui::Color32::LIGHT_RED, e);
