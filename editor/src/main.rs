@@ -5,19 +5,31 @@
 //! command trajectory.
 //!
 //! ```text
-//! cargo run -p ace_editor -- [--character FILE.urdf] [--checkpoint DIR] [--clip FILE.bvh] [--tour DIR]
+//! cargo run -p ace_editor -- [--character FILE.urdf|FILE.glb|NAME] [--checkpoint DIR] [--clip FILE.bvh] [--tour DIR]
 //! ```
+//!
+//! A URDF robot is shown as its links (the plugin spawns them); a rigged glTF creature as its own glTF
+//! scene, whose skin joints the plugin's creature path drives ([`bevy_ace::scene`]): the skinned mesh
+//! deforms. Both are posed from the same [`Pose`], the preview's poses.
 
 mod camera;
+mod export;
 mod jobs;
+mod open;
 mod preview;
 mod retrain;
 mod tour;
 mod ui;
 
-use std::path::PathBuf;
+#[cfg(test)]
+mod tests;
 
+use std::path::PathBuf;
+use std::time::Duration;
+
+use bevy::asset::AssetPath;
 use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
 use bevy_ace::ace_models::human::Joint;
 use bevy_ace::ace_models::nalgebra::{UnitQuaternion, Vector3};
 use bevy_ace::convert;
@@ -28,9 +40,10 @@ use clap::Parser;
 #[derive(Parser, Resource, Clone, Debug)]
 #[command(name = "ace-editor", about = "Retarget human clips onto nonhuman characters, tune and export")]
 struct Args {
-    /// Character URDF (a path, absolute or relative to the working directory).
+    /// Character: a URDF robot or a rigged glTF creature (.glb, .gltf), as a path (absolute or relative
+    /// to the working directory) or a bundled character's name (spot, crab, stretch, hound).
     #[arg(long, default_value = "assets/characters/spot.urdf")]
-    character: PathBuf,
+    character: String,
     /// Checkpoint directory; by default the one shipped for a bundled character.
     #[arg(long)]
     checkpoint: Option<PathBuf>,
@@ -47,7 +60,10 @@ struct Args {
 /// recomputes the preview.
 #[derive(Resource, Clone, Debug, PartialEq)]
 pub struct Session {
-    pub urdf: PathBuf,
+    /// The character's file (URDF or glTF).
+    pub character: PathBuf,
+    /// For a glTF creature, where its scene goes ([`open::scene_placement`]).
+    pub scene_placement: Option<Transform>,
     pub checkpoint: Option<PathBuf>,
     pub clip: PathBuf,
 }
@@ -62,11 +78,18 @@ pub struct Scene {
 fn main() -> AppExit {
     let args = Args::parse();
     let absolute = |p: &std::path::Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let urdf = absolute(&args.character);
+    let opened = match open::open_character(&args.character) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return AppExit::error();
+        }
+    };
     let session = Session {
-        checkpoint: args.checkpoint.as_deref().map(absolute).or_else(|| preview::checkpoint_beside(&urdf)),
+        checkpoint: args.checkpoint.as_deref().map(absolute).or(opened.checkpoint),
         clip: absolute(&args.clip),
-        urdf,
+        character: opened.path,
+        scene_placement: opened.scene_placement,
     };
     let mut app = App::new();
     app.add_plugins(
@@ -91,6 +114,7 @@ fn main() -> AppExit {
     .init_resource::<ui::UiState>()
     .add_systems(Startup, setup)
     .add_systems(Update, (camera::orbit, follow, apply_session, preview::poll, retrain::poll))
+    .add_systems(Last, pace)
     .add_systems(
         PostUpdate,
         (
@@ -126,11 +150,11 @@ fn apply_session(
         return;
     }
     let before = shown.replace(session.clone());
-    let spawn_character = |commands: &mut Commands| commands.spawn(Character::new(assets.load(session.urdf.clone()))).id();
+    let spawn_character = |commands: &mut Commands| spawn_character(commands, &assets, &session);
     let spawn_player = |commands: &mut Commands| commands.spawn(HumanClipPlayer::new(assets.load(session.clip.clone()))).id();
     match (scene, before) {
         (Some(mut scene), Some(before)) => {
-            if before.urdf != session.urdf {
+            if (&before.character, before.scene_placement) != (&session.character, session.scene_placement) {
                 commands.entity(scene.character).despawn();
                 scene.character = spawn_character(&mut commands);
             }
@@ -147,11 +171,40 @@ fn apply_session(
     }
     match &session.checkpoint {
         Some(checkpoint) => preview.compute(preview::PreviewInputs {
-            urdf: session.urdf.clone(),
+            character: session.character.clone(),
             checkpoint: checkpoint.clone(),
             clip: session.clip.clone(),
         }),
         None => preview.result = None,
+    }
+}
+
+/// While a training runs and the clip is paused, the editor rests a quarter of a second after each
+/// frame, leaving the CPU to the training: the progress needs no more. (A frame of the debug build with
+/// a software renderer costs about as much CPU as a training step on two cores.)
+fn pace(scene: Option<Res<Scene>>, players: Query<&HumanClipPlayer>, retrain: Res<retrain::Retrain>) {
+    let playing = scene.and_then(|s| players.get(s.player).ok()).is_some_and(|p| !p.paused);
+    if retrain.running() && !playing {
+        std::thread::sleep(Duration::from_millis(250));
+    }
+}
+
+/// Spawns the session's character: a URDF robot as a [`Character`] (the plugin spawns its links), a
+/// glTF creature as its own glTF scene with a [`CreatureScene`] (the plugin finds its joints by name and
+/// writes them from the [`Pose`] the preview sets, as it does for a Retargeter), placed by
+/// [`open::scene_placement`].
+pub fn spawn_character(commands: &mut Commands, assets: &AssetServer, session: &Session) -> Entity {
+    let path = session.character.clone();
+    match session.scene_placement {
+        Some(placement) => commands
+            .spawn((
+                WorldAssetRoot(assets.load(AssetPath::from_path_buf(path.clone()).with_label("Scene0"))),
+                CreatureScene::new(assets.load(path)),
+                RetargetStatus::default(),
+                placement,
+            ))
+            .id(),
+        None => commands.spawn(Character::new(assets.load(path))).id(),
     }
 }
 
@@ -184,7 +237,12 @@ fn follow(
             }
         }
     }
-    let Some(root) = links.get(scene.character).ok().and_then(|l| l.0.first()).and_then(|&e| transforms.get(e).ok()) else { return };
+    // A robot's root link; a creature's entity (the plugin moves it with the root's ground travel).
+    let root = match links.get(scene.character) {
+        Ok(l) => l.0.first().and_then(|&e| transforms.get(e).ok()),
+        Err(_) => transforms.get(scene.character).ok(),
+    };
+    let Some(root) = root else { return };
     let pelvis = humans
         .get(scene.player)
         .ok()

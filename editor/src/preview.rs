@@ -17,12 +17,13 @@ use bevy::prelude::*;
 use bevy_ace::prelude::*;
 
 use crate::jobs::Job;
-use crate::Scene;
+use crate::{Scene, Session};
 
 /// What the preview was computed from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreviewInputs {
-    pub urdf: PathBuf,
+    /// The character's file (URDF or glTF).
+    pub character: PathBuf,
     pub checkpoint: PathBuf,
     pub clip: PathBuf,
 }
@@ -65,7 +66,7 @@ impl Preview {
 /// Retargets and scores `inputs.clip` on the character with the checkpoint.
 pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
     let start = std::time::Instant::now();
-    let (tree, morph) = load_character(&inputs.urdf)?;
+    let (tree, morph) = load_character(&inputs.character)?;
     let retargeter = Retargeter::load(&inputs.checkpoint, default_device())?;
     let scorer = Scorer::new(&retargeter, &inputs.checkpoint)?;
     let clip = HumanClip::from_bvh_file(&inputs.clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })
@@ -80,11 +81,11 @@ pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
     })
 }
 
-/// The checkpoint shipped for a bundled character's URDF (`assets/characters/<name>.urdf` →
-/// `assets/checkpoints/<name>`), when there is one.
-pub fn checkpoint_beside(urdf: &Path) -> Option<PathBuf> {
-    let name = urdf.file_stem()?;
-    let dir = urdf.parent()?.parent()?.join("checkpoints").join(name);
+/// The checkpoint shipped for a bundled character's file (`assets/characters/<name>.urdf` or
+/// `assets/creatures/<name>.glb` → `assets/checkpoints/<name>`), when there is one.
+pub fn checkpoint_beside(character: &Path) -> Option<PathBuf> {
+    let name = character.file_stem()?;
+    let dir = character.parent()?.parent()?.join("checkpoints").join(name);
     dir.join("ace.json").is_file().then_some(dir)
 }
 
@@ -107,17 +108,32 @@ pub fn poll(mut preview: ResMut<Preview>) {
     }
 }
 
-/// Shows the preview's pose at the clip player's time.
-pub fn show(preview: Res<Preview>, scene: Option<Res<Scene>>, players: Query<&HumanClipPlayer>, mut poses: Query<&mut Pose>) {
+/// Shows the preview's pose at the clip player's time, once the preview is the shown character's.
+pub fn show(
+    mut commands: Commands,
+    preview: Res<Preview>,
+    session: Res<Session>,
+    scene: Option<Res<Scene>>,
+    players: Query<&HumanClipPlayer>,
+    mut poses: Query<Option<&mut Pose>>,
+) {
     let (Some(scene), Some(result)) = (scene, &preview.result) else { return };
-    let Ok(player) = players.get(scene.player) else { return };
-    let Ok(mut pose) = poses.get_mut(scene.character) else { return };
     let poses_of = &result.retargeted.motion.poses;
-    if poses_of.is_empty() || pose.q.len() != poses_of[0].q.len() {
+    if result.inputs.character != session.character || poses_of.is_empty() {
         return;
     }
+    let Ok(player) = players.get(scene.player) else { return };
     let frame = ((player.time * PROJECT_FPS).round() as usize).min(poses_of.len() - 1);
-    if pose.0 != poses_of[frame] {
-        pose.0 = poses_of[frame].clone();
+    match poses.get_mut(scene.character) {
+        Ok(Some(mut pose)) => {
+            if pose.0 != poses_of[frame] {
+                pose.0 = poses_of[frame].clone();
+            }
+        }
+        // A creature's scene has no Pose until the first one arrives (a robot gets its standing pose).
+        Ok(None) => {
+            commands.entity(scene.character).insert(Pose(poses_of[frame].clone()));
+        }
+        Err(_) => {}
     }
 }

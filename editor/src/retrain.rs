@@ -88,7 +88,7 @@ impl Retrain {
         let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
         let to = PathBuf::from("out/editor/retrained").join(format!("{name}-{stamp}"));
         let ft = FineTune {
-            urdf: inputs.urdf.clone(),
+            urdf: inputs.character.clone(),
             from: inputs.checkpoint.clone(),
             to: to.clone(),
             steps: settings.steps,
@@ -116,10 +116,10 @@ impl Retrain {
         }));
     }
 
-    /// Starts training a checkpoint for `urdf` from scratch (motion prior, then ACE) into
-    /// `out/editor/checkpoints/<name>`, with the CPU defaults.
-    pub fn train_new(&mut self, urdf: PathBuf) {
-        let name = urdf.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "character".into());
+    /// Starts training a checkpoint for `character` (a URDF or glTF file) from scratch (motion prior,
+    /// then ACE) into `out/editor/checkpoints/<name>`, with the CPU defaults.
+    pub fn train_new(&mut self, character: PathBuf) {
+        let name = character.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "character".into());
         let dir = PathBuf::from("out/editor/checkpoints").join(name);
         self.history.clear();
         self.error = None;
@@ -129,7 +129,7 @@ impl Retrain {
         self.stage = "training the motion prior".into();
         self.job = Some(Job::spawn("ace-train", move |tx| {
             let args = TrainArgs {
-                character: urdf.display().to_string(),
+                character: character.display().to_string(),
                 out: Some(dir.clone()),
                 dataset: None,
                 frames: None,

@@ -6,12 +6,16 @@ use std::path::{Path, PathBuf};
 use ace::models::features::FeatureBlock;
 use ace::models::human::EndEffector;
 use ace::models::human_set::PROJECT_FPS;
-use ace::models::morphology::load_character;
+use ace::models::character::is_gltf;
+use bevy::asset::LoadState;
 use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
 use bevy_ace::prelude::*;
 use bevy_egui::{EguiContexts, egui};
 
-use crate::preview::{Preview, checkpoint_beside};
+use crate::export::export;
+use crate::open::{describe, kind, open_character};
+use crate::preview::Preview;
 use crate::retrain::Retrain;
 use crate::{Scene, Session};
 
@@ -19,7 +23,7 @@ use crate::{Scene, Session};
 #[derive(Resource, Default)]
 pub struct UiState {
     clip: String,
-    urdf: String,
+    character: String,
     checkpoint: String,
     export: String,
     message: Option<String>,
@@ -41,17 +45,18 @@ pub fn panels(
     preview: Res<Preview>,
     mut retrain: ResMut<Retrain>,
     mut players: Query<&mut HumanClipPlayer>,
-    characters: Query<&Character>,
-    urdfs: Res<Assets<CharacterAsset>>,
+    characters: Query<(Option<&Character>, Option<&CreatureScene>, Option<&WorldAssetRoot>, Option<&RetargetStatus>)>,
+    character_assets: Res<Assets<CharacterAsset>>,
+    server: Res<AssetServer>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     // The text fields follow the session when it changes from elsewhere (a finished training).
     if state.shown.as_ref() != Some(&*session) {
         state.clip = session.clip.display().to_string();
-        state.urdf = session.urdf.display().to_string();
+        state.character = session.character.display().to_string();
         state.checkpoint = session.checkpoint.as_ref().map(|c| c.display().to_string()).unwrap_or_default();
         let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        state.export = format!("out/editor/{}_{}.glb", stem(&session.clip), stem(&session.urdf));
+        state.export = format!("out/editor/{}_{}.glb", stem(&session.clip), stem(&session.character));
         state.shown = Some(session.clone());
     }
 
@@ -64,10 +69,18 @@ pub fn panels(
         .show(ctx, |ui| {
             files(ui, &mut session, &mut state, &preview, &mut retrain);
             ui.separator();
-            let urdf = scene.as_ref().and_then(|s| characters.get(s.character).ok()).and_then(|c| urdfs.get(&c.asset));
-            if let Some(urdf) = urdf {
-                let names = |v: &[usize]| v.iter().map(|&i| urdf.tree.links[i].name.as_str()).collect::<Vec<_>>().join(", ");
-                ui.label(format!("{}: {} links, {} DoF; feet: {}; manipulators: {}", urdf.tree.name, urdf.tree.links.len(), urdf.tree.dof(), names(&urdf.morphology.feet), names(&urdf.morphology.manipulators)));
+            if let Some((character, creature, root, status)) = scene.as_ref().and_then(|s| characters.get(s.character).ok()) {
+                let handle = character.map(|c| &c.asset).or(creature.map(|c| &c.asset));
+                if let Some(asset) = handle.and_then(|h| character_assets.get(h)) {
+                    ui.label(format!("{} ({})", describe(&asset.tree, &asset.morphology), kind(&session.character)));
+                }
+                // What keeps a creature's scene from showing: Bevy's glTF loader, or joints not found.
+                if let Some(LoadState::Failed(e)) = root.map(|r| server.load_state(&r.0)) {
+                    ui.colored_label(egui::Color32::LIGHT_RED, format!("the scene of {} did not load: {e}", session.character.display()));
+                }
+                if let Some(RetargetStatus::Failed(e)) = status {
+                    ui.colored_label(egui::Color32::LIGHT_RED, e);
+                }
             }
             ui.separator();
             mapping(ui, &preview, &mut retrain);
@@ -79,7 +92,7 @@ pub fn panels(
         .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
         .default_width(300.0)
         .resizable(false)
-        .show(ctx, |ui| metrics_and_export(ui, &preview, &session, &mut state));
+        .show(ctx, |ui| metrics_and_export(ui, &preview, &mut state));
 
     if let Some(scene) = scene {
         if let Ok(mut player) = players.get_mut(scene.player) {
@@ -104,14 +117,16 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
         }
     }
     ui.heading("Character");
-    if let Some(p) = path_row(ui, &mut state.urdf, "Open") {
+    ui.small("a URDF robot, a rigged glTF creature (.glb, .gltf) or a bundled name (spot, crab, stretch, hound)");
+    if let Some(text) = text_row(ui, &mut state.character, "Open") {
         state.message = None;
-        match p.is_file() {
-            true => {
-                session.checkpoint = checkpoint_beside(&p);
-                session.urdf = p;
+        match open_character(&text) {
+            Ok(o) => {
+                session.checkpoint = o.checkpoint;
+                session.character = o.path;
+                session.scene_placement = o.scene_placement;
             }
-            false => state.message = Some(format!("no URDF file at {}", p.display())),
+            Err(e) => state.message = Some(format!("{e:#}")),
         }
     }
     ui.label("Checkpoint");
@@ -127,7 +142,7 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
         .on_hover_text("Motion prior, then ACE, with the CPU defaults, into out/editor/checkpoints/")
         .clicked()
     {
-        retrain.train_new(session.urdf.clone());
+        retrain.train_new(session.character.clone());
     }
     if let Some(m) = &state.message {
         ui.colored_label(egui::Color32::LIGHT_RED, m);
@@ -148,9 +163,14 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
 
 /// A path field with a button; the absolute path when the button is clicked.
 fn path_row(ui: &mut egui::Ui, text: &mut String, button: &str) -> Option<PathBuf> {
+    text_row(ui, text, button).map(|t| absolute(&t))
+}
+
+/// A text field with a button; the text when the button is clicked.
+fn text_row(ui: &mut egui::Ui, text: &mut String, button: &str) -> Option<String> {
     ui.horizontal(|ui| {
         ui.add(egui::TextEdit::singleline(text).desired_width(280.0));
-        ui.button(button).clicked().then(|| absolute(text))
+        ui.button(button).clicked().then(|| text.clone())
     })
     .inner
 }
@@ -231,7 +251,8 @@ fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retra
         (d - first) as f32 / (n - first).max(1) as f32
     });
     let elapsed = retrain.seconds.unwrap_or_else(|| retrain.started.map_or(0.0, |s| s.elapsed().as_secs_f32()));
-    ui.add(egui::ProgressBar::new(fraction).show_percentage().animate(retrain.running()));
+    // Not animated: an animation asks egui for every frame, and a paused editor redraws ten times a second.
+    ui.add(egui::ProgressBar::new(fraction).show_percentage());
     ui.label(format!("{} ({elapsed:.0} s)", retrain.stage));
     if let Some(e) = &retrain.error {
         ui.colored_label(egui::Color32::LIGHT_RED, e);
@@ -279,7 +300,7 @@ fn loss_plot(ui: &mut egui::Ui, history: &[ace::models::learn::train_ace::AcePro
     }
 }
 
-fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, state: &mut UiState) {
+fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState) {
     let Some(result) = &preview.result else {
         ui.label(if preview.busy() { "retargeting…" } else { "no preview" });
         return;
@@ -324,21 +345,14 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, session: &Session, s
     ui.separator();
     ui.heading("Export");
     ui.add(egui::TextEdit::singleline(&mut state.export).desired_width(280.0));
+    let creature = is_gltf(&result.inputs.character);
+    ui.small(if creature {
+        "The creature's own model with the clip as a new animation on its skeleton (as `ace retarget` writes it)"
+    } else {
+        "The robot's animation with the human beside it (as `ace retarget` writes it)"
+    });
     if ui.button("Export glTF and trajectory").clicked() {
-        let out = absolute(&state.export);
-        let written = load_character(&session.urdf)
-            .map_err(anyhow::Error::from)
-            .and_then(|(tree, _)| {
-                // The export never overwrites what the session reads, and appears as a whole or not at all.
-                let mut outputs = ace::output::Outputs::new();
-                outputs
-                    .input(&result.inputs.clip, "the input clip")
-                    .input(&result.inputs.checkpoint, "the checkpoint directory")
-                    .input(&session.urdf, "the character's URDF");
-                let w = ace::retarget::write(&result.retargeted, &tree, &result.clip, &out, true, &mut outputs)?;
-                outputs.commit()?;
-                Ok(w)
-            });
+        let written = export(result, &absolute(&state.export));
         state.message = Some(match written {
             Ok(w) => format!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display()),
             Err(e) => format!("export failed: {e:#}"),
