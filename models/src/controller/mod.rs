@@ -224,6 +224,37 @@ pub struct Controller<'a> {
     stats: ControllerStats,
 }
 
+/// Solves `leg` for `target` (root frame) in `q`. A redundant leg (more than three DoFs, e.g. ball
+/// joints) is solved from the nominal stance `nominal_q` every frame, so that its pose is a function
+/// of the foot target alone — the pose the step-region calibration checked ([`calibrate`] solves from
+/// the nominal stance too) — rather than drifting through the IK's null space over an episode (a knee
+/// or shin sinking into the ground while the foot stays on it); the warm start is kept where the
+/// nominal start does not reach the target. A leg with three DoFs or fewer has no such drift and is
+/// warm-started.
+fn solve_leg(
+    tree: &KinematicTree,
+    leg: &Leg,
+    nominal_q: &[f32],
+    q: &mut [f32],
+    target: &Point3<f32>,
+    scratch: &mut ChainScratch,
+) -> IkResult {
+    if leg.chain.active_dofs().nth(3).is_some() {
+        let warm: Vec<f32> = leg.chain.active_dofs().map(|d| q[d]).collect();
+        for d in leg.chain.active_dofs() {
+            q[d] = nominal_q[d];
+        }
+        let r = leg.chain.solve(tree, q, target, FOOT_TOL, 80, scratch);
+        if r.error <= STANCE_SLIP {
+            return r;
+        }
+        for (d, &x) in leg.chain.active_dofs().zip(&warm) {
+            q[d] = x;
+        }
+    }
+    leg.chain.solve(tree, q, target, FOOT_TOL, 40, scratch)
+}
+
 /// Gait bob amplitude as a fraction of the leg length.
 const BOB: f32 = 0.012;
 /// How far ahead the gait looks at the command (s).
@@ -532,9 +563,7 @@ impl<'a> Controller<'a> {
         let root = self.root();
         for (i, (state, leg)) in self.legs.iter().zip(&self.rig.legs).enumerate() {
             let target = root.inverse_transform_point(&state.foot);
-            let r = leg
-                .chain
-                .solve(self.tree, &mut self.q, &target, FOOT_TOL, 40, &mut self.scratch);
+            let r = solve_leg(self.tree, leg, &self.rig.nominal_q, &mut self.q, &target, &mut self.scratch);
             if state.in_stance() {
                 self.stats.max_stance_error = self.stats.max_stance_error.max(r.error);
                 if r.error > STANCE_SLIP {
