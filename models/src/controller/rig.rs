@@ -200,7 +200,7 @@ impl Rig {
         cfg: &ControllerConfig,
         fps: f32,
     ) -> Result<Rig, ControllerError> {
-        let standing = tree.standing_pose();
+        let mut standing = tree.standing_pose();
         let h_stand = standing.root.translation.vector.z;
         let mut proxies = Proxies::new(tree, &standing);
 
@@ -229,18 +229,59 @@ impl Rig {
             let low = calibrate::lowest_tilted(&proxies, &calibrate::fk_root(tree, &nominal_q), &body, max_tilt);
             height_range[0] = height_range[0].max(0.02 * h0.max(0.1) - low).min(h0);
             let dip_tol = calibrate::dip_tolerance(tree, &standing);
-            let kept = calibrate::step_radii(
-                tree,
-                &proxies,
-                &mut legs,
-                &mut nominal_q,
-                h0,
-                height_range,
-                max_tilt,
-                dip_tol,
-            )?;
-            (height_range, max_tilt) = (kept.height, kept.tilt);
-            calibrate::swing_heights(tree, &mut legs, &nominal_q, height_range[0], cfg.legs.swing_height);
+            // Appendages (a tail, a head, arms) are not obstacles for the step regions but are stowed
+            // clear of the legs' workspace; where one cannot be, the legs step around it as it is.
+            let mut wheel_dof = vec![false; tree.dof()];
+            for w in wheels::find(tree, morph, &standing) {
+                wheel_dof[w.dof] = true;
+            }
+            let appendage = calibrate::appendages(tree, &legs, &wheel_dof);
+            let (legs0, q0) = (legs.clone(), nominal_q.clone());
+            let mut ignore = appendage.clone();
+            loop {
+                let kept = calibrate::step_radii(
+                    tree,
+                    &proxies,
+                    &mut legs,
+                    &mut nominal_q,
+                    h0,
+                    height_range,
+                    max_tilt,
+                    dip_tol,
+                    &ignore,
+                )?;
+                calibrate::swing_heights(tree, &mut legs, &nominal_q, kept.height[0], cfg.legs.swing_height);
+                if !ignore.iter().any(|&i| i) {
+                    (height_range, max_tilt) = (kept.height, kept.tilt);
+                    break;
+                }
+                let nominal = calibrate::fk_root(tree, &nominal_q);
+                let mut obstacles: Vec<Obstacle> = nominal
+                    .iter()
+                    .enumerate()
+                    .filter(|&(l, _)| !on_leg[l] && !ignore[l])
+                    .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
+                    .collect();
+                obstacles.extend(calibrate::swept_legs(tree, &proxies, &legs, &nominal_q, h0, kept.height));
+                let floor = 0.02 * h0.max(0.1) - kept.height[0];
+                let stuck =
+                    calibrate::stow_appendages(tree, &proxies, &ignore, &mut nominal_q, &obstacles, floor, cfg.reach.margin);
+                if stuck.is_empty() {
+                    (height_range, max_tilt) = (kept.height, kept.tilt);
+                    break;
+                }
+                // Calibrate again with the appendages that found no clear stowage as obstacles.
+                for top in stuck {
+                    for l in subtree(tree, top) {
+                        ignore[l] = false;
+                    }
+                }
+                (legs, nominal_q) = (legs0.clone(), q0.clone());
+            }
+            // Episodes start with the appendages stowed.
+            for d in (0..tree.dof()).filter(|&d| appendage[tree.dof_link(d)]) {
+                standing.q[d] = nominal_q[d];
+            }
         }
         let nominal_links = calibrate::fk_root(tree, &nominal_q);
 
