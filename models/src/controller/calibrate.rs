@@ -38,6 +38,11 @@ use crate::morphology::Morphology;
 const IK_TOL: f32 = 1e-5;
 /// Largest IK error at which a calibration pose counts as reached (m).
 const REACHED: f32 = 3e-4;
+/// IK iterations of a step-region check: damped least squares converges slowly near the edge of
+/// the workspace of a redundant leg (ball joints), which would otherwise pass for out of reach.
+pub fn ik_iterations(chain: &Chain) -> usize {
+    if chain.active_dofs().nth(3).is_some() { 200 } else { 60 }
+}
 /// Joint-space samples for a leg's reach.
 const REACH_SAMPLES: usize = 512;
 
@@ -512,7 +517,7 @@ fn leg_pose_ok(
     let mut q = nominal_q.to_vec();
     if leg
         .chain
-        .solve(tree, &mut q, &root.inverse_transform_point(foot), IK_TOL, 60, scratch)
+        .solve(tree, &mut q, &root.inverse_transform_point(foot), IK_TOL, ik_iterations(&leg.chain), scratch)
         .error
         > REACHED
     {

@@ -244,7 +244,7 @@ fn solve_leg(
         for d in leg.chain.active_dofs() {
             q[d] = nominal_q[d];
         }
-        let r = leg.chain.solve(tree, q, target, FOOT_TOL, 80, scratch);
+        let r = leg.chain.solve(tree, q, target, FOOT_TOL, calibrate::ik_iterations(&leg.chain), scratch);
         if r.error <= STANCE_SLIP {
             return r;
         }
