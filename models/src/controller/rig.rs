@@ -213,6 +213,8 @@ impl Rig {
             BaseMode::Fixed
         };
         let (h0, mut nominal_q) = calibrate::nominal_stance(tree, &mut legs, &standing, cfg.legs.max_extension)?;
+        // The pairs tested at the standing pose, before those touching at the nominal stance are let go.
+        let rest_proxies = proxies.clone();
         proxies.ignore_touching(&calibrate::fk_root(tree, &nominal_q));
 
         let (mut height_range, mut max_tilt) = ([h_stand, h_stand], [0.0, 0.0]);
@@ -265,7 +267,7 @@ impl Rig {
                 obstacles.extend(calibrate::swept_legs(tree, &proxies, &legs, &nominal_q, h0, kept.height));
                 let floor = 0.02 * h0.max(0.1) - kept.height[0];
                 let stuck =
-                    calibrate::stow_appendages(tree, &proxies, &ignore, &mut nominal_q, &obstacles, floor, cfg.reach.margin);
+                    calibrate::stow_appendages(tree, &rest_proxies, &ignore, &mut nominal_q, &obstacles, floor, cfg.reach.margin);
                 if stuck.is_empty() {
                     (height_range, max_tilt) = (kept.height, kept.tilt);
                     break;
@@ -278,9 +280,20 @@ impl Rig {
                 }
                 (legs, nominal_q) = (legs0.clone(), q0.clone());
             }
-            // Episodes start with the appendages stowed.
-            for d in (0..tree.dof()).filter(|&d| appendage[tree.dof_link(d)]) {
+            // Episodes start with the appendages stowed; pairs they touched at the nominal stance are
+            // tested again where they no longer touch.
+            let mut moved = vec![false; tree.links.len()];
+            for d in 0..tree.dof() {
+                if !appendage[tree.dof_link(d)] || standing.q[d] == nominal_q[d] {
+                    continue;
+                }
                 standing.q[d] = nominal_q[d];
+                for l in subtree(tree, tree.dof_link(d)) {
+                    moved[l] = true;
+                }
+            }
+            if moved.iter().any(|&m| m) {
+                proxies.recheck(&rest_proxies, &calibrate::fk_root(tree, &nominal_q), &moved);
             }
         }
         let nominal_links = calibrate::fk_root(tree, &nominal_q);
