@@ -541,7 +541,7 @@ fn the_foxs_dataset_is_clean_by_the_ufr_detectors() {
 fn every_legged_shared_creatures_dataset_is_clean_by_the_ufr_detectors() {
     let Some(dir) = creatures() else { return };
     for (file, legs) in SHARED.into_iter().filter(|&(_, legs)| legs > 0) {
-        let (_, rates) = dataset(&load(&dir.join(file)), 6000);
+        let (_, rates) = dataset(&load(&dir.join(file)), 20_000);
         println!("{file} ({legs} legs): {rates:?}");
         assert!(rates.ufr <= 0.005, "{file}: UFR {:.3} % ({rates:?})", 100.0 * rates.ufr);
     }

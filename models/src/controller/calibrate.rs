@@ -14,6 +14,11 @@
 //!   reaches further: `r_fore`, the fore-and-aft semi-axis of the largest ellipse with `r_max` across
 //!   that passes the same checks (8 points on it), capped at 0.4 × the distance to the nearest foot on the
 //!   same side only (a front and a hind foot at full stride keep a fifth of their distance apart).
+//!   The body is an obstacle for the step regions, but the **appendages** are not ([`appendages`]: links
+//!   on DoFs no leg owns that carry no leg — a tail, a neck and head, an arm): they move, so they are
+//!   stowed clear of the legs' workspace instead ([`stow_appendages`]); an appendage that cannot be
+//!   stowed clear stays where it is and the legs are calibrated again to step around it. Redundant legs
+//!   (ball joints) get more IK iterations in these checks ([`ik_iterations`]).
 //! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
 //!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
 //! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
@@ -38,13 +43,18 @@ use crate::morphology::Morphology;
 const IK_TOL: f32 = 1e-5;
 /// Largest IK error at which a calibration pose counts as reached (m).
 const REACHED: f32 = 3e-4;
+/// Joint-space samples for a leg's reach.
+const REACH_SAMPLES: usize = 512;
+
 /// IK iterations of a step-region check: damped least squares converges slowly near the edge of
 /// the workspace of a redundant leg (ball joints), which would otherwise pass for out of reach.
 pub fn ik_iterations(chain: &Chain) -> usize {
-    if chain.active_dofs().nth(3).is_some() { 200 } else { 60 }
+    if chain.active_dofs().nth(3).is_some() {
+        200
+    } else {
+        60
+    }
 }
-/// Joint-space samples for a leg's reach.
-const REACH_SAMPLES: usize = 512;
 
 /// Body heights and tilts a leg must cope with: `(root height, pitch, roll)`.
 pub type Posture = (f32, f32, f32);
@@ -597,8 +607,9 @@ pub fn appendages(tree: &KinematicTree, legs: &[Leg], skip: &[bool]) -> Vec<bool
 /// (root frame: the legs over their workspace and the rest of the body) by more than `margin` moves to
 /// the nearest clear configuration among deterministic random draws around the nominal one, within
 /// the joint limits, over growing spreads; its boxes must also stay above `floor` (root frame) or no
-/// lower than they were. Updates `nominal_q`; returns the appendages that found no clear configuration
-/// (left as they were), by their top link.
+/// lower than they were. `proxies` decide which pairs count: pass those of the standing pose, so that
+/// pairs let go because they touch at the nominal stance still count. Updates `nominal_q`; returns the
+/// appendages that found no clear configuration (left as they were), by their top link.
 pub fn stow_appendages(
     tree: &KinematicTree,
     proxies: &Proxies,
@@ -632,7 +643,9 @@ pub fn stow_appendages(
             lowest(boxes) >= floor
                 && boxes.iter().all(|(a, x)| {
                     obstacles.iter().all(|o| {
-                        links.binary_search(&o.link).is_ok() || !proxies.is_checked(*a, o.link) || !x.overlaps(&o.obb, margin)
+                        links.binary_search(&o.link).is_ok()
+                            || !proxies.is_checked(*a, o.link)
+                            || !x.overlaps(&o.obb, margin)
                     }) && boxes
                         .iter()
                         .all(|(b, y)| b <= a || !proxies.is_checked(*a, *b) || !x.overlaps(y, margin))

@@ -29,7 +29,9 @@
 //! Stance feet are fixed in the world (IK to 0.01 mm), feet never go below the ground, every joint value
 //! is clamped into its limits, legs stay within a calibrated step radius clear of the body and each
 //! other ([`calibrate`]), swing feet rise before they move and come straight down, and reach paths are
-//! checked against the body, the legs and each other ([`reach`]).
+//! checked against the body, the legs and each other ([`reach`]). Legs with DoFs to spare (ball joints)
+//! are solved from the nominal stance every frame, so that their pose is the one the calibration
+//! checked for that foot position rather than wherever the IK's null space drifted.
 
 pub mod calibrate;
 pub mod chain;

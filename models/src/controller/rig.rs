@@ -6,8 +6,9 @@
 //! [`Morphology::manipulators`], wheels [`Morphology::wheels`]; every other DoF (a head, gripper
 //! fingers) is moved by a "misc" reach group.
 //!
-//! How each leg's stance, step radius, sole and swing height and the body's height and tilt range
-//! are found is described in [`super::calibrate`]. The **speed scale** is the mean hip–foot distance at
+//! How each leg's stance, step radius, sole and swing height, the body's height and tilt range and the
+//! appendages' stowed configuration are found is described in [`super::calibrate`]; episodes start
+//! with the appendages stowed ([`Rig::standing`]). The **speed scale** is the mean hip–foot distance at
 //! the nominal stance / [`super::ScalingConfig::human_leg_length`] for legged characters, the standing
 //! height / [`super::ScalingConfig::human_height`] otherwise. The **hip height** is
 //! [`crate::dynamic_similarity::hip_height_at`] the nominal stance; gaits are chosen and timed by the Froude number it gives
@@ -141,7 +142,8 @@ pub struct Obstacle {
 pub struct Rig {
     /// How the base moves.
     pub mode: BaseMode,
-    /// The pose episodes start from ([`KinematicTree::standing_pose`]).
+    /// The pose episodes start from: [`KinematicTree::standing_pose`] with the appendages stowed
+    /// ([`calibrate::stow_appendages`]).
     pub standing: CharacterPose,
     /// Joint vector at the nominal stance.
     pub nominal_q: Vec<f32>,
@@ -266,8 +268,9 @@ impl Rig {
                     .collect();
                 obstacles.extend(calibrate::swept_legs(tree, &proxies, &legs, &nominal_q, h0, kept.height));
                 let floor = 0.02 * h0.max(0.1) - kept.height[0];
+                let margin = cfg.reach.margin;
                 let stuck =
-                    calibrate::stow_appendages(tree, &rest_proxies, &ignore, &mut nominal_q, &obstacles, floor, cfg.reach.margin);
+                    calibrate::stow_appendages(tree, &rest_proxies, &ignore, &mut nominal_q, &obstacles, floor, margin);
                 if stuck.is_empty() {
                     (height_range, max_tilt) = (kept.height, kept.tilt);
                     break;
