@@ -550,6 +550,7 @@ impl<'a> Controller<'a> {
             duty,
             lift: 0.7 + 0.3 * fr.min(1.0),
             min_swing: rig::min_swing_frames(&self.cfg, fr_slower) as f32 * self.dt,
+            clearance: rig.clearance,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
             let force = std::mem::take(&mut self.force_lift[i]);

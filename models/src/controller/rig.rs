@@ -172,6 +172,11 @@ pub struct Rig {
     pub max_speed: f32,
     /// Mean distance of the feet from the root axis (m), for turning.
     pub foot_radius: f32,
+    /// Height a swinging foot rises before it moves horizontally (m; 0 without legs): the band within
+    /// which UFR counts a foot as in contact ([`crate::metrics::UfrConfig::CONTACT_HEIGHT`] × the body
+    /// length), so that a low swing (a long body on short legs: swing heights follow the leg length)
+    /// does not scuff along the ground.
+    pub clearance: f32,
     /// Collision proxies.
     pub proxies: Proxies,
     /// Boxes of every link at the nominal pose with legs moved over their workspace (root frame at the
@@ -350,6 +355,7 @@ impl Rig {
             speed_scale: 1.0,
             max_speed: f32::INFINITY,
             foot_radius: 0.0,
+            clearance: 0.0,
             proxies,
             swept,
             nominal_links,
@@ -372,6 +378,10 @@ impl Rig {
             self.hip_height = hip_height_at(tree, morph, &nominal).unwrap_or(self.leg_length);
         }
         self.foot_radius = self.legs.iter().map(|l| l.nominal.norm()).sum::<f32>() / n;
+        if !self.legs.is_empty() {
+            self.clearance =
+                crate::metrics::UfrConfig::CONTACT_HEIGHT * crate::features::character_body_length(tree, morph);
+        }
         let height = {
             let b = tree.aabb(&tree.forward_kinematics(&self.standing));
             (b.max.z - b.min.z).max(1e-3)
