@@ -1,7 +1,8 @@
 //! Gait timing of the character datasets against the law of dynamic similarity
 //! ([`ace_models::dynamic_similarity`]), measured by the gait measure ([`ace_models::metrics::gait`])
-//! from the datasets' own stance labels, on the bundled legged characters and the real legged URDFs in
-//! `../shared/data/robots` (set `ACE_ALLOW_MISSING_DATA=1` to skip those when absent).
+//! from the datasets' own stance labels, on the bundled legged characters, the real legged URDFs in
+//! `../shared/data/robots` and the Wolf of `../shared/data/creatures` (set `ACE_ALLOW_MISSING_DATA=1`
+//! to skip those when absent).
 //!
 //! Targets (issue "Natural stepping"):
 //! - in every speed bin with at least [`MIN_STRIDES`] strides, the median stride frequency is within
@@ -12,7 +13,7 @@
 //!
 //! Where a character's step region is too short for the law's strides, the controllers must step
 //! faster than the law to keep stances inside it; each test states where that is today:
-//! - the crab meets the targets at every speed;
+//! - the crab and the bundled hound meet the targets at every speed;
 //! - Spot meets them up to 1.5 m/s and steps at most 1.9× the law's frequency above (its step region
 //!   reaches 0.17 m fore and aft, the law's trot at 2.5 m/s wants a 0.25 m half-stance);
 //! - the real Spot (`spot_with_arm`, step region 0.08 m) steps 2.2–3.3× the law's frequency, and the
@@ -116,6 +117,16 @@ fn spot_steps_at_the_rate_of_an_animal_its_size() {
 #[test]
 fn the_crab_steps_at_the_rate_of_an_animal_its_size() {
     check("crab", &bundled("crab"), Some((f32::INFINITY, RATIO[1])));
+}
+
+/// The bundled hound meets the targets at every speed. Its chest's capsule, fitted to a round blob of
+/// vertices, used to lean to one side (the axis of a blob falls by chance), so that one upper arm met it
+/// and held that front foot to 0.096 m fore and aft against 0.131 m for the other (1.8–2.0× the law's
+/// frequency above 1 m/s).
+#[test]
+fn the_hound_steps_at_the_rate_of_an_animal_its_size() {
+    let hound = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
+    check("hound", &hound, Some((f32::INFINITY, RATIO[1])));
 }
 
 #[test]
