@@ -270,7 +270,14 @@ pub fn build(
             }
             let inv = rig.bones[b].rest.inverse();
             let local: Vec<Point3<f32>> = owned[b].iter().map(|p| inv.transform_point(p)).collect();
-            fit_capsule(&local)
+            // The bone's own direction: towards the mean of its children's joints.
+            let kids: Vec<Vector3<f32>> = children[b]
+                .iter()
+                .filter(|&&c| in_body[c])
+                .map(|&c| inv.transform_point(&Point3::from(rig.bones[c].rest.translation.vector)).coords)
+                .collect();
+            let along = (!kids.is_empty()).then(|| kids.iter().sum::<Vector3<f32>>() / kids.len() as f32);
+            fit_capsule(&local, along)
         })
         .collect();
     let capsule_ends = |b: usize| -> Option<(Point3<f32>, Point3<f32>, f32)> {

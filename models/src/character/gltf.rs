@@ -38,6 +38,9 @@ use thiserror::Error;
 
 use crate::geometry::{Geometry, Shape};
 
+/// How much larger than the next the largest variance of a bone's points must be for their principal
+/// direction to set the axis of its capsule ([`fit_capsule`]).
+pub const DISTINCT_AXIS: f32 = 1.5;
 /// Largest plausible extent of a creature in metres; larger files are read as centimetres.
 pub const MAX_PLAUSIBLE_SIZE: f32 = 20.0;
 /// Most joints a skin may have.
@@ -868,9 +871,11 @@ pub fn polar_rotation(m: &Matrix3<f32>) -> Option<UnitQuaternion<f32>> {
 /// A capsule for the core of a bone's flesh around `points` (in the frame they are given in): axis along
 /// their principal direction, radius the median of their distances from the axis, caps reaching the 5th
 /// and 95th percentiles along it. A skinned mesh bulges and creases at the joints, so a proxy that
-/// covered every vertex would overlap its neighbours whenever a joint bends. `None` for fewer than 4
-/// points.
-pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
+/// covered every vertex would overlap its neighbours whenever a joint bends. When the points have no
+/// distinct principal direction (the largest variance under [`DISTINCT_AXIS`] times the next: a blob,
+/// such as a chest, whose axis would fall by chance and could make a mirror-symmetric body asymmetric),
+/// the axis is `along` instead, the bone's own direction, if given. `None` for fewer than 4 points.
+pub fn fit_capsule(points: &[Point3<f32>], along: Option<Vector3<f32>>) -> Option<Geometry> {
     if points.len() < 4 {
         return None;
     }
@@ -883,7 +888,11 @@ pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
     }
     let eig = (cov / n).symmetric_eigen();
     let k = eig.eigenvalues.imax();
-    let axis = eig.eigenvectors.column(k).into_owned().normalize();
+    let second = (0..3).filter(|&i| i != k).map(|i| eig.eigenvalues[i]).fold(f32::NEG_INFINITY, f32::max);
+    let axis = match along.and_then(|a| a.try_normalize(1e-9)) {
+        Some(a) if eig.eigenvalues[k] < DISTINCT_AXIS * second => a,
+        _ => eig.eigenvectors.column(k).into_owned().normalize(),
+    };
     let mut along: Vec<f32> = Vec::with_capacity(points.len());
     let mut radial: Vec<f32> = Vec::with_capacity(points.len());
     for p in points {
@@ -907,4 +916,39 @@ pub fn fit_capsule(points: &[Point3<f32>]) -> Option<Geometry> {
         origin: Isometry3::from_parts(Translation3::from(centre), rot),
         shape: Shape::Capsule { radius, length },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The capsule's axis in the frame of the points.
+    fn axis(g: &Geometry) -> Vector3<f32> {
+        g.origin.rotation * Vector3::z()
+    }
+
+    #[test]
+    fn a_blob_takes_the_bones_direction_and_a_limb_its_own() {
+        // A blob: a slightly squashed box of points (sides 1 : 0.95 : 0.9) tilted about x, as a chest
+        // can be. PCA alone picks the tilted axis; the bone's direction (along x) is taken instead.
+        let tilt = UnitQuaternion::from_euler_angles(0.4, 0.0, 0.0);
+        let mut blob = Vec::new();
+        for i in 0..10 {
+            for j in 0..10 {
+                for k in 0..10 {
+                    let c = |n: i32, s: f32| s * (n as f32 / 9.0 - 0.5);
+                    blob.push(Point3::from(tilt * Vector3::new(c(i, 0.95), c(j, 0.9), c(k, 1.0))));
+                }
+            }
+        }
+        let free = fit_capsule(&blob, None).expect("capsule");
+        assert!(axis(&free).y.abs() > 0.3, "{:?}", axis(&free));
+        let along = fit_capsule(&blob, Some(Vector3::new(2.0, 0.0, 0.0))).expect("capsule");
+        assert!((axis(&along).x.abs() - 1.0).abs() < 1e-5, "{:?}", axis(&along));
+        // A limb: points spread along z keep their own axis whatever the bone's direction.
+        let limb: Vec<Point3<f32>> =
+            (0..50).map(|k| Point3::new(0.02 * (k as f32).sin(), 0.02 * (k as f32).cos(), 0.01 * k as f32)).collect();
+        let g = fit_capsule(&limb, Some(Vector3::new(1.0, 0.0, 0.0))).expect("capsule");
+        assert!(axis(&g).z.abs() > 0.99, "{:?}", axis(&g));
+    }
 }

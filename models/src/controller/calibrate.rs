@@ -14,6 +14,11 @@
 //!   reaches further: `r_fore`, the fore-and-aft semi-axis of the largest ellipse with `r_max` across
 //!   that passes the same checks (8 points on it), capped at 0.4 × the distance to the nearest foot on the
 //!   same side only (a front and a hind foot at full stride keep a fifth of their distance apart).
+//!   The body is an obstacle for the step regions, but the **appendages** are not ([`appendages`]: links
+//!   on DoFs no leg owns that carry no leg — a tail, a neck and head, an arm): they move, so they are
+//!   stowed clear of the legs' workspace instead ([`stow_appendages`]); an appendage that cannot be
+//!   stowed clear stays where it is and the legs are calibrated again to step around it. Redundant legs
+//!   (ball joints) get more IK iterations in these checks ([`ik_iterations`]).
 //! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
 //!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
 //! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
@@ -40,6 +45,16 @@ const IK_TOL: f32 = 1e-5;
 const REACHED: f32 = 3e-4;
 /// Joint-space samples for a leg's reach.
 const REACH_SAMPLES: usize = 512;
+
+/// IK iterations of a step-region check: damped least squares converges slowly near the edge of
+/// the workspace of a redundant leg (ball joints), which would otherwise pass for out of reach.
+pub fn ik_iterations(chain: &Chain) -> usize {
+    if chain.active_dofs().nth(3).is_some() {
+        200
+    } else {
+        60
+    }
+}
 
 /// Body heights and tilts a leg must cope with: `(root height, pitch, roll)`.
 pub type Posture = (f32, f32, f32);
@@ -174,6 +189,7 @@ pub fn step_radii(
     height: [f32; 2],
     tilt: [f32; 2],
     dip_tol: f32,
+    ignore: &[bool],
 ) -> Result<StepRadii, ControllerError> {
     struct Best {
         worst: f32,
@@ -194,7 +210,7 @@ pub fn step_radii(
             let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
             leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
         }
-        let scene = Scene::new(proxies, fk_root(tree, nominal_q));
+        let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
         let radii: Vec<f32> = (0..legs.len())
             .map(|i| {
                 0.9 * radius(
@@ -242,7 +258,7 @@ pub fn step_radii(
     }
     // The fore-and-aft semi-axis: the same checks over the ellipse with the lateral one kept.
     let poses = postures(best.height, best.tilt);
-    let scene = Scene::new(proxies, fk_root(tree, nominal_q));
+    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
     let fore: Vec<f32> = (0..legs.len())
         .map(|i| {
             let lateral = legs[i].r_max / 0.9;
@@ -458,18 +474,25 @@ pub fn fk_root(tree: &KinematicTree, q: &[f32]) -> Vec<Isometry3<f32>> {
     })
 }
 
-/// The nominal pose in the root frame with every link's collision boxes, for leg checks.
+/// The nominal pose in the root frame with the collision boxes of every link that is an obstacle for
+/// the legs (all but the `ignore`d ones), for leg checks.
 struct Scene {
     links: Vec<Isometry3<f32>>,
     boxes: Vec<Vec<Obb>>,
 }
 
 impl Scene {
-    fn new(proxies: &Proxies, links: Vec<Isometry3<f32>>) -> Scene {
+    fn new(proxies: &Proxies, links: Vec<Isometry3<f32>>, ignore: &[bool]) -> Scene {
         let boxes = links
             .iter()
             .enumerate()
-            .map(|(l, p)| proxies.world(l, p).collect())
+            .map(|(l, p)| {
+                if ignore.get(l).copied().unwrap_or(false) {
+                    Vec::new()
+                } else {
+                    proxies.world(l, p).collect()
+                }
+            })
             .collect();
         Scene { links, boxes }
     }
@@ -504,7 +527,7 @@ fn leg_pose_ok(
     let mut q = nominal_q.to_vec();
     if leg
         .chain
-        .solve(tree, &mut q, &root.inverse_transform_point(foot), IK_TOL, 60, scratch)
+        .solve(tree, &mut q, &root.inverse_transform_point(foot), IK_TOL, ik_iterations(&leg.chain), scratch)
         .error
         > REACHED
     {
@@ -554,4 +577,110 @@ fn foot_lowest(tree: &KinematicTree, proxies: &Proxies, leg: &Leg, root: &Isomet
         .filter_map(|(l, g)| g.aabb(&links[l]))
         .map(|b| b.min.z)
         .fold(f32::INFINITY, f32::min)
+}
+
+/// Appendages: per link, whether it hangs off the body on DoFs that no leg owns and carries no leg — a
+/// tail, a neck and head, an arm. They are not obstacles for the step regions ([`step_radii`]'s
+/// `ignore`): they move, and [`stow_appendages`] keeps them clear of the legs instead. `skip` marks DoFs
+/// that are not posed (wheels).
+pub fn appendages(tree: &KinematicTree, legs: &[Leg], skip: &[bool]) -> Vec<bool> {
+    let n = tree.links.len();
+    let on_leg: Vec<bool> = (0..n).map(|l| legs.iter().any(|g| g.links.contains(&l))).collect();
+    let mut leg_dof = vec![false; tree.dof()];
+    for d in legs.iter().flat_map(|g| g.chain.active_dofs()) {
+        leg_dof[d] = true;
+    }
+    let mut out = vec![false; n];
+    for d in (0..tree.dof()).filter(|&d| !leg_dof[d] && !skip.get(d).copied().unwrap_or(false)) {
+        let sub = subtree(tree, tree.dof_link(d));
+        if sub.iter().all(|&l| !on_leg[l]) {
+            for l in sub {
+                out[l] = true;
+            }
+        }
+    }
+    out
+}
+
+/// Stows the appendages clear of the legs' workspace. Each appendage (the subtree of an appendage link
+/// whose parent is not one, with its DoFs) whose boxes at the nominal configuration overlap `obstacles`
+/// (root frame: the legs over their workspace and the rest of the body) by more than `margin` moves to
+/// the nearest clear configuration among deterministic random draws around the nominal one, within
+/// the joint limits, over growing spreads; its boxes must also stay above `floor` (root frame) or no
+/// lower than they were. `proxies` decide which pairs count: pass those of the standing pose, so that
+/// pairs let go because they touch at the nominal stance still count. Updates `nominal_q`; returns the
+/// appendages that found no clear configuration (left as they were), by their top link.
+pub fn stow_appendages(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    appendage: &[bool],
+    nominal_q: &mut [f32],
+    obstacles: &[Obstacle],
+    floor: f32,
+    margin: f32,
+) -> Vec<usize> {
+    let tops: Vec<usize> = (0..tree.links.len())
+        .filter(|&l| appendage[l] && tree.links[l].parent.is_none_or(|p| !appendage[p]))
+        .collect();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(0x57a1);
+    let mut stuck = Vec::new();
+    for top in tops {
+        let links = subtree(tree, top);
+        let dofs: Vec<usize> = (0..tree.dof())
+            .filter(|&d| links.binary_search(&tree.dof_link(d)).is_ok())
+            .collect();
+        if dofs.is_empty() {
+            continue;
+        }
+        let boxes_at = |q: &[f32]| -> Vec<(usize, Obb)> {
+            let poses = fk_root(tree, q);
+            links.iter().flat_map(|&l| proxies.world(l, &poses[l]).map(move |b| (l, b))).collect()
+        };
+        let lowest = |boxes: &[(usize, Obb)]| boxes.iter().map(|(_, b)| b.min_z()).fold(f32::INFINITY, f32::min);
+        let nominal = boxes_at(nominal_q);
+        let floor = floor.min(lowest(&nominal));
+        let clear = |boxes: &[(usize, Obb)]| {
+            lowest(boxes) >= floor
+                && boxes.iter().all(|(a, x)| {
+                    obstacles.iter().all(|o| {
+                        links.binary_search(&o.link).is_ok()
+                            || !proxies.is_checked(*a, o.link)
+                            || !x.overlaps(&o.obb, margin)
+                    }) && boxes
+                        .iter()
+                        .all(|(b, y)| b <= a || !proxies.is_checked(*a, *b) || !x.overlaps(y, margin))
+                })
+        };
+        if clear(&nominal) {
+            continue;
+        }
+        let ranges: Vec<(f32, f32)> = dofs.iter().map(|&d| finite_limits(tree, d, nominal_q[d])).collect();
+        let mut best: Option<(f32, Vec<f32>)> = None;
+        for spread in [0.05f32, 0.1, 0.2, 0.3, 0.5] {
+            for _ in 0..64 {
+                let mut q = nominal_q.to_vec();
+                let mut cost = 0.0;
+                for (&d, &(lo, hi)) in dofs.iter().zip(&ranges) {
+                    let r = spread * (hi - lo);
+                    q[d] = uniform(&mut rng, (nominal_q[d] - r).max(lo), (nominal_q[d] + r).min(hi));
+                    cost += ((q[d] - nominal_q[d]) / (hi - lo).max(1e-6)).powi(2);
+                }
+                if best.as_ref().is_none_or(|(c, _)| cost < *c) && clear(&boxes_at(&q)) {
+                    best = Some((cost, dofs.iter().map(|&d| q[d]).collect()));
+                }
+            }
+            if best.is_some() {
+                break;
+            }
+        }
+        match best {
+            Some((_, q)) => {
+                for (&d, x) in dofs.iter().zip(q) {
+                    nominal_q[d] = x;
+                }
+            }
+            None => stuck.push(top),
+        }
+    }
+    stuck
 }

@@ -157,6 +157,23 @@ impl Proxies {
         }
     }
 
+    /// Tests again the pairs that `rest` tests and that involve a link marked in `links`, except those
+    /// that overlap at link poses `poses` (as [`Proxies::ignore_touching`]): for parts moved away from a
+    /// pose where they touched.
+    pub fn recheck(&mut self, rest: &Proxies, poses: &[Isometry3<f32>], links: &[bool]) {
+        let n = self.checked.len();
+        for a in 0..n {
+            for b in 0..n {
+                if (links[a] || links[b]) && rest.checked[a][b] {
+                    let touching = self
+                        .world(a, &poses[a])
+                        .any(|x| self.world(b, &poses[b]).any(|y| x.overlaps(&y, 0.5 * self.tol)));
+                    self.checked[a][b] = !touching;
+                }
+            }
+        }
+    }
+
     /// Whether links `a` and `b` are tested against each other.
     pub fn is_checked(&self, a: usize, b: usize) -> bool {
         self.checked[a][b]

@@ -17,9 +17,10 @@
 //! - Footholds (Raibert): the nominal foothold, rotated by `ω·T_st/2` and shifted by `v·T_st/2`
 //!   (`T_st` = stance time, `v` and `ω` the mean predicted over that stance), in the heading frame
 //!   predicted at touchdown, so that the foot passes under its nominal position mid-stance.
-//! - Swing: the foot first rises with no horizontal motion (the first `EDGE` of the swing), moves
-//!   horizontally along a minimum-jerk profile, and comes straight down onto a landing point frozen for
-//!   the last `EDGE` (so a late command change cannot drag a low foot). Its height is `H·16 s²(1−s)²`:
+//! - Swing: the foot first rises with no horizontal motion (the first [`EDGE`] of the swing, longer
+//!   until it is [`StepParams::clearance`] above the ground: [`edge`]), moves horizontally along a
+//!   minimum-jerk profile, and comes straight down onto a landing point frozen for as long at the end
+//!   (so a late command change cannot drag a low foot). Its height is `H·16 s²(1−s)²`:
 //!   zero vertical speed at lift-off and touchdown, 41 % of `H` when horizontal motion starts.
 
 use nalgebra::{Point3, Vector2};
@@ -28,8 +29,10 @@ use super::rig::Leg;
 
 /// Fraction of the step region's radius a stance half-length uses at the chosen frequency.
 pub const STANCE_USE: f32 = 0.9;
-/// Fraction of the swing at each end without horizontal motion.
-const EDGE: f32 = 0.2;
+/// Fraction of the swing at each end without horizontal motion (at least).
+pub const EDGE: f32 = 0.2;
+/// Largest fraction of the swing at each end without horizontal motion.
+pub const MAX_EDGE: f32 = 0.35;
 /// Fraction of the step region within which a foothold is placed.
 const FOOTHOLD_USE: f32 = 0.85;
 
@@ -166,6 +169,10 @@ pub struct StepParams {
     pub lift: f32,
     /// Shortest swing (s).
     pub min_swing: f32,
+    /// Height above the sole a swinging foot reaches before it moves horizontally, and below which it
+    /// comes straight down (m): at least the first and last [`EDGE`] of the swing, longer when the
+    /// swing is low next to this (at most [`MAX_EDGE`]).
+    pub clearance: f32,
 }
 
 /// Minimum-jerk profile 10s³ − 15s⁴ + 6s⁵.
@@ -228,22 +235,35 @@ impl LegState {
                 Some(l) => *l,
                 None => foothold(leg, base, remaining, stance_time),
             };
-            if s >= 1.0 - EDGE {
+            let height = leg.swing_height * p.lift;
+            let edge = edge(p.clearance, height);
+            if s >= 1.0 - edge {
                 *landing = Some(target);
             }
             if *frame >= *frames {
                 self.foot = Point3::new(target.x, target.y, leg.sole);
                 self.phase = LegPhase::Stance { time: 0.0 };
             } else {
-                let u = min_jerk((s - EDGE) / (1.0 - 2.0 * EDGE));
+                let u = min_jerk((s - edge) / (1.0 - 2.0 * edge));
                 let xy = Vector2::new(from.x, from.y) + (target - Vector2::new(from.x, from.y)) * u;
                 let s2 = s * (1.0 - s);
-                let z = leg.swing_height * p.lift * 16.0 * s2 * s2;
+                let z = height * 16.0 * s2 * s2;
                 self.foot = Point3::new(xy.x, xy.y, leg.sole + z.max(0.0));
             }
         }
         emergency
     }
+}
+
+/// The fraction of a swing of peak height `height` at each end without horizontal motion: [`EDGE`], or
+/// where the arc `16 s²(1−s)²·height` reaches `clearance` if that is later (at most [`MAX_EDGE`]).
+pub fn edge(clearance: f32, height: f32) -> f32 {
+    if clearance <= 0.41 * height {
+        // 16·0.2²·0.8² ≈ 0.41: the arc is already clear at EDGE.
+        return EDGE;
+    }
+    let k = (clearance / height.max(1e-9)).sqrt().min(1.0);
+    (0.5 * (1.0 - (1.0 - k).sqrt())).clamp(EDGE, MAX_EDGE)
 }
 
 /// World (x, y) where the leg should touch down, `remaining` seconds from now, for stance time
@@ -258,4 +278,85 @@ pub fn foothold(leg: &Leg, base: &BaseMotion, remaining: f32, stance_time: f32) 
         local = leg.nominal + d * (FOOTHOLD_USE / k);
     }
     base.predict(local, remaining)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::chain::Chain;
+    use super::*;
+    use nalgebra::Vector3;
+
+    /// A leg with a 0.1 m swing and a 0.6 m step region, with no chain (stepping does not need one).
+    fn leg() -> Leg {
+        Leg {
+            chain: Chain {
+                links: Vec::new(),
+                dofs: Vec::new(),
+                tip: 0,
+                tip_offset: Vector3::zeros(),
+                damping: 0.0,
+            },
+            foot: 0,
+            links: Vec::new(),
+            hip: Vector3::zeros(),
+            nominal: Vector2::new(0.5, 0.2),
+            length: 1.0,
+            r_max: 0.6,
+            r_fore: 0.6,
+            swing_height: 0.1,
+            sole: 0.0,
+        }
+    }
+
+    /// The largest horizontal move of the foot between two frames below `clearance` over one swing forward
+    /// at 1 m/s, and how far the foot moved in all.
+    fn low_horizontal_motion(clearance: f32) -> (f32, f32) {
+        let leg = leg();
+        let dt = 1.0 / 30.0;
+        let mut base = BaseMotion {
+            position: Vector2::zeros(),
+            yaw: 0.0,
+            v: Vector2::new(1.0, 0.0),
+            wz: 0.0,
+            v_target: Vector2::new(1.0, 0.0),
+            wz_target: 0.0,
+            tau: 0.3,
+        };
+        let p = StepParams {
+            stepping: true,
+            clock: 0.0,
+            frequency: 1.0,
+            duty: 0.5,
+            lift: 1.0,
+            min_swing: 0.1,
+            clearance,
+        };
+        let mut state = LegState::standing(Point3::new(0.5, 0.2, 0.0));
+        let start = state.foot;
+        state.step(&leg, 0.0, &base, &p, dt, true);
+        let (mut worst, mut prev) = (0.0f32, state.foot);
+        while !state.in_stance() {
+            base.position += base.v * dt;
+            state.step(&leg, 0.0, &base, &p, dt, false);
+            if state.foot.z.max(prev.z) < clearance {
+                worst = worst.max((state.foot.xy() - prev.xy()).norm());
+            }
+            prev = state.foot;
+        }
+        (worst, (state.foot.xy() - start.xy()).norm())
+    }
+
+    #[test]
+    fn a_low_swing_moves_only_once_clear_of_the_ground() {
+        // The swing is 0.1 m high; at EDGE it is 41 mm up. With a clearance of 80 mm it still rises
+        // and lands straight, and still makes its step.
+        let (low, step) = low_horizontal_motion(0.08);
+        assert!(low < 1e-6, "moved {low} m horizontally below the clearance");
+        assert!(step > 0.3, "{step}");
+        // The edge is where the arc reaches the clearance, EDGE when it is clear there, MAX_EDGE at most.
+        let e = edge(0.08, 0.1);
+        assert!((16.0 * e * e * (1.0 - e) * (1.0 - e) * 0.1 - 0.08).abs() < 1e-4, "{e}");
+        assert_eq!(edge(0.02, 0.1), EDGE);
+        assert_eq!(edge(0.2, 0.1), MAX_EDGE);
+    }
 }

@@ -29,7 +29,9 @@
 //! Stance feet are fixed in the world (IK to 0.01 mm), feet never go below the ground, every joint value
 //! is clamped into its limits, legs stay within a calibrated step radius clear of the body and each
 //! other ([`calibrate`]), swing feet rise before they move and come straight down, and reach paths are
-//! checked against the body, the legs and each other ([`reach`]).
+//! checked against the body, the legs and each other ([`reach`]). Legs with DoFs to spare (ball joints)
+//! are solved from the nominal stance every frame, so that their pose is the one the calibration
+//! checked for that foot position rather than wherever the IK's null space drifted.
 
 pub mod calibrate;
 pub mod chain;
@@ -222,6 +224,37 @@ pub struct Controller<'a> {
     reach: Vec<ReachState>,
     scratch: ChainScratch,
     stats: ControllerStats,
+}
+
+/// Solves `leg` for `target` (root frame) in `q`. A redundant leg (more than three DoFs, e.g. ball
+/// joints) is solved from the nominal stance `nominal_q` every frame, so that its pose is a function
+/// of the foot target alone — the pose the step-region calibration checked ([`calibrate`] solves from
+/// the nominal stance too) — rather than drifting through the IK's null space over an episode (a knee
+/// or shin sinking into the ground while the foot stays on it); the warm start is kept where the
+/// nominal start does not reach the target. A leg with three DoFs or fewer has no such drift and is
+/// warm-started.
+fn solve_leg(
+    tree: &KinematicTree,
+    leg: &Leg,
+    nominal_q: &[f32],
+    q: &mut [f32],
+    target: &Point3<f32>,
+    scratch: &mut ChainScratch,
+) -> IkResult {
+    if leg.chain.active_dofs().nth(3).is_some() {
+        let warm: Vec<f32> = leg.chain.active_dofs().map(|d| q[d]).collect();
+        for d in leg.chain.active_dofs() {
+            q[d] = nominal_q[d];
+        }
+        let r = leg.chain.solve(tree, q, target, FOOT_TOL, calibrate::ik_iterations(&leg.chain), scratch);
+        if r.error <= STANCE_SLIP {
+            return r;
+        }
+        for (d, &x) in leg.chain.active_dofs().zip(&warm) {
+            q[d] = x;
+        }
+    }
+    leg.chain.solve(tree, q, target, FOOT_TOL, 40, scratch)
 }
 
 /// Gait bob amplitude as a fraction of the leg length.
@@ -517,6 +550,7 @@ impl<'a> Controller<'a> {
             duty,
             lift: 0.7 + 0.3 * fr.min(1.0),
             min_swing: rig::min_swing_frames(&self.cfg, fr_slower) as f32 * self.dt,
+            clearance: rig.clearance,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
             let force = std::mem::take(&mut self.force_lift[i]);
@@ -532,9 +566,7 @@ impl<'a> Controller<'a> {
         let root = self.root();
         for (i, (state, leg)) in self.legs.iter().zip(&self.rig.legs).enumerate() {
             let target = root.inverse_transform_point(&state.foot);
-            let r = leg
-                .chain
-                .solve(self.tree, &mut self.q, &target, FOOT_TOL, 40, &mut self.scratch);
+            let r = solve_leg(self.tree, leg, &self.rig.nominal_q, &mut self.q, &target, &mut self.scratch);
             if state.in_stance() {
                 self.stats.max_stance_error = self.stats.max_stance_error.max(r.error);
                 if r.error > STANCE_SLIP {

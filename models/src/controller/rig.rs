@@ -6,8 +6,9 @@
 //! [`Morphology::manipulators`], wheels [`Morphology::wheels`]; every other DoF (a head, gripper
 //! fingers) is moved by a "misc" reach group.
 //!
-//! How each leg's stance, step radius, sole and swing height and the body's height and tilt range
-//! are found is described in [`super::calibrate`]. The **speed scale** is the mean hip–foot distance at
+//! How each leg's stance, step radius, sole and swing height, the body's height and tilt range and the
+//! appendages' stowed configuration are found is described in [`super::calibrate`]; episodes start
+//! with the appendages stowed ([`Rig::standing`]). The **speed scale** is the mean hip–foot distance at
 //! the nominal stance / [`super::ScalingConfig::human_leg_length`] for legged characters, the standing
 //! height / [`super::ScalingConfig::human_height`] otherwise. The **hip height** is
 //! [`crate::dynamic_similarity::hip_height_at`] the nominal stance; gaits are chosen and timed by the Froude number it gives
@@ -141,7 +142,8 @@ pub struct Obstacle {
 pub struct Rig {
     /// How the base moves.
     pub mode: BaseMode,
-    /// The pose episodes start from ([`KinematicTree::standing_pose`]).
+    /// The pose episodes start from: [`KinematicTree::standing_pose`] with the appendages stowed
+    /// ([`calibrate::stow_appendages`]).
     pub standing: CharacterPose,
     /// Joint vector at the nominal stance.
     pub nominal_q: Vec<f32>,
@@ -170,6 +172,11 @@ pub struct Rig {
     pub max_speed: f32,
     /// Mean distance of the feet from the root axis (m), for turning.
     pub foot_radius: f32,
+    /// Height a swinging foot rises before it moves horizontally (m; 0 without legs): the band within
+    /// which UFR counts a foot as in contact ([`crate::metrics::UfrConfig::CONTACT_HEIGHT`] × the body
+    /// length), so that a low swing (a long body on short legs: swing heights follow the leg length)
+    /// does not scuff along the ground.
+    pub clearance: f32,
     /// Collision proxies.
     pub proxies: Proxies,
     /// Boxes of every link at the nominal pose with legs moved over their workspace (root frame at the
@@ -200,7 +207,7 @@ impl Rig {
         cfg: &ControllerConfig,
         fps: f32,
     ) -> Result<Rig, ControllerError> {
-        let standing = tree.standing_pose();
+        let mut standing = tree.standing_pose();
         let h_stand = standing.root.translation.vector.z;
         let mut proxies = Proxies::new(tree, &standing);
 
@@ -213,6 +220,8 @@ impl Rig {
             BaseMode::Fixed
         };
         let (h0, mut nominal_q) = calibrate::nominal_stance(tree, &mut legs, &standing, cfg.legs.max_extension)?;
+        // The pairs tested at the standing pose, before those touching at the nominal stance are let go.
+        let rest_proxies = proxies.clone();
         proxies.ignore_touching(&calibrate::fk_root(tree, &nominal_q));
 
         let (mut height_range, mut max_tilt) = ([h_stand, h_stand], [0.0, 0.0]);
@@ -229,18 +238,71 @@ impl Rig {
             let low = calibrate::lowest_tilted(&proxies, &calibrate::fk_root(tree, &nominal_q), &body, max_tilt);
             height_range[0] = height_range[0].max(0.02 * h0.max(0.1) - low).min(h0);
             let dip_tol = calibrate::dip_tolerance(tree, &standing);
-            let kept = calibrate::step_radii(
-                tree,
-                &proxies,
-                &mut legs,
-                &mut nominal_q,
-                h0,
-                height_range,
-                max_tilt,
-                dip_tol,
-            )?;
-            (height_range, max_tilt) = (kept.height, kept.tilt);
-            calibrate::swing_heights(tree, &mut legs, &nominal_q, height_range[0], cfg.legs.swing_height);
+            // Appendages (a tail, a head, arms) are not obstacles for the step regions but are stowed
+            // clear of the legs' workspace; where one cannot be, the legs step around it as it is.
+            let mut wheel_dof = vec![false; tree.dof()];
+            for w in wheels::find(tree, morph, &standing) {
+                wheel_dof[w.dof] = true;
+            }
+            let appendage = calibrate::appendages(tree, &legs, &wheel_dof);
+            let (legs0, q0) = (legs.clone(), nominal_q.clone());
+            let mut ignore = appendage.clone();
+            loop {
+                let kept = calibrate::step_radii(
+                    tree,
+                    &proxies,
+                    &mut legs,
+                    &mut nominal_q,
+                    h0,
+                    height_range,
+                    max_tilt,
+                    dip_tol,
+                    &ignore,
+                )?;
+                calibrate::swing_heights(tree, &mut legs, &nominal_q, kept.height[0], cfg.legs.swing_height);
+                if !ignore.iter().any(|&i| i) {
+                    (height_range, max_tilt) = (kept.height, kept.tilt);
+                    break;
+                }
+                let nominal = calibrate::fk_root(tree, &nominal_q);
+                let mut obstacles: Vec<Obstacle> = nominal
+                    .iter()
+                    .enumerate()
+                    .filter(|&(l, _)| !on_leg[l] && !ignore[l])
+                    .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
+                    .collect();
+                obstacles.extend(calibrate::swept_legs(tree, &proxies, &legs, &nominal_q, h0, kept.height));
+                let floor = 0.02 * h0.max(0.1) - kept.height[0];
+                let margin = cfg.reach.margin;
+                let stuck =
+                    calibrate::stow_appendages(tree, &rest_proxies, &ignore, &mut nominal_q, &obstacles, floor, margin);
+                if stuck.is_empty() {
+                    (height_range, max_tilt) = (kept.height, kept.tilt);
+                    break;
+                }
+                // Calibrate again with the appendages that found no clear stowage as obstacles.
+                for top in stuck {
+                    for l in subtree(tree, top) {
+                        ignore[l] = false;
+                    }
+                }
+                (legs, nominal_q) = (legs0.clone(), q0.clone());
+            }
+            // Episodes start with the appendages stowed; pairs they touched at the nominal stance are
+            // tested again where they no longer touch.
+            let mut moved = vec![false; tree.links.len()];
+            for d in 0..tree.dof() {
+                if !appendage[tree.dof_link(d)] || standing.q[d] == nominal_q[d] {
+                    continue;
+                }
+                standing.q[d] = nominal_q[d];
+                for l in subtree(tree, tree.dof_link(d)) {
+                    moved[l] = true;
+                }
+            }
+            if moved.iter().any(|&m| m) {
+                proxies.recheck(&rest_proxies, &calibrate::fk_root(tree, &nominal_q), &moved);
+            }
         }
         let nominal_links = calibrate::fk_root(tree, &nominal_q);
 
@@ -293,6 +355,7 @@ impl Rig {
             speed_scale: 1.0,
             max_speed: f32::INFINITY,
             foot_radius: 0.0,
+            clearance: 0.0,
             proxies,
             swept,
             nominal_links,
@@ -315,6 +378,10 @@ impl Rig {
             self.hip_height = hip_height_at(tree, morph, &nominal).unwrap_or(self.leg_length);
         }
         self.foot_radius = self.legs.iter().map(|l| l.nominal.norm()).sum::<f32>() / n;
+        if !self.legs.is_empty() {
+            self.clearance =
+                crate::metrics::UfrConfig::CONTACT_HEIGHT * crate::features::character_body_length(tree, morph);
+        }
         let height = {
             let b = tree.aabb(&tree.forward_kinematics(&self.standing));
             (b.max.z - b.min.z).max(1e-3)
