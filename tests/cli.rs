@@ -180,15 +180,23 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
         for k in ["div", "fid", "feature_loss"] {
             assert!(m[k].as_f64().is_some_and(f64::is_finite), "{r}");
         }
-        // The shipped checkpoints with the cleanup: realistic motion on the bundled clips.
-        assert!(m["ufr"]["rates"]["ufr"].as_f64().unwrap() <= 0.10, "{r}");
+        // The shipped checkpoints with the cleanup: realistic motion on the bundled clips, within the
+        // paper's 3 % (the README's promise; the networks' raw output is above 90 %).
+        assert!(m["ufr"]["rates"]["ufr"].as_f64().unwrap() <= 0.03, "{r}");
         let c = r["character"].as_str().unwrap().to_string();
-        // Stretch's arm follows the hand the bundled wave clip raises (0.93 when shipped).
-        if c == "stretch" && r["clip"] == "wave" {
-            let pair = &m["following"]["clips"][0][0]["pairs"][0];
-            assert_eq!(pair["character"], "grasp_center");
+        // Stretch's arm and the crab's right claw follow the hand the bundled wave clip raises
+        // (0.93 and 0.98 when shipped).
+        let follower = match c.as_str() {
+            "stretch" => Some("grasp_center"),
+            "crab" => Some("arm_r_claw_tip"),
+            _ => None,
+        };
+        if let (Some(link), true) = (follower, r["clip"] == "wave") {
+            let pairs = m["following"]["clips"][0][0]["pairs"].as_array().unwrap();
+            let pair = pairs.iter().find(|p| p["character"] == link).unwrap();
+            assert_eq!(pair["human"], "right_hand");
             let vertical = pair["correlation"]["vertical"].as_f64().unwrap();
-            assert!(vertical > 0.7, "Stretch's gripper against the right hand on wave: {vertical}");
+            assert!(vertical > 0.7, "{c}'s {link} against the right hand on wave: {vertical}");
         }
         if c == "stretch" {
             assert!(m["gait"].is_null(), "wheels have no gait: {r}");

@@ -530,19 +530,11 @@ mod tests {
 
     #[test]
     fn shared_human_data_imports_when_present() {
-        let Some(folder) = HumanSet::default_folder(&repo()) else {
-            eprintln!(
-                "skipping: no shared human data at {}",
-                repo().join(DEFAULT_FOLDER).display()
-            );
+        // One collection only, to stay fast: import and split still run on real files.
+        let Some(sub) = crate::test_data::require(repo().join(DEFAULT_FOLDER).join("xia_style"), "the shared xia_style clips")
+        else {
             return;
         };
-        // One collection only, to stay fast: import and split still run on real files.
-        let sub = folder.join("xia_style");
-        if !sub.is_dir() {
-            eprintln!("skipping: {} not found", sub.display());
-            return;
-        }
         let set = HumanSet::load(&sub, &HumanSetOptions::default(), &mut |_| {}).unwrap();
         assert!(!set.clips.is_empty());
         for c in &set.clips {

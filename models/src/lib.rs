@@ -31,4 +31,6 @@ pub mod kinematics;
 pub mod learn;
 pub mod metrics;
 pub mod morphology;
+#[cfg(test)]
+mod test_data;
 pub mod urdf;

@@ -17,6 +17,7 @@ use super::*;
 use crate::human::{HumanClip, ImportOptions, Joint};
 use crate::kinematics::{JointKind, KinematicTree};
 use crate::morphology::load_character;
+use crate::test_data::allow_missing;
 
 const EPS: f32 = 1e-4;
 const FPS: f32 = 30.0;
@@ -29,10 +30,6 @@ fn scratch(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ace_export_{tag}_{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn allow_missing() -> bool {
-    std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1")
 }
 
 fn wrap(a: f32) -> f32 {

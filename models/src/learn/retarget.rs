@@ -428,13 +428,14 @@ mod tests {
 
     use super::*;
     use crate::human::ImportOptions;
-    use crate::human_set::{DEFAULT_FOLDER, HumanSet};
+    use crate::human_set::DEFAULT_FOLDER;
     use crate::learn::ace::{ACE_FILE, DISCRIMINATOR_FILE, GENERATOR_FILE};
     use crate::learn::checkpoint::WEIGHTS_FILE;
     use crate::learn::prior::MotionPrior;
     use crate::learn::prior::test_support::{scratch_dir, spot};
     use crate::learn::train_ace::test_support::{bundled_humans, tiny_config, train_in, trained_ace_dir};
     use crate::morphology::load_character;
+    use crate::test_data::require;
 
     fn asset(path: &str) -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -680,25 +681,16 @@ mod tests {
 
     #[test]
     fn a_clip_of_the_shared_human_data_retargets_when_present() {
-        let repo = asset("");
-        let Some(folder) = HumanSet::default_folder(&repo) else {
-            eprintln!(
-                "skipping: no shared human data at {}",
-                repo.join(DEFAULT_FOLDER).display()
-            );
+        let Some(folder) = require(asset(DEFAULT_FOLDER).join("cmu_cgspeed_mb"), "the shared CMU clips") else {
             return;
         };
-        let mut files: Vec<PathBuf> = fs::read_dir(folder.join("cmu_cgspeed_mb"))
-            .into_iter()
-            .flatten()
+        let mut files: Vec<PathBuf> = fs::read_dir(&folder)
+            .unwrap()
             .map(|e| e.unwrap().path())
             .filter(|p| p.extension().is_some_and(|e| e == "bvh"))
             .collect();
         files.sort();
-        let Some(file) = files.first() else {
-            eprintln!("skipping: no CMU clips in {}", folder.display());
-            return;
-        };
+        let file = files.first().unwrap_or_else(|| panic!("no CMU clips in {}", folder.display()));
         let (tree, morph, _) = spot();
         let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
         let opts = ImportOptions {
@@ -708,11 +700,17 @@ mod tests {
         let clip = HumanClip::from_bvh_file(file, &opts).unwrap();
         let m = r.retarget_clip(tree, morph, &clip).unwrap();
         assert_eq!(m.poses.len(), clip.frames.len());
-        assert!(
-            m.states.iter().flatten().all(|v| v.is_finite()),
-            "{}",
-            file.display()
-        );
+        // Real poses: within the joint limits, the body standing on the ground, states that carry them.
+        let standing = tree.standing_root_height();
+        let layout = CharacterLayout::new(tree, morph);
+        for (t, (p, s)) in m.poses.iter().zip(&m.states).enumerate() {
+            let mut clamped = p.q.clone();
+            tree.clamp(&mut clamped);
+            assert_eq!(clamped, p.q, "{}: frame {t} outside the joint limits", file.display());
+            let z = p.root.translation.z;
+            assert!(z > 0.3 * standing && z < 1.5 * standing, "{}: frame {t} root at {z} m", file.display());
+            assert_eq!(&s[layout.joint_positions()], &p.q[..], "frame {t}");
+        }
     }
 
     #[test]

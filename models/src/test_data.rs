@@ -1,0 +1,25 @@
+//! The shared data for the unit tests (`../shared/data` beside the repository; integration tests have
+//! their own in `tests/common`). A test that needs it fails when it is missing, unless
+//! `ACE_ALLOW_MISSING_DATA=1` says to skip what needs it.
+
+use std::path::PathBuf;
+
+/// Whether a missing shared file may be skipped (`ACE_ALLOW_MISSING_DATA=1`).
+pub(crate) fn allow_missing() -> bool {
+    std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1")
+}
+
+/// `path` when it exists; `None`, saying so, when it is missing and missing data is allowed.
+///
+/// # Panics
+/// When `path` is missing and missing data is not allowed.
+pub(crate) fn require(path: PathBuf, what: &str) -> Option<PathBuf> {
+    if path.exists() {
+        return Some(path);
+    }
+    if allow_missing() {
+        eprintln!("SKIPPED: {what} not found at {} (ACE_ALLOW_MISSING_DATA=1)", path.display());
+        return None;
+    }
+    panic!("{what} not found at {}: put the shared data beside the repository, or set ACE_ALLOW_MISSING_DATA=1", path.display());
+}
