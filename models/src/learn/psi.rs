@@ -192,10 +192,14 @@ mod tests {
     use crate::learn::rows_to_tensor;
     use crate::morphology::load_character;
 
+    /// A bundled character's file: the robots' URDFs, the hound's glTF.
+    fn character_file(name: &str) -> std::path::PathBuf {
+        let file = if name == "hound" { "creatures/hound.glb".to_string() } else { format!("characters/{name}.urdf") };
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets").join(file)
+    }
+
     fn generated(name: &str, frames: usize) -> (CharacterLayout, EndEffectorMapping, f32, Vec<Vec<f32>>) {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("../assets/characters/{name}.urdf"));
-        let (tree, morph) = load_character(&path).unwrap();
+        let (tree, morph) = load_character(&character_file(name)).unwrap();
         let cfg = DatasetConfig {
             frames,
             seed: 11,
@@ -264,9 +268,8 @@ mod tests {
 
     #[test]
     fn kinematic_end_effectors_follow_the_joints_not_the_predicted_entries() {
-        for name in ["spot", "crab"] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
-            let (tree, morph) = load_character(&path).unwrap();
+        for name in ["spot", "crab", "hound"] {
+            let (tree, morph) = load_character(&character_file(name)).unwrap();
             let (layout, mapping, body, rows) = generated(name, 600);
             let plain = Psi::new(&layout, &mapping, body, Device::Cpu);
             let fk = Psi::new(&layout, &mapping, body, Device::Cpu).with_kinematics(&tree, &morph);
