@@ -560,3 +560,47 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
         assert!(!bad.exists());
     }
 }
+
+/// Node names of a glTF binary.
+fn glb_node_names(glb: &Path) -> Vec<String> {
+    let bytes = std::fs::read(glb).unwrap();
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let json: Value = serde_json::from_slice(&bytes[20..20 + n]).unwrap();
+    json["nodes"].as_array().unwrap().iter().filter_map(|v| v["name"].as_str().map(String::from)).collect()
+}
+
+#[test]
+fn retarget_without_the_cleanup_or_the_human_writes_what_it_says() {
+    let dir = tmp("cli-retarget-flags");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let write = |name: &str, extra: &[&str]| {
+        let glb = dir.join(format!("{name}.glb"));
+        let mut args = vec!["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot"];
+        let out = s(&glb);
+        args.extend(["--out", out.as_str()]);
+        args.extend(extra);
+        run_ok(&args);
+        let metrics: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
+        let trajectory = std::fs::read_to_string(glb.with_extension("json")).unwrap();
+        (glb, metrics["ufr"]["rates"]["ufr"].as_f64().unwrap(), trajectory)
+    };
+    let (glb, ufr, trajectory) = write("default", &[]);
+    let (raw_glb, raw_ufr, raw_trajectory) = write("raw", &["--no-cleanup"]);
+    let (alone_glb, alone_ufr, alone_trajectory) = write("alone", &["--no-human"]);
+    // The cleanup is what keeps the feet planted: without it the networks' feet slide.
+    assert!(ufr <= 0.03 && raw_ufr > 0.5, "UFR {ufr} with the cleanup, {raw_ufr} without");
+    assert_ne!(trajectory, raw_trajectory, "the cleanup changed no pose");
+    // The human skeleton is beside the robot unless left out; the robot's motion is the same.
+    let (with, without) = (glb_node_names(&glb), glb_node_names(&alone_glb));
+    for names in [&with, &glb_node_names(&raw_glb)] {
+        assert!(names.iter().any(|n| n == "human") && names.iter().any(|n| n == "right_hand"), "{names:?}");
+    }
+    assert!(!without.iter().any(|n| n == "human" || n == "pelvis" || n == "right_hand"), "{without:?}");
+    assert!(without.iter().any(|n| n == "gripper_tip"), "{without:?}");
+    assert_eq!(alone_trajectory, trajectory);
+    assert_eq!(alone_ufr, ufr);
+    validate_gltf(&alone_glb);
+    validate_gltf(&raw_glb);
+}
