@@ -691,6 +691,43 @@ mod tests {
     }
 
     #[test]
+    fn gradient_penalty_equals_finite_differences_over_both_frames() {
+        let (tree, morph, set) = spot();
+        let mask = crate::learn::prior::state_mask(tree, morph);
+        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let (rp, rc) = transitions(&[10, 200, 900]);
+        let (fp, fc) = transitions(&[20, 300, 700]);
+        let w_gp = 0.3;
+        let got = discriminator_loss(&d, &rp, &rc, &fp, &fc, w_gp).gp.double_value(&[]);
+        // w_gp/2 · mean over the real transitions of ‖∂logit/∂(x_{t−1}, x_t)‖², by central differences.
+        let (n, dim) = (rp.size()[0], rp.size()[1]);
+        let h = 1e-2;
+        let mut sum = 0.0;
+        tch::no_grad(|| {
+            for i in 0..n {
+                let (p, c) = (rp.narrow(0, i, 1).copy(), rc.narrow(0, i, 1).copy());
+                for frame in 0..2 {
+                    let x = if frame == 0 { &p } else { &c };
+                    for k in 0..dim {
+                        let v = x.double_value(&[0, k]);
+                        let logit = |shift: f64| {
+                            let y = x.copy();
+                            let _ = y.narrow(1, k, 1).fill_(v + shift);
+                            let l = if frame == 0 { d.forward(&y, &c) } else { d.forward(&p, &y) };
+                            l.double_value(&[0])
+                        };
+                        let g = (logit(h) - logit(-h)) / (2.0 * h);
+                        sum += g * g;
+                    }
+                }
+            }
+        });
+        let expected = w_gp / 2.0 * sum / n as f64;
+        assert!(expected > 1e-6, "{expected}");
+        assert!((got - expected).abs() < 1e-2 * expected, "penalty {got}, finite differences {expected}");
+    }
+
+    #[test]
     fn cross_entropy_matches_the_paper_formula() {
         let (tree, morph, set) = spot();
         let mask = crate::learn::prior::state_mask(tree, morph);
