@@ -400,6 +400,28 @@ pub fn swing_heights(tree: &KinematicTree, legs: &mut [Leg], nominal_q: &[f32], 
     }
 }
 
+/// Obstacles for the parts that move on their own (an appendage being stowed, a reach group), in the
+/// frame of the root at the nominal height: the links on no leg for which `still` holds, at the nominal
+/// pose, and the legs over their workspace ([`swept_legs`]).
+pub fn obstacles(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    legs: &[Leg],
+    nominal_q: &[f32],
+    h0: f32,
+    height: [f32; 2],
+    still: impl Fn(usize) -> bool,
+) -> Vec<Obstacle> {
+    let mut out: Vec<Obstacle> = fk_root(tree, nominal_q)
+        .iter()
+        .enumerate()
+        .filter(|&(l, _)| !legs.iter().any(|g| g.links.contains(&l)) && still(l))
+        .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
+        .collect();
+    out.extend(swept_legs(tree, proxies, legs, nominal_q, h0, height));
+    out
+}
+
 /// Boxes of every leg over its workspace — standing at the nominal foothold and at the step radius in
 /// 8 directions, lifted at mid-swing — at both ends of the height range, in the frame of the root at
 /// the nominal height.

@@ -264,14 +264,7 @@ impl Rig {
                     (height_range, max_tilt) = (kept.height, kept.tilt);
                     break;
                 }
-                let nominal = calibrate::fk_root(tree, &nominal_q);
-                let mut obstacles: Vec<Obstacle> = nominal
-                    .iter()
-                    .enumerate()
-                    .filter(|&(l, _)| !on_leg[l] && !ignore[l])
-                    .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
-                    .collect();
-                obstacles.extend(calibrate::swept_legs(tree, &proxies, &legs, &nominal_q, h0, kept.height));
+                let obstacles = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, kept.height, |l| !ignore[l]);
                 let floor = 0.02 * h0.max(0.1) - kept.height[0];
                 let margin = cfg.reach.margin;
                 let stuck =
@@ -321,20 +314,7 @@ impl Rig {
         let in_reach: Vec<bool> = (0..tree.links.len())
             .map(|l| reach.iter().any(|g| g.links.contains(&l)))
             .collect();
-        let mut swept: Vec<Obstacle> = nominal_links
-            .iter()
-            .enumerate()
-            .filter(|&(l, _)| !on_leg[l] && !in_reach[l])
-            .flat_map(|(l, pose)| proxies.world(l, pose).map(move |obb| Obstacle { link: l, obb }))
-            .collect();
-        swept.extend(calibrate::swept_legs(
-            tree,
-            &proxies,
-            &legs,
-            &nominal_q,
-            h0,
-            height_range,
-        ));
+        let swept = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, height_range, |l| !in_reach[l]);
         for g in &mut reach {
             g.tolerate(&proxies, &nominal_links, &swept, cfg.reach.margin);
         }
