@@ -637,6 +637,13 @@ mod tests {
         }
     }
 
+    /// A fresh D of [`tiny`] over the Spot test dataset's states, with its state mask.
+    fn tiny_discriminator() -> Discriminator {
+        let (tree, morph, set) = spot();
+        let mask = crate::learn::prior::state_mask(tree, morph);
+        Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu)
+    }
+
     /// Normalised consecutive frames `(i − 1, i)` of the Spot test dataset.
     fn transitions(frames: &[usize]) -> (Tensor, Tensor) {
         let set = &spot().2;
@@ -653,9 +660,7 @@ mod tests {
 
     #[test]
     fn gradient_penalty_is_taken_on_the_real_samples() {
-        let (tree, morph, set) = spot();
-        let mask = crate::learn::prior::state_mask(tree, morph);
-        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let d = tiny_discriminator();
         let (rp, rc) = transitions(&[10, 200, 900, 1500]);
         let (rp2, rc2) = transitions(&[40, 600, 1200, 3000]);
         let (fp, fc) = transitions(&[20, 300, 700, 2500]);
@@ -692,9 +697,7 @@ mod tests {
 
     #[test]
     fn gradient_penalty_equals_finite_differences_over_both_frames() {
-        let (tree, morph, set) = spot();
-        let mask = crate::learn::prior::state_mask(tree, morph);
-        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let d = tiny_discriminator();
         let (rp, rc) = transitions(&[10, 200, 900]);
         let (fp, fc) = transitions(&[20, 300, 700]);
         let w_gp = 0.3;
@@ -729,9 +732,7 @@ mod tests {
 
     #[test]
     fn cross_entropy_matches_the_paper_formula() {
-        let (tree, morph, set) = spot();
-        let mask = crate::learn::prior::state_mask(tree, morph);
-        let d = Discriminator::new(&tiny(), set.layout.dim(), &mask, Device::Cpu);
+        let d = tiny_discriminator();
         let (rp, rc) = transitions(&[5, 50, 500]);
         let (fp, fc) = transitions(&[7, 70, 700]);
         let l = discriminator_loss(&d, &rp, &rc, &fp, &fc, 0.0);

@@ -498,7 +498,7 @@ fn save(record: &mut NknRecord, nkn: &Nkn, d: &Discriminator, dir: &Path) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::learn::prior::test_support::{scratch_dir, spot};
+    use crate::learn::prior::test_support::{assert_weights, scratch_dir, spot};
     use crate::learn::train_ace::test_support::{bundled_humans, with_spot_inputs};
 
     fn tiny(steps: usize) -> NknConfig {
@@ -547,12 +547,7 @@ mod tests {
             let again = train_nkn(inputs, &tiny(steps), &dir, &mut |_| panic!("no step")).unwrap();
             assert_eq!(again.record.step, steps);
             // It holds the saved weights (not fresh ones under the saved step count).
-            let saved = Tensor::read_safetensors(dir.join(NKN_WEIGHTS_FILE)).unwrap();
-            let now = again.nkn.vs.variables();
-            assert_eq!(saved.len(), now.len());
-            for (name, t) in &saved {
-                assert!(t.equal(&now[name]), "{name}: the resumed weights are not the saved ones");
-            }
+            assert_weights(&again.nkn.vs, Tensor::read_safetensors(dir.join(NKN_WEIGHTS_FILE)).unwrap(), "the resumed NKN against its weights file");
             fs::write(dir.join(NKN_FILE), "{").unwrap();
             let e = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap_err().to_string();
             assert!(e.contains(NKN_FILE), "{e}");

@@ -791,6 +791,17 @@ pub(crate) mod test_support {
     use crate::dataset::{DatasetConfig, generate};
     use crate::morphology::load_character;
 
+    /// Asserts that `vs` holds exactly the `expected` tensors: the same names, equal values. `what` names
+    /// whose weights they are (e.g. a resumed run's against those it saved).
+    pub(crate) fn assert_weights(vs: &tch::nn::VarStore, expected: impl IntoIterator<Item = (String, Tensor)>, what: &str) {
+        let now = vs.variables();
+        let expected: Vec<(String, Tensor)> = expected.into_iter().collect();
+        assert_eq!(expected.len(), now.len(), "{what}: other variables");
+        for (name, t) in &expected {
+            assert!(now.get(name).is_some_and(|n| t.equal(n)), "{what}: {name} differs");
+        }
+    }
+
     /// The bundled Spot and a 4000-frame dataset of it (generated once per test process).
     pub(crate) fn spot() -> &'static (KinematicTree, Morphology, MotionSet) {
         static SPOT: OnceLock<(KinematicTree, Morphology, MotionSet)> = OnceLock::new();
@@ -1138,14 +1149,8 @@ mod tests {
         let b = scratch_dir("det_b");
         let pa = train_prior(set, &mask, &cfg, &a, &mut |_| {}).unwrap();
         let pb = train_prior(set, &mask, &cfg, &b, &mut |_| {}).unwrap();
-        let (va, vb) = (pa.var_store().variables(), pb.var_store().variables());
-        assert_eq!(va.len(), vb.len());
-        for (name, t) in &va {
-            assert!(
-                t.equal(&vb[name]),
-                "{name} differs between two runs with the same seed"
-            );
-        }
+        assert_weights(pb.var_store(), pa.var_store().variables(), "two runs with the same seed");
+        let va = pa.var_store().variables();
         let mut other = cfg.clone();
         other.seed = 10;
         let c = scratch_dir("det_c");
@@ -1168,11 +1173,7 @@ mod tests {
         // The resumed run started from the step-12 weights, not from fresh ones.
         let b12 = start_or_resume(set, &mask, &longer, &b, Value::Null, Device::Cpu).unwrap();
         assert_eq!(b12.step, 12);
-        let resumed = b12.prior.var_store().variables();
-        assert_eq!(resumed.len(), vb.len());
-        for (name, t) in &vb {
-            assert!(t.equal(&resumed[name]), "{name}: the resumed weights are not the saved ones");
-        }
+        assert_weights(b12.prior.var_store(), pb.var_store().variables(), "the resumed prior against the saved one");
         // A finished run returns at once.
         let mut calls = 0;
         train_prior(set, &mask, &longer, &a, &mut |_| calls += 1).unwrap();

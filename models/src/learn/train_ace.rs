@@ -810,7 +810,8 @@ pub(crate) mod test_support {
 mod tests {
     use super::test_support::*;
     use super::*;
-    use crate::learn::prior::test_support::scratch_dir;
+    use crate::learn::ace::{DISCRIMINATOR_FILE, GENERATOR_FILE, read_record};
+    use crate::learn::prior::test_support::{assert_weights, scratch_dir};
 
     #[test]
     fn fine_tuning_continues_the_networks_under_new_weights_and_mapping() {
@@ -918,7 +919,7 @@ mod tests {
         ] {
             assert!(dir.join(f).is_file(), "{f} missing");
         }
-        let record = super::super::ace::read_record(&dir).unwrap();
+        let record = read_record(&dir).unwrap();
         assert_eq!(record.step, 100);
         assert_eq!(record.config, tiny_config(100));
         assert_eq!(record.human_split.train.len(), 3);
@@ -977,7 +978,7 @@ mod tests {
             }
         }
         // Training records the offset that scoring applies.
-        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        let record = read_record(trained_ace_dir()).unwrap();
         assert_eq!(record.feature_offset, centred.offset);
     }
 
@@ -1016,20 +1017,20 @@ mod tests {
         }
         assert!(moving > 0, "the bundled walk moves");
         // Training records the scale that scoring applies.
-        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        let record = read_record(trained_ace_dir()).unwrap();
         assert_eq!(record.speed_scale, Some(scale));
     }
 
     #[test]
     fn runs_before_kinematic_features_read_as_trained_on_the_predicted_entries() {
-        let record = super::super::ace::read_record(trained_ace_dir()).unwrap();
+        let record = read_record(trained_ace_dir()).unwrap();
         assert!(record.config.kinematic_features, "a new run reads Ψ's end effectors from the joints");
         // The same record without the setting, as every `ace.json` before it was written.
         let mut v: Value = serde_json::from_slice(&fs::read(trained_ace_dir().join(ACE_FILE)).unwrap()).unwrap();
         v["config"].as_object_mut().unwrap().remove("kinematic_features").unwrap();
         let dir = scratch_dir("ace_before_kinematic");
         fs::write(dir.join(ACE_FILE), serde_json::to_vec(&v).unwrap()).unwrap();
-        let old = super::super::ace::read_record(&dir).unwrap();
+        let old = read_record(&dir).unwrap();
         assert!(!old.config.kinematic_features);
         assert_eq!(AceConfig { kinematic_features: true, ..old.config }, record.config);
         // A partial configuration a user writes gets the default.
@@ -1077,13 +1078,8 @@ mod tests {
             let resumed = start_or_resume(inputs, &cfg, &stats, &humans, &dir, Device::Cpu).unwrap();
             assert_eq!(resumed.record.step, 80);
             let d = resumed.discriminator.as_ref().unwrap();
-            for (file, vs) in [("generator.safetensors", resumed.generator.var_store()), ("discriminator.safetensors", d.var_store())] {
-                let saved = Tensor::read_safetensors(dir.join(file)).unwrap();
-                let now = vs.variables();
-                assert_eq!(saved.len(), now.len(), "{file}");
-                for (name, t) in &saved {
-                    assert!(t.equal(&now[name]), "{file} {name}: the resumed weights are not the saved ones");
-                }
+            for (file, vs) in [(GENERATOR_FILE, resumed.generator.var_store()), (DISCRIMINATOR_FILE, d.var_store())] {
+                assert_weights(vs, Tensor::read_safetensors(dir.join(file)).unwrap(), &format!("the resumed run against its {file}"));
             }
         });
         // A run with other networks refuses the directory.
