@@ -12,7 +12,11 @@
 //! - it **lifts** when the network's foot rises above [`FootLockConfig::lift_height`] and has moved at
 //!   least [`FootLockConfig::step_distance`] from the anchor, rises above
 //!   [`FootLockConfig::raise_height`], or wanders more than [`FootLockConfig::max_drift`] from the
-//!   anchor. A foot that only needs to move a little thus stays planted instead of popping;
+//!   anchor. A foot that only needs to move a little thus stays planted instead of popping. When the
+//!   leg cannot hold it on its anchor (IK misses it by more than [`FootLockConfig::hold_tolerance`]:
+//!   the body has moved beyond the leg's reach or joint limits), it lifts from where it is and takes the
+//!   shortest swing ([`FootLockConfig::min_swing_frames`]), as the controllers' stance feet do, instead
+//!   of being dragged along the ground;
 //! - a lifted foot **swings**: for at least the character's natural swing time at its current speed
 //!   ([`crate::dynamic_similarity::swing_time`], never under [`FootLockConfig::min_swing_frames`]) it
 //!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
@@ -67,6 +71,8 @@ pub struct FootLockConfig {
     pub blend_frames: usize,
     /// The lowest a foot that follows the network may be (L).
     pub swing_clearance: f32,
+    /// A planted foot that IK misses by more than this lifts off (L).
+    pub hold_tolerance: f32,
 }
 
 impl Default for FootLockConfig {
@@ -82,6 +88,7 @@ impl Default for FootLockConfig {
             swing_height: LegConfig::default().swing_height,
             blend_frames: 4,
             swing_clearance: 0.04,
+            hold_tolerance: 0.005,
         }
     }
 }
@@ -235,14 +242,7 @@ impl FootLock {
                         || away > c.max_drift * l
                     {
                         mem.anchor = None;
-                        mem.swing = Some(SwingState {
-                            from: a,
-                            frame: 0,
-                            frames: swing_frames,
-                            held: 0,
-                            landing: None,
-                            height: c.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0)),
-                        });
+                        mem.swing = Some(self.swing(a, swing_frames, leg, fr));
                     }
                 }
                 None if mem.swing.is_none() && low && speed < c.plant_speed * l => {
@@ -306,8 +306,26 @@ impl FootLock {
             target.z = target.z.max(leg.ground);
             if (target - tip).norm() > 1e-4 {
                 let local = to_root.transform_point(&target);
-                leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch);
+                let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
+                if mem.anchor.is_some() && missed > c.hold_tolerance * l {
+                    // Out of the leg's reach: step from where the foot is rather than drag it.
+                    let at = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
+                    mem.anchor = None;
+                    mem.swing = Some(self.swing(at, c.min_swing_frames, leg, fr));
+                }
             }
+        }
+    }
+
+    /// A swing of `frames` frames lifting off from `from`, at Froude number `fr`.
+    fn swing(&self, from: Point3<f32>, frames: usize, leg: &Leg, fr: f32) -> SwingState {
+        SwingState {
+            from,
+            frame: 0,
+            frames,
+            held: 0,
+            landing: None,
+            height: self.config.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0)),
         }
     }
 
@@ -374,6 +392,75 @@ mod tests {
             for &d in &arm {
                 assert_eq!(a.q[d], b.q[d]);
             }
+        }
+    }
+
+    fn hound() -> (KinematicTree, Morphology) {
+        load_character(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb")).unwrap()
+    }
+
+    /// The longest run of frames over which one foot slides by the UFR's rule: within its contact band
+    /// in consecutive frames and faster than its sliding speed.
+    fn longest_slide(tree: &KinematicTree, morph: &Morphology, poses: &[CharacterPose]) -> usize {
+        let cfg = UfrConfig::for_character(tree, morph);
+        let feet: Vec<Vec<Point3<f32>>> = poses
+            .iter()
+            .map(|p| {
+                let links = tree.forward_kinematics(p);
+                morph.feet.iter().map(|&f| morph.ee_point(f, &links)).collect()
+            })
+            .collect();
+        (0..morph.feet.len())
+            .map(|k| {
+                let (mut run, mut longest) = (0, 0);
+                for w in feet.windows(2) {
+                    let (a, b) = (w[0][k], w[1][k]);
+                    let slides = a.z < cfg.contact_height
+                        && b.z < cfg.contact_height
+                        && (b - a).xy().norm() * 30.0 > cfg.sliding_speed;
+                    run = if slides { run + 1 } else { 0 };
+                    longest = longest.max(run);
+                }
+                longest
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
+    #[test]
+    fn a_planted_foot_the_leg_cannot_hold_steps_instead_of_being_dragged() {
+        // The hound's body drifts sideways at 0.2 L/s while the network holds its legs still, so that
+        // the network's feet slide along with it. Its hips cannot splay far: planted feet leave the
+        // legs' reach long before they stray `max_drift` from their anchors.
+        let (tree, morph) = hound();
+        let l = character_body_length(&tree, &morph);
+        let standing = tree.standing_pose();
+        let raw: Vec<CharacterPose> = (0..90)
+            .map(|t| {
+                let mut p = standing.clone();
+                p.root.translation.y += 0.2 * l * t as f32 / 30.0;
+                p
+            })
+            .collect();
+        // Feet never stray far enough from their anchors to lift for that reason.
+        let c = FootLockConfig {
+            max_drift: 1.0,
+            ..FootLockConfig::default()
+        };
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
+        // Feet are held, then step as soon as the legs cannot hold them: none is dragged along the ground
+        // for more than the frame it is released in and the two it rises through the contact band in.
+        assert_eq!(longest_slide(&tree, &morph, &raw), 89);
+        let longest = longest_slide(&tree, &morph, &clean);
+        assert!(longest <= 3, "a foot was dragged for {longest} frames");
+        // They do step to keep up: each foot ends near the network's, not left behind.
+        let last = |p: &CharacterPose| {
+            let links = tree.forward_kinematics(p);
+            morph.feet.iter().map(|&f| morph.ee_point(f, &links)).collect::<Vec<_>>()
+        };
+        for (a, b) in last(&clean[89]).iter().zip(last(&raw[89])) {
+            assert!((a - b).xy().norm() < c.max_drift * l, "left {} m behind", (a - b).xy().norm());
         }
     }
 
