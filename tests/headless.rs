@@ -312,6 +312,71 @@ fn one_clip_drives_several_characters_and_a_seek_back_starts_over() {
     }
 }
 
+/// A jump of the source's clock by at most `MAX_CATCH_UP` ticks is caught up on, tick by tick, as if
+/// played; one tick more and the character starts over, standing at rest at the new tick, as a
+/// character that joins the source there does.
+#[test]
+fn a_short_jump_is_caught_up_on_and_a_longer_one_starts_over() {
+    use ace::plugin::retarget::MAX_CATCH_UP;
+    let want = offline("spot", "walk.bvh");
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(spot), Some(RetargetStatus::Running { tick: 0 })));
+    let seek = |app: &mut App, tick: i64| {
+        app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().seek(tick as f32 / 30.0);
+        app.update();
+        app.update();
+    };
+    let short = MAX_CATCH_UP;
+    seek(&mut app, short);
+    assert_eq!(tick(&app, spot), Some(short));
+    let (d, a) = link_gap(&app, spot, &want.poses[short as usize]);
+    assert!(d < 1e-4 && a < 1e-3, "caught up: links {d} m and {a} rad from the played motion");
+
+    let long = short + MAX_CATCH_UP + 1;
+    seek(&mut app, long);
+    let joined = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(joined), Some(RetargetStatus::Running { .. })));
+    assert_eq!(tick(&app, spot), Some(long));
+    assert_eq!(tick(&app, joined), Some(long));
+    let restarted = &app.world().get::<Pose>(joined).unwrap().0;
+    let (d, a) = link_gap(&app, spot, restarted);
+    assert!(d < 1e-4 && a < 1e-3, "started over: links {d} m and {a} rad from a character that joined there");
+    // Starting over is not catching up: the played motion has walked on from the origin.
+    let (d, _) = link_gap(&app, spot, &want.poses[long as usize]);
+    assert!(d > 0.1, "{d} m from the played motion");
+}
+
+/// A mocap stream's bad packets (time not finite, not later than the last, a pose with NaN) are
+/// refused with their reason and leave the source as it was.
+#[test]
+fn a_live_source_refuses_frames_out_of_order_or_not_finite() {
+    use ace::plugin::retarget::LiveFrameRefused;
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();
+    let mut live = LiveHuman::default();
+    assert_eq!(live.push(0.0, clip.frames[0].clone()), Ok(()));
+    assert_eq!(live.push(0.1, clip.frames[3].clone()), Ok(()));
+    let held = |l: &LiveHuman| (l.latest_time(), l.frame_at(0.05), l.frame_at(1.0));
+    let before = held(&live);
+    let mut nan_joint = clip.frames[6].clone();
+    nan_joint.positions[Joint::LeftHand.index()].y = f32::NAN;
+    let mut nan_root = clip.frames[6].clone();
+    nan_root.root_rotation = UnitQuaternion::new_unchecked(ace::models::nalgebra::Quaternion::new(f32::NAN, 0.0, 0.0, 0.0));
+    let mut inf_joint = clip.frames[6].clone();
+    inf_joint.positions[Joint::Pelvis.index()].z = f32::INFINITY;
+    assert_eq!(live.push(f32::NAN, clip.frames[6].clone()), Err(LiveFrameRefused::BadTime));
+    assert_eq!(live.push(f32::INFINITY, clip.frames[6].clone()), Err(LiveFrameRefused::BadTime));
+    assert_eq!(live.push(0.05, clip.frames[6].clone()), Err(LiveFrameRefused::NotLater));
+    assert_eq!(live.push(0.1, clip.frames[6].clone()), Err(LiveFrameRefused::NotLater));
+    assert_eq!(live.push(0.2, nan_joint), Err(LiveFrameRefused::BadPose));
+    assert_eq!(live.push(0.2, nan_root), Err(LiveFrameRefused::BadPose));
+    assert_eq!(live.push(0.2, inf_joint), Err(LiveFrameRefused::BadPose));
+    assert_eq!(held(&live), before);
+    assert_eq!(live.push(0.2, clip.frames[6].clone()), Ok(()));
+    assert_eq!(live.latest_time(), Some(0.2));
+}
+
 #[test]
 fn a_live_source_fed_from_code_drives_a_character() {
     let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();

@@ -57,7 +57,7 @@ pub mod prelude {
     pub use crate::checkpoint::CheckpointAsset;
     pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};
     #[cfg(feature = "learn")]
-    pub use crate::retarget::{LiveHuman, LiveHumanFrame, RetargetError, RetargetStatus, Retargeter};
+    pub use crate::retarget::{LiveFrameRefused, LiveHuman, LiveHumanFrame, RetargetError, RetargetStatus, Retargeter};
     pub use crate::{AcePlugin, AceSystems};
 }
 

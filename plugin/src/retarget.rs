@@ -93,17 +93,38 @@ pub struct LiveHuman {
 /// Seconds of frames a [`LiveHuman`] keeps.
 const LIVE_WINDOW: f32 = 2.0;
 
+/// Why a [`LiveHuman`] refused a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LiveFrameRefused {
+    /// Its time is not a finite number.
+    BadTime,
+    /// It is not later than the newest frame held (out of order, or repeated).
+    NotLater,
+    /// A joint position or the root rotation is not finite.
+    BadPose,
+}
+
 impl LiveHuman {
-    /// Adds the frame at stream time `time` (seconds, increasing). A frame not later than the
-    /// newest is ignored.
-    pub fn push(&mut self, time: f32, frame: HumanFrame) {
-        if self.frames.back().is_some_and(|(t, _)| *t >= time) || !time.is_finite() {
-            return;
+    /// Adds the frame at stream time `time` (seconds, increasing). A frame whose time or pose is not
+    /// finite, or that is not later than the newest, is refused and changes nothing: one bad packet
+    /// from a mocap stream must not reach the networks.
+    pub fn push(&mut self, time: f32, frame: HumanFrame) -> Result<(), LiveFrameRefused> {
+        if !time.is_finite() {
+            return Err(LiveFrameRefused::BadTime);
+        }
+        if self.frames.back().is_some_and(|(t, _)| *t >= time) {
+            return Err(LiveFrameRefused::NotLater);
+        }
+        let finite = frame.positions.iter().all(|p| p.iter().all(|v| v.is_finite()))
+            && frame.root_rotation.coords.iter().all(|v| v.is_finite());
+        if !finite {
+            return Err(LiveFrameRefused::BadPose);
         }
         self.frames.push_back((time, frame));
         while self.frames.front().is_some_and(|(t, _)| *t < time - LIVE_WINDOW) && self.frames.len() > 2 {
             self.frames.pop_front();
         }
+        Ok(())
     }
 
     /// Time of the newest frame.
@@ -148,7 +169,11 @@ pub(crate) struct Workers(HashMap<AssetId<CheckpointAsset>, Worker>);
 pub(crate) fn receive_live_frames(mut frames: MessageReader<LiveHumanFrame>, mut live: Query<&mut LiveHuman>) {
     for f in frames.read() {
         match live.get_mut(f.source) {
-            Ok(mut l) => l.push(f.time, f.frame.clone()),
+            Ok(mut l) => {
+                if let Err(why) = l.push(f.time, f.frame.clone()) {
+                    warn_once!("a LiveHumanFrame for {} at time {} was refused: {why:?}", f.source, f.time);
+                }
+            }
             Err(_) => warn_once!("a LiveHumanFrame for {}, which has no LiveHuman", f.source),
         }
     }
