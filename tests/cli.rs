@@ -342,11 +342,16 @@ fn run_ok(args: &[&str]) -> String {
 /// Trains a tiny prior (on 3,000 frames) and generator for `character` into `dir/ck` and returns the
 /// checkpoint folder and what `ace train` printed.
 fn tiny_checkpoint(dir: &Path, character: &str) -> (PathBuf, String) {
+    tiny_checkpoint_with(dir, character, "")
+}
+
+/// [`tiny_checkpoint`] with more lines for the ACE configuration.
+fn tiny_checkpoint_with(dir: &Path, character: &str, ace_lines: &str) -> (PathBuf, String) {
     let _ = std::fs::remove_dir_all(dir);
     std::fs::create_dir_all(dir).unwrap();
     let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
     std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
-    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    std::fs::write(&ace_cfg, format!("{TINY_ACE}{ace_lines}")).unwrap();
     let s = |p: &Path| p.to_str().unwrap().to_string();
     run_ok(&["--threads", "1", "train-prior", "--character", character, "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
     for f in ["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"] {
@@ -603,4 +608,89 @@ fn retarget_without_the_cleanup_or_the_human_writes_what_it_says() {
     assert_eq!(alone_ufr, ufr);
     validate_gltf(&alone_glb);
     validate_gltf(&raw_glb);
+}
+
+/// Every file of a folder with its bytes, by name.
+fn folder_bytes(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&p).unwrap()))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Mean of `column` over the rows of an `ace_losses.csv` after step `after`.
+fn mean_loss_after(csv: &Path, column: &str, after: usize) -> f64 {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let (step, col) = (0, header.iter().position(|h| *h == column).unwrap());
+    let values: Vec<f64> = lines
+        .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect::<Vec<_>>())
+        .filter(|r| r[step] as usize > after)
+        .map(|r| r[col])
+        .collect();
+    assert!(!values.is_empty(), "no rows after step {after} in {}", csv.display());
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
+/// "Retrain briefly": the fine-tuned generator goes where the changed weights ask, and the checkpoint
+/// it starts from is left exactly as it was.
+#[test]
+fn fine_tuning_follows_the_changed_weights_and_leaves_the_source_intact() {
+    use ace::fine_tune::{FineTune, fine_tune};
+    let dir = tmp("fine-tune");
+    // A generator that learns fast enough to show the direction in a few dozen steps.
+    let (ck, _) = tiny_checkpoint_with(&dir, "spot", "generator_lr = 0.003\n");
+    let source = folder_bytes(&ck);
+    let steps = 60;
+    let run = |name: &str, w_adv: f64, w_fea: f64| {
+        let to = dir.join(name);
+        let ft = FineTune {
+            urdf: root().join("assets/characters/spot.urdf"),
+            from: ck.clone(),
+            to: to.clone(),
+            steps,
+            w_adv,
+            w_fea,
+            feature_weights: Default::default(),
+            end_effector_mapping: None,
+            humans: Some(root().join("assets/motions")),
+        };
+        let mut stages = 0;
+        fine_tune(&ft, &mut |_| stages += 1).unwrap();
+        assert!(stages > steps, "{stages} stages reported");
+        let record: Value = serde_json::from_str(&std::fs::read_to_string(to.join("ace.json")).unwrap()).unwrap();
+        assert_eq!(record["step"], 40 + steps, "the tiny run's 40 steps and the new ones");
+        assert_eq!(record["config"]["w_adv"], w_adv);
+        assert_eq!(record["config"]["w_fea"], w_fea);
+        mean_loss_after(&to.join("ace_losses.csv"), "fea", 40 + steps / 2)
+    };
+    // Only the feature loss against only the adversarial one: the first ends closer to the human.
+    let feature_only = run("feature-only", 0.0, 1.0);
+    let adversarial_only = run("adversarial-only", 1.0, 0.0);
+    assert!(
+        feature_only < 0.9 * adversarial_only,
+        "L_fea {feature_only} with w_adv = 0 against {adversarial_only} with w_fea = 0"
+    );
+    assert!(folder_bytes(&ck) == source, "fine-tuning changed the checkpoint it started from");
+    // A folder that already holds a checkpoint is refused, and left as it was.
+    let again = FineTune {
+        urdf: root().join("assets/characters/spot.urdf"),
+        from: ck.clone(),
+        to: dir.join("feature-only"),
+        steps,
+        w_adv: 1.0,
+        w_fea: 1.0,
+        feature_weights: Default::default(),
+        end_effector_mapping: None,
+        humans: Some(root().join("assets/motions")),
+    };
+    let before = folder_bytes(&dir.join("feature-only"));
+    let err = format!("{:#}", fine_tune(&again, &mut |_| {}).unwrap_err());
+    assert!(err.contains("already holds a checkpoint"), "{err}");
+    assert!(folder_bytes(&dir.join("feature-only")) == before);
 }
