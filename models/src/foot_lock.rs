@@ -14,9 +14,8 @@
 //!   [`FootLockConfig::raise_height`], or wanders more than [`FootLockConfig::max_drift`] from the
 //!   anchor. A foot that only needs to move a little thus stays planted instead of popping. When the
 //!   leg cannot hold it on its anchor (IK misses it by more than [`FootLockConfig::hold_tolerance`]:
-//!   the body has moved beyond the leg's reach or joint limits), it lifts from where it is and takes the
-//!   shortest swing ([`FootLockConfig::min_swing_frames`]), as the controllers' stance feet do, instead
-//!   of being dragged along the ground;
+//!   the body has moved beyond the leg's reach or joint limits), it lifts from where it is, as the
+//!   controllers' stance feet do, instead of being dragged along the ground;
 //! - a lifted foot **swings**: for at least the character's natural swing time at its current speed
 //!   ([`crate::dynamic_similarity::swing_time`], never under [`FootLockConfig::min_swing_frames`]) it
 //!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
@@ -311,7 +310,7 @@ impl FootLock {
                     // Out of the leg's reach: step from where the foot is rather than drag it.
                     let at = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
                     mem.anchor = None;
-                    mem.swing = Some(self.swing(at, c.min_swing_frames, leg, fr));
+                    mem.swing = Some(self.swing(at, swing_frames, leg, fr));
                 }
             }
         }
