@@ -29,17 +29,17 @@
 
 pub mod assets;
 pub mod character;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 pub mod checkpoint;
 pub mod convert;
 pub mod human;
 #[cfg(feature = "render")]
 pub mod render;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 pub mod retarget;
 #[cfg(feature = "scene")]
 pub mod scene;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 mod worker;
 
 pub use ace_models;
@@ -53,10 +53,10 @@ pub mod prelude {
     #[cfg(feature = "scene")]
     pub use crate::scene::{CreatureScene, RootOrigin};
     pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
-    #[cfg(feature = "learn")]
+    #[cfg(feature = "runtime")]
     pub use crate::checkpoint::CheckpointAsset;
     pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};
-    #[cfg(feature = "learn")]
+    #[cfg(feature = "runtime")]
     pub use crate::retarget::{LiveHuman, LiveHumanFrame, RetargetError, RetargetStatus, Retargeter};
     pub use crate::{AcePlugin, AceSystems};
 }
@@ -71,14 +71,14 @@ pub enum AceSystems {
     Spawn,
     /// Advance clip players and sample their clips.
     Advance,
-    /// Drive characters with a [`retarget::Retargeter`] (feature `learn`): write the poses computed
+    /// Drive characters with a [`retarget::Retargeter`] (feature `runtime`): write the poses computed
     /// during the previous frame, send this frame's human states to the worker threads.
     Retarget,
     /// Turn poses into link and joint [`Transform`]s.
     Apply,
 }
 
-/// Registers the character (`.urdf`, and `.glb`/`.gltf` by asset type) and `.bvh` assets (and with feature `learn` the checkpoint asset) and the
+/// Registers the character (`.urdf`, and `.glb`/`.gltf` by asset type) and `.bvh` assets (and with feature `runtime` the checkpoint asset) and the
 /// systems that spawn, play, retarget and pose them.
 /// Needs an `AssetPlugin` and Bevy's transform plugin (both in `DefaultPlugins`).
 pub struct AcePlugin;
@@ -104,7 +104,7 @@ impl Plugin for AcePlugin {
                     (character::apply_poses, human::apply_human_poses).in_set(AceSystems::Apply),
                 ),
             );
-        #[cfg(feature = "learn")]
+        #[cfg(feature = "runtime")]
         app.init_asset::<checkpoint::CheckpointAsset>()
             .register_asset_loader(checkpoint::CheckpointLoader)
             .init_resource::<retarget::Workers>()
