@@ -3,9 +3,9 @@
 //! The Bevy layer of ACE retargeting: asset loaders for characters (`.urdf` robots, rigged `.glb`/`.gltf`
 //! creatures), `.bvh` human clips and trained checkpoints, characters spawned as one entity per link and
 //! posed from a [`Pose`] component, a human clip player, and the [`Retargeter`] component that drives a
-//! character from a human source with a checkpoint every frame (feature `learn`, on by default). With
-//! feature `scene` (on by default) a Retargeter also drives a rigged creature's own glTF scene: its
-//! skinned mesh deforms (see [`scene`]). The core
+//! character from a human source with a checkpoint every frame (feature `runtime`, on by default: the
+//! networks in pure Rust, no libtorch). With feature `scene` (on by default) a Retargeter also drives a
+//! rigged creature's own glTF scene: its skinned mesh deforms (see [`scene`]). The core
 //! (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
 //!
 //! ```no_run
