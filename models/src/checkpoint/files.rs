@@ -1,10 +1,9 @@
 //! Checkpoint files as bytes: the records that tie metadata to weights files (size and checksum), the
-//! checkpoint's files on disk or in memory, JSON metadata checked for kind and version, synced writes,
-//! and safetensors weights checked against the shapes a configuration gives ([`read_weights`]).
+//! checkpoint's files on disk or in memory, JSON metadata checked for kind and version, and safetensors
+//! weights checked against the shapes a configuration gives ([`read_weights`]).
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
@@ -158,16 +157,6 @@ pub(crate) fn read_json<T: DeserializeOwned>(
         }
     }
     serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
-}
-
-/// Writes `bytes` to `path` (created or truncated) and waits until they are on disk.
-pub(crate) fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> {
-    (|| {
-        let mut f = fs::File::create(path)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })()
-    .map_err(|e| LearnError::io(path, e))
 }
 
 /// The tensors of a weights file after [`read_weights`] checked them: F32 values by name, row-major.

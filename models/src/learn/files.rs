@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 
 use rand::SeedableRng;
@@ -14,8 +14,18 @@ use rand_pcg::Pcg64;
 use tch::{Tensor, nn};
 
 pub use crate::checkpoint::files::{CheckpointFiles, FileRecord};
-pub(crate) use crate::checkpoint::files::{read_file, read_json, read_weights, write_synced};
+pub(crate) use crate::checkpoint::files::{read_file, read_json, read_weights};
 use crate::checkpoint::LearnError;
+
+/// Writes `bytes` to `path` (created or truncated) and waits until they are on disk.
+pub(crate) fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> {
+    (|| {
+        let mut f = fs::File::create(path)?;
+        f.write_all(bytes)?;
+        f.sync_all()
+    })()
+    .map_err(|e| LearnError::io(path, e))
+}
 
 /// Checks the safetensors file `name` against the variables of `vs` and against `record` (see
 /// [`read_weights`]: no tensor that is not a variable, every variable present with its shape and as
@@ -95,7 +105,6 @@ pub(crate) fn step_rng(seed: u64, stream: u64, step: usize) -> Pcg64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write;
     use crate::learn::prior::test_support::scratch_dir;
 
     #[test]

@@ -8,7 +8,7 @@
 //! its state bounds. Turning states into poses — root integration, joint limits, wheel angles rolled
 //! from the base motion, the cleanup — is [`decode`], which the libtorch path
 //! (`crate::learn::retarget`, feature `learn`) uses as well; both give the same poses up to float
-//! rounding (the equivalence test in `learn::retarget`).
+//! rounding (the tests of `runtime::equivalence`, with `learn`).
 
 pub mod decode;
 pub(crate) mod nets;
