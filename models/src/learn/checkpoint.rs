@@ -1,4 +1,5 @@
-//! Motion-prior checkpoints on disk, and the error type of the learning modules.
+//! Motion-prior checkpoints on disk with their networks (the files without tensors, and the error type,
+//! are [`crate::checkpoint`]; they are re-exported here).
 //!
 //! One checkpoint is one directory holding two files:
 //! - [`CONFIG_FILE`] (`config.json`, pretty JSON): `kind` = [`KIND`], `format_version` =
@@ -27,7 +28,9 @@ use tch::{Device, Tensor};
 use super::files::{CheckpointFiles, FileRecord, load_weights, write_synced};
 use super::prior::{MotionPrior, PriorConfig};
 pub use crate::checkpoint::LearnError;
-pub use crate::checkpoint::prior::{CONFIG_FILE, CharacterInfo, FORMAT_VERSION, KIND, Normaliser, StateBounds, WEIGHTS_FILE};
+pub use crate::checkpoint::prior::{
+    CONFIG_FILE, CharacterInfo, FORMAT_VERSION, KIND, Normaliser, StateBounds, WEIGHTS_FILE,
+};
 use crate::checkpoint::prior::PriorRecord;
 use crate::kinematics::KinematicTree;
 use crate::morphology::Morphology;

@@ -185,8 +185,8 @@ impl Retargeter {
         })
     }
 
-    /// Retargets a human clip (resampled to [`crate::human_set::PROJECT_FPS`] if needed) from the standing pose (see the
-    /// module docs).
+    /// Retargets a human clip (resampled to the project's frame rate if needed) from the standing pose
+    /// (see the module docs).
     pub fn retarget_clip(
         &self,
         tree: &KinematicTree,
@@ -196,7 +196,7 @@ impl Retargeter {
         self.retarget_states(tree, morph, &clip_rows(clip))
     }
 
-    /// Retargets a sequence of x^h rows at [`crate::human_set::PROJECT_FPS`] from the standing pose (see the module
+    /// Retargets a sequence of x^h rows at the project's frame rate from the standing pose (see the module
     /// docs); independent of the batch of [`Retargeter::step`].
     pub fn retarget_states(
         &self,
