@@ -23,7 +23,10 @@ fn main() {
     ))
     .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(1.0 / 30.0)));
     let server = app.world().resource::<AssetServer>().clone();
-    let walk = app.world_mut().spawn(HumanClipPlayer::new(server.load("motions/walk.bvh"))).id();
+    // Paused until the character runs, so that it follows the clip from its start whatever loads first.
+    let mut player = HumanClipPlayer::new(server.load("motions/walk.bvh"));
+    player.paused = true;
+    let walk = app.world_mut().spawn(player).id();
     let spot = app
         .world_mut()
         .spawn((
@@ -35,7 +38,7 @@ fn main() {
     let mut first = None;
     for _ in 0..10_000 {
         app.update();
-        match app.world().get::<RetargetStatus>(spot) {
+        match app.world().get::<RetargetStatus>(spot).cloned() {
             Some(RetargetStatus::Failed(reason)) => {
                 eprintln!("error: {reason}");
                 std::process::exit(1);
@@ -44,8 +47,9 @@ fn main() {
                 if first.is_none() {
                     first = Some(start.elapsed());
                     println!("first retargeted frame {:.1} ms after start", start.elapsed().as_secs_f64() * 1e3);
+                    app.world_mut().get_mut::<HumanClipPlayer>(walk).expect("the player").paused = false;
                 }
-                if *tick >= 30 {
+                if tick >= 30 {
                     let root = app.world().get::<CharacterLinks>(spot).and_then(|l| l.0.first().copied());
                     let at = root.and_then(|r| app.world().get::<GlobalTransform>(r)).map(|t| t.translation());
                     println!("tick {tick}: Spot's root at {at:?} (y up)");
