@@ -9,7 +9,6 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use ace::models::human::HumanClip;
-use ace::models::learn::retarget::Retargeter;
 use ace::models::metrics::MetricsReport;
 use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
@@ -54,8 +53,14 @@ pub fn unique_names(clips: &[PathBuf]) -> Vec<String> {
 }
 
 /// Runs the demo for `characters` (bundled names) and `clips` (BVH files; the bundled ones when empty),
-/// writing into `out`; `mapping` is a joint-mapping file for every clip.
-pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Option<&Path>) -> Result<()> {
+/// writing into `out`; `mapping` is a joint-mapping file for every clip; `backend` runs the networks.
+pub fn run(
+    characters_arg: &[String],
+    clips: &[PathBuf],
+    out: &Path,
+    mapping: Option<&Path>,
+    backend: retarget::Backend,
+) -> Result<()> {
     let clips = if clips.is_empty() { bundled_clips()? } else { clips.to_vec() };
     let import = retarget::import_options(mapping)?;
     let names = unique_names(&clips);
@@ -97,9 +102,9 @@ pub fn run(characters_arg: &[String], clips: &[PathBuf], out: &Path, mapping: Op
     let staging = outputs.stage_dir(out)?;
     let mut rows: Vec<(String, String, MetricsReport, PathBuf)> = Vec::new();
     for (name, tree, morph, dir) in &loaded {
-        let retargeter = Retargeter::load(dir, ace::models::learn::default_device())
+        let retargeter = retarget::Networks::load(dir, backend)
             .with_context(|| format!("the shipped checkpoint of `{name}`"))?;
-        let scorer = Scorer::new(&retargeter, dir)?;
+        let scorer = Scorer::new(retargeter.record(), retargeter.character(), dir)?;
         for (k, clip) in humans.iter().enumerate() {
             let rel = Path::new(&tree.name).join(format!("{}.glb", clip.name));
             let r = retarget::retarget_and_score(&retargeter, &scorer, tree, morph, clip)?;

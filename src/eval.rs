@@ -172,7 +172,7 @@ pub fn evaluate(
 ) -> Result<Evaluation> {
     let mut retargeter = Retargeter::load(dir, ace::models::learn::default_device())?;
     retargeter.check_character(tree, morph)?;
-    let scorer = Scorer::new(&retargeter, dir)?;
+    let scorer = Scorer::new(&retargeter.ace().record, &retargeter.prior().character, dir)?;
     if !scorer.has_reference() {
         bail!("{}: no reference.json (the dataset's Ψ fit that FID needs); run `ace train` again", dir.display());
     }

@@ -70,6 +70,9 @@ enum Command {
         /// clip, when there is one].
         #[arg(long)]
         mapping: Option<PathBuf>,
+        /// What runs the networks: pure Rust, or libtorch for comparison.
+        #[arg(long, value_enum, default_value_t = retarget::Backend::Rust)]
+        backend: retarget::Backend,
     },
     /// Generate a character motion dataset by rolling out its kinematic controllers under random
     /// commands (the data the motion prior learns from).
@@ -144,6 +147,9 @@ enum Command {
         /// [default: `<clip>.mapping.toml` beside the clip, when there is one].
         #[arg(long)]
         mapping: Option<PathBuf>,
+        /// What runs the networks: pure Rust, or libtorch for comparison.
+        #[arg(long, value_enum, default_value_t = retarget::Backend::Rust)]
+        backend: retarget::Backend,
     },
     /// Evaluate a checkpoint on the human clips it never saw: DIV, FID, L_fea and UFR of the dataset,
     /// ACE and the prior driven by random latents (with --baselines also NKN and ACE without either
@@ -206,7 +212,9 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Inspect { file, json, mapping } => inspect::run(&file, json, mapping.as_deref()),
-        Command::Demo { characters, clip, out, mapping } => demo::run(&characters, &clip, &out, mapping.as_deref()),
+        Command::Demo { characters, clip, out, mapping, backend } => {
+            demo::run(&characters, &clip, &out, mapping.as_deref(), backend)
+        }
         Command::Dataset { character, frames, seed, config, out, report } => dataset::run(&dataset::DatasetArgs {
             character,
             frames,
@@ -217,7 +225,7 @@ fn main() -> ExitCode {
         }),
         Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, no_human, keep_animations, animation_only, no_cleanup, mapping } => retarget::run(
+        Command::Retarget { clip, character, checkpoint, out, no_human, keep_animations, animation_only, no_cleanup, mapping, backend } => retarget::run(
             &retarget::RetargetArgs {
                 clip,
                 character,
@@ -227,6 +235,7 @@ fn main() -> ExitCode {
                 rig: ace::models::export::RigClipOptions { name: None, keep_animations, animation_only },
                 cleanup: !no_cleanup,
                 mapping,
+                backend,
             },
         ),
         Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick } => eval::run(&eval::EvalArgs {

@@ -14,7 +14,10 @@ use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions, Joint, JointMapping};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
-use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
+use ace::models::checkpoint::ace::AceRecord;
+use ace::models::checkpoint::{CharacterInfo, LearnError};
+use ace::models::learn::retarget::Retargeter as TchRetargeter;
+use ace::models::runtime::{RetargetedMotion, Retargeter};
 use ace::models::metrics::MetricsReport;
 use ace::models::morphology::Morphology;
 use ace::models::nalgebra::Vector3;
@@ -35,6 +38,77 @@ pub fn default_checkpoint(character_arg: &str) -> Result<PathBuf> {
         Ok(shipped_checkpoint(character_arg))
     } else {
         bail!("`{character_arg}` has no shipped checkpoint: pass --checkpoint DIR (made by `ace train-prior` and `ace train`)")
+    }
+}
+
+/// Which implementation runs the networks (`--backend`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// Pure Rust ([`ace::models::runtime`]): what a game ships.
+    #[default]
+    Rust,
+    /// libtorch ([`ace::models::learn::retarget`]), for comparison.
+    Tch,
+}
+
+/// A checkpoint's networks loaded on one [`Backend`]; both give the same poses up to float rounding.
+pub enum Networks {
+    Rust(Retargeter),
+    Tch(TchRetargeter),
+}
+
+impl Networks {
+    /// Loads the checkpoint in `dir` on `backend` (libtorch's on its default device).
+    pub fn load(dir: &Path, backend: Backend) -> Result<Networks, LearnError> {
+        Ok(match backend {
+            Backend::Rust => Networks::Rust(Retargeter::load(dir)?),
+            Backend::Tch => Networks::Tch(TchRetargeter::load(dir, ace::models::learn::default_device())?),
+        })
+    }
+
+    /// Sets the cleanup of the rollouts.
+    pub fn set_cleanup(&mut self, cleanup: Cleanup) {
+        match self {
+            Networks::Rust(r) => r.set_cleanup(cleanup),
+            Networks::Tch(r) => r.set_cleanup(cleanup),
+        }
+    }
+
+    /// Fails unless `tree`/`morph` is the checkpoint's character.
+    pub fn check_character(&self, tree: &KinematicTree, morph: &Morphology) -> Result<(), LearnError> {
+        match self {
+            Networks::Rust(r) => r.check_character(tree, morph),
+            Networks::Tch(r) => r.check_character(tree, morph),
+        }
+    }
+
+    /// The character states and poses of x^h rows at the project frame rate, from the standing pose.
+    pub fn retarget_states(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        x_h: &[HumanRow],
+    ) -> Result<RetargetedMotion, LearnError> {
+        match self {
+            Networks::Rust(r) => r.retarget_states(tree, morph, x_h),
+            Networks::Tch(r) => r.retarget_states(tree, morph, x_h),
+        }
+    }
+
+    /// The generator's record (`ace.json`).
+    pub fn record(&self) -> &AceRecord {
+        match self {
+            Networks::Rust(r) => r.record(),
+            Networks::Tch(r) => &r.ace().record,
+        }
+    }
+
+    /// The checkpoint's character.
+    pub fn character(&self) -> &CharacterInfo {
+        match self {
+            Networks::Rust(r) => r.character(),
+            Networks::Tch(r) => &r.prior().character,
+        }
     }
 }
 
@@ -60,6 +134,8 @@ pub struct RetargetArgs {
     pub cleanup: bool,
     /// A joint-mapping file for the clip's skeleton.
     pub mapping: Option<PathBuf>,
+    /// Which implementation runs the networks.
+    pub backend: Backend,
 }
 
 /// The import options of a clip retargeted at the project frame rate, with `--mapping` when given.
@@ -85,7 +161,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     for p in output_paths(&a.out) {
         outputs.check(&p)?;
     }
-    let mut retargeter = Retargeter::load(&dir, ace::models::learn::default_device())?;
+    let mut retargeter = Networks::load(&dir, a.backend)?;
     if !a.cleanup {
         retargeter.set_cleanup(Cleanup::NONE);
     }
@@ -93,7 +169,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     if let Some(w) = clip.posture_warning() {
         eprintln!("warning: {w}");
     }
-    let scorer = Scorer::new(&retargeter, &dir)?;
+    let scorer = Scorer::new(retargeter.record(), retargeter.character(), &dir)?;
     let r = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
     let w = write_with(&r, &tree, &clip, &a.out, a.with_human, &a.rig, &mut outputs)?;
     outputs.commit()?;
@@ -123,7 +199,7 @@ pub struct Retargeted {
 /// Retargets one clip (already at the project frame rate) and scores it with the checkpoint's
 /// conventions.
 pub fn retarget_and_score(
-    retargeter: &Retargeter,
+    retargeter: &Networks,
     scorer: &Scorer,
     tree: &KinematicTree,
     morph: &Morphology,
@@ -225,7 +301,7 @@ pub fn write_with(
 /// [`write`]) into `outputs`.
 #[allow(clippy::too_many_arguments)]
 pub fn retarget(
-    retargeter: &Retargeter,
+    retargeter: &Networks,
     scorer: &Scorer,
     tree: &KinematicTree,
     morph: &Morphology,

@@ -15,7 +15,8 @@ use ace::models::features::{
 use ace::models::human::EndEffector;
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
-use ace::models::learn::retarget::Retargeter;
+use ace::models::checkpoint::CharacterInfo;
+use ace::models::checkpoint::ace::AceRecord;
 use ace::models::metrics::{
     DivConfig, FollowingConfig, FollowingSummary, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport,
     following, frechet_distance, gait_of_poses, ufr_episodes,
@@ -61,10 +62,9 @@ pub struct Scorer {
 }
 
 impl Scorer {
-    /// The scorer of the checkpoint in `dir` (loaded as `retargeter`); FID is left out when the
-    /// directory has no `reference.json`.
-    pub fn new(retargeter: &Retargeter, dir: &Path) -> Result<Scorer> {
-        let record = &retargeter.ace().record;
+    /// The scorer of the checkpoint in `dir` (its generator's `record` and its `character`); FID is
+    /// left out when the directory has no `reference.json`.
+    pub fn new(record: &AceRecord, character: &CharacterInfo, dir: &Path) -> Result<Scorer> {
         let path = dir.join(REFERENCE_FILE);
         let reference = if path.is_file() {
             let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
@@ -74,10 +74,10 @@ impl Scorer {
         } else {
             None
         };
-        let links = &retargeter.prior().character.end_effector_links;
+        let links = &character.end_effector_links;
         let mapping = &record.correspondence.mapping;
         Ok(Scorer {
-            layout: retargeter.prior().character.layout,
+            layout: character.layout,
             pairs: mapping.selected().map(|(k, h)| (links[k].clone(), h)).collect(),
             mapping: mapping.clone(),
             features: FeatureLayout::new(&record.correspondence.mapping),

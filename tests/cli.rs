@@ -694,3 +694,38 @@ fn fine_tuning_follows_the_changed_weights_and_leaves_the_source_intact() {
     assert!(err.contains("already holds a checkpoint"), "{err}");
     assert!(folder_bytes(&dir.join("feature-only")) == before);
 }
+
+/// The numbers of a trajectory CSV (header left out), row by row.
+fn csv_numbers(path: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect()
+}
+
+#[test]
+fn retarget_runs_the_networks_in_pure_rust_and_with_libtorch_alike() {
+    let dir = tmp("cli-retarget-backend");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, extra: &[&str]| {
+        let glb = dir.join(format!("{name}.glb"));
+        let out = glb.to_str().unwrap().to_string();
+        let mut args = vec!["--threads", "1", "retarget", "assets/motions/wave.bvh", "--character", "spot", "--out", &out];
+        args.extend(extra);
+        run_ok(&args);
+        csv_numbers(&glb.with_extension("csv"))
+    };
+    let rust = write("rust", &[]);
+    let explicit = write("rust-explicit", &["--backend", "rust"]);
+    let tch = write("tch", &["--backend", "tch"]);
+    assert_eq!(rust, explicit, "pure Rust is the default");
+    assert_eq!(rust.len(), tch.len());
+    assert!(rust.len() > 100 && rust[0].len() > 10);
+    // The same commands to float rounding: base velocities, height and joint positions.
+    let worst = rust.iter().flatten().zip(tch.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(worst < 1e-3, "the backends' trajectories differ by {worst}");
+    // …but from two computations: libtorch's float rounding is not gemm's.
+    assert!(worst > 0.0, "--backend tch wrote the pure-Rust trajectory");
+    let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "spot", "--out", "x.glb", "--backend", "onnx"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("rust, tch"), "{}", String::from_utf8_lossy(&out.stderr));
+}

@@ -170,7 +170,7 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
 use ace::models::human::state::HumanState;
 use ace::models::human::{HumanClip, ImportOptions};
 use ace::models::human_set::HumanRow;
-use ace::models::learn::retarget::{RetargetedMotion, Retargeter as Offline};
+use ace::models::runtime::{RetargetedMotion, Retargeter as Offline};
 use ace::models::morphology::load_character;
 
 fn asset_path(path: &str) -> std::path::PathBuf {
@@ -181,7 +181,7 @@ fn asset_path(path: &str) -> std::path::PathBuf {
 /// calls this same function; the CLI tests check the files).
 fn offline(character: &str, clip: &str) -> RetargetedMotion {
     let (tree, morph) = load_character(&asset_path(&format!("characters/{character}.urdf"))).unwrap();
-    let r = Offline::load(&asset_path(&format!("checkpoints/{character}")), ace::models::learn::Device::Cpu).unwrap();
+    let r = Offline::load(&asset_path(&format!("checkpoints/{character}"))).unwrap();
     let clip = HumanClip::from_bvh_file(&asset_path(&format!("motions/{clip}")), &ImportOptions::default()).unwrap();
     r.retarget_clip(&tree, &morph, &clip).unwrap()
 }
@@ -406,7 +406,7 @@ fn a_live_source_fed_from_code_drives_a_character() {
         })
         .collect();
     let (tree, morph) = load_character(&asset_path("characters/spot.urdf")).unwrap();
-    let r = Offline::load(&asset_path("checkpoints/spot"), ace::models::learn::Device::Cpu).unwrap();
+    let r = Offline::load(&asset_path("checkpoints/spot")).unwrap();
     let want = r.retarget_states(&tree, &morph, &rows).unwrap();
     let (d, a) = link_gap(&app, spot, &want.poses[59]);
     assert!(d < 1e-4 && a < 1e-3, "links {d} m and {a} rad from the offline motion");
@@ -571,7 +571,7 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     train_tiny(&dir, "creatures/Fox.glb", "checkpoints/fox");
     let c = load_creature(&dir.join("creatures/Fox.glb")).unwrap();
     let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
-    let r = Offline::load(&dir.join("checkpoints/fox"), ace::models::learn::Device::Cpu).unwrap();
+    let r = Offline::load(&dir.join("checkpoints/fox")).unwrap();
     let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
 
     let mut app = creature_app_in(&dir);
@@ -685,7 +685,7 @@ fn bone_gap(app: &mut App, c: &Creature, origin: &Transform, pose: &CharacterPos
 fn a_creature_scene_moves_as_ace_retarget_writes_it() {
     let c = hound();
     let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
-    let r = Offline::load(&creature_assets().join("checkpoints/hound"), ace::models::learn::Device::Cpu).unwrap();
+    let r = Offline::load(&creature_assets().join("checkpoints/hound")).unwrap();
     let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
     let size = 1.0 / c.rig.scale; // a metre in file units
 

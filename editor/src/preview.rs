@@ -7,10 +7,8 @@ use std::path::{Path, PathBuf};
 use ace::models::human::{HumanClip, ImportOptions};
 use ace::models::human_set::PROJECT_FPS;
 use ace::models::learn::ace::AceRecord;
-use ace::models::learn::retarget::Retargeter;
-use ace::models::learn::default_device;
 use ace::models::morphology::load_character;
-use ace::retarget::{Retargeted, retarget_and_score};
+use ace::retarget::{Backend, Networks, Retargeted, retarget_and_score};
 use ace::scoring::Scorer;
 use anyhow::{Context, Result};
 use bevy::prelude::*;
@@ -67,15 +65,15 @@ impl Preview {
 pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
     let start = std::time::Instant::now();
     let (tree, morph) = load_character(&inputs.character)?;
-    let retargeter = Retargeter::load(&inputs.checkpoint, default_device())?;
-    let scorer = Scorer::new(&retargeter, &inputs.checkpoint)?;
+    let retargeter = Networks::load(&inputs.checkpoint, Backend::Rust)?;
+    let scorer = Scorer::new(retargeter.record(), retargeter.character(), &inputs.checkpoint)?;
     let clip = HumanClip::from_bvh_file(&inputs.clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })
         .with_context(|| format!("opening {}", inputs.clip.display()))?;
     let retargeted = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
     Ok(PreviewResult {
         inputs: inputs.clone(),
         retargeted,
-        record: retargeter.ace().record.clone(),
+        record: retargeter.record().clone(),
         clip,
         seconds: start.elapsed().as_secs_f32(),
     })

@@ -1,18 +1,22 @@
-//! Per-frame inference cost of the shipped checkpoints (`assets/checkpoints/<character>`), printed as
-//! a table. Targets (issue 4): G + π for one character at most 1 ms median per frame; 64 characters
-//! batched at most 4 ms.
+//! Per-frame inference cost of the shipped checkpoints (`assets/checkpoints/<character>`), the pure-Rust
+//! runtime ([`ace_models::runtime::Retargeter`]) beside libtorch's ([`ace_models::learn::retarget`]),
+//! printed as one table. Targets (issue 18): G + π for one character at most 0.1 ms median per frame;
+//! 64 characters batched at most 1 ms; 256 at most 4 ms.
 //!
 //! ```text
 //! cargo bench -p ace_models --bench inference
 //! ```
 //! Rows:
-//! - `step ×N`: [`Retargeter::step`] for N characters driven by N human frames in one batch: x^h
-//!   normalisation, G, π, and each character's pose with its cleanup — what the Bevy plugin's worker
-//!   pays per frame;
-//! - `whole frame ×1`: [`Retargeter::retarget_states`] per frame on a held clip: the networks plus the
-//!   pose (root integration, joint limits, wheels) and foot locking — what `ace retarget` pays.
+//! - `G + π ×N`: one batched pass of the networks for N characters (x^h normalisation, G, π with its
+//!   mask and bounds, denormalisation), the same states fed to both paths; that is what the targets
+//!   are about;
+//! - `step ×N`: `Retargeter::step` for N characters driven by N human frames in one batch: the
+//!   networks plus each character's pose with its cleanup — what the Bevy plugin's worker pays per
+//!   frame;
+//! - `whole frame ×1`: `Retargeter::retarget_states` per frame on a held clip: the networks plus the
+//!   pose (root integration, joint limits, wheels) and the cleanup — what `ace retarget` pays.
 //!
-//! libtorch runs on one thread (the plugin's setting; a game has other work for the other cores).
+//! Both run on one thread (libtorch's setting in the plugin; a game has other work for the other cores).
 //! Each figure is the median (and 90th percentile) over many frames after a warm-up.
 
 use std::path::Path;
@@ -20,14 +24,56 @@ use std::time::Instant;
 
 use ace_models::human::{HumanClip, ImportOptions};
 use ace_models::human_set::{HumanRow, PROJECT_FPS};
-use ace_models::learn::retarget::Retargeter;
+use ace_models::kinematics::KinematicTree;
+use ace_models::learn::retarget::Retargeter as TchRetargeter;
 use ace_models::learn::set_threads;
-use ace_models::morphology::load_character;
+use ace_models::morphology::{Morphology, load_character};
+use ace_models::runtime::Retargeter;
 use tch::Device;
+
+const WARM_UP: usize = 30;
 
 fn percentiles(mut v: Vec<f64>) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
     (v[v.len() / 2], v[v.len() * 9 / 10])
+}
+
+/// Milliseconds per call of `f(frame)` over `frames` frames after the warm-up: (median, p90).
+fn time(frames: usize, f: &mut dyn FnMut(usize)) -> (f64, f64) {
+    let mut times = Vec::with_capacity(frames);
+    for t in 0..WARM_UP + frames {
+        let t0 = Instant::now();
+        f(t);
+        if t >= WARM_UP {
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    percentiles(times)
+}
+
+/// The two paths' `step` for `batch` characters over `looped`: ((median, p90) runtime, tch).
+fn steps(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    ours: &Retargeter,
+    theirs: &TchRetargeter,
+    looped: &[HumanRow],
+    batch: usize,
+    frames: usize,
+) -> ((f64, f64), (f64, f64)) {
+    let mut a: Vec<_> = (0..batch).map(|_| ours.stream(tree, morph).expect("stream")).collect();
+    let mut b: Vec<_> = (0..batch).map(|_| theirs.stream(tree, morph).expect("stream")).collect();
+    let rt = time(frames, &mut |t| {
+        let x = vec![looped[t % looped.len()]; batch];
+        let out = ours.step(tree, morph, &mut a.iter_mut().collect::<Vec<_>>(), &x).expect("step");
+        assert_eq!(out.len(), batch);
+    });
+    let tc = time(frames, &mut |t| {
+        let x = vec![looped[t % looped.len()]; batch];
+        let out = theirs.step(tree, morph, &mut b.iter_mut().collect::<Vec<_>>(), &x).expect("step");
+        assert_eq!(out.len(), batch);
+    });
+    (rt, tc)
 }
 
 fn main() {
@@ -44,42 +90,79 @@ fn main() {
     let rows: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
     let looped: Vec<HumanRow> = rows.iter().cycle().take(600).copied().collect();
 
-    println!("| character | measured | frames | median (ms) | p90 (ms) | median per character (ms) |");
-    println!("|---|---|---:|---:|---:|---:|");
-    for name in ["spot", "crab", "stretch"] {
+    println!("| character | measured | frames | pure Rust median (ms) | p90 | libtorch median (ms) | p90 | speed-up |");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|");
+    let row = |name: &str, what: &str, frames: usize, rt: (f64, f64), tc: (f64, f64)| {
+        println!(
+            "| {name} | {what} | {frames} | {:.3} | {:.3} | {:.3} | {:.3} | ×{:.1} |",
+            rt.0,
+            rt.1,
+            tc.0,
+            tc.1,
+            tc.0 / rt.0
+        );
+    };
+    for (name, file) in [
+        ("spot", "characters/spot.urdf"),
+        ("crab", "characters/crab.urdf"),
+        ("stretch", "characters/stretch.urdf"),
+        ("hound", "creatures/hound.glb"),
+    ] {
         let dir = root.join("assets/checkpoints").join(name);
-        let (tree, morph) = load_character(&root.join(format!("assets/characters/{name}.urdf"))).expect("bundled character");
-        let r = match Retargeter::load(&dir, Device::Cpu) {
-            Ok(r) => r,
-            Err(e) => {
-                println!("| {name} | no checkpoint: {e} | | | | |");
+        let (tree, morph) = load_character(&root.join("assets").join(file)).expect("bundled character");
+        let (ours, theirs) = match (Retargeter::load(&dir), TchRetargeter::load(&dir, Device::Cpu)) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(e), _) | (_, Err(e)) => {
+                println!("| {name} | no checkpoint: {e} | | | | | | |");
                 continue;
             }
         };
+        for batch in [1usize, 64, 256] {
+            let frames = if batch == 256 { 100 } else { 300 };
+            let (rt, tc) = networks(&tree, &morph, &ours, &theirs, &looped, batch, frames);
+            row(name, &format!("G + π ×{batch}"), frames, rt, tc);
+        }
         for batch in [1usize, 16, 64] {
-            let mut streams: Vec<_> = (0..batch).map(|_| r.stream(&tree, &morph).expect("stream")).collect();
-            let mut times = Vec::new();
-            for (t, x) in looped.iter().enumerate() {
-                let inputs = vec![*x; batch];
-                let t0 = Instant::now();
-                let out = r.step(&tree, &morph, &mut streams.iter_mut().collect::<Vec<_>>(), &inputs).expect("step");
-                let dt = t0.elapsed().as_secs_f64() * 1e3;
-                assert_eq!(out.len(), batch);
-                if t >= 30 {
-                    times.push(dt);
-                }
-            }
-            let (med, p90) = percentiles(times);
-            println!("| {name} | step ×{batch} | {} | {med:.3} | {p90:.3} | {:.4} |", looped.len() - 30, med / batch as f64);
+            let (rt, tc) = steps(&tree, &morph, &ours, &theirs, &looped, batch, 300);
+            row(name, &format!("step ×{batch}"), 300, rt, tc);
         }
         // The whole-clip path, timed per frame over the clip (one call, so per-frame = total / frames).
-        let mut per_frame = Vec::new();
-        for _ in 0..5 {
-            let t0 = Instant::now();
-            let m = r.retarget_states(&tree, &morph, &looped).expect("retarget");
-            per_frame.push(t0.elapsed().as_secs_f64() * 1e3 / m.poses.len() as f64);
-        }
-        let (med, p90) = percentiles(per_frame);
-        println!("| {name} | whole frame ×1 (5 runs of {} frames) | {} | {med:.3} | {p90:.3} | {med:.3} |", looped.len(), looped.len());
+        let per_frame = |f: &mut dyn FnMut() -> usize| {
+            let mut v = Vec::new();
+            for _ in 0..5 {
+                let t0 = Instant::now();
+                let n = f();
+                v.push(t0.elapsed().as_secs_f64() * 1e3 / n as f64);
+            }
+            percentiles(v)
+        };
+        let rt = per_frame(&mut || ours.retarget_states(&tree, &morph, &looped).expect("retarget").poses.len());
+        let tc = per_frame(&mut || theirs.retarget_states(&tree, &morph, &looped).expect("retarget").poses.len());
+        row(name, &format!("whole frame ×1 (5 runs of {} frames)", looped.len()), looped.len(), rt, tc);
     }
+}
+
+/// The networks alone for `batch` characters (see the module docs), fed the states of a rollout.
+fn networks(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    ours: &Retargeter,
+    theirs: &TchRetargeter,
+    looped: &[HumanRow],
+    batch: usize,
+    frames: usize,
+) -> ((f64, f64), (f64, f64)) {
+    let start = ours.start_state(tree, morph).expect("start state");
+    let prev: Vec<Vec<f32>> = vec![start; batch];
+    let rt = time(frames, &mut |t| {
+        let x = vec![looped[t % looped.len()]; batch];
+        let out = ours.networks(&x, &prev.concat());
+        assert_eq!(out.len(), batch * ours.state_dim());
+    });
+    let tc = time(frames, &mut |t| {
+        let x = vec![looped[t % looped.len()]; batch];
+        let out = theirs.networks(&x, &prev).expect("networks");
+        assert_eq!(out.len(), batch);
+    });
+    (rt, tc)
 }

@@ -2,8 +2,9 @@
 //!
 //! The Bevy-free core of ACE retargeting (Adversarial Correspondence Embedding, SIGGRAPH Asia 2023):
 //! human motion import (BVH → canonical skeleton → human state x^h), character import
-//! (URDF → kinematic tree → forward kinematics, morphology, character state x^r) and, behind the
-//! `learn` feature, the learning modules that use libtorch.
+//! (URDF → kinematic tree → forward kinematics, morphology, character state x^r), inference with
+//! trained checkpoints in pure Rust ([`runtime`]) and, behind the `learn` feature, the learning modules
+//! that use libtorch (training, and inference through libtorch for comparison).
 //!
 //! Conventions everywhere in this crate: right-handed, z up, metres, seconds, `f32`.
 
@@ -13,6 +14,7 @@ pub use nalgebra;
 
 pub mod character;
 pub mod character_state;
+pub mod checkpoint;
 pub mod cleanup;
 pub mod collision_guard;
 pub mod controller;
@@ -31,6 +33,7 @@ pub mod kinematics;
 pub mod learn;
 pub mod metrics;
 pub mod morphology;
+pub mod runtime;
 #[cfg(test)]
 mod test_data;
 pub mod urdf;

@@ -10,7 +10,8 @@
 //! timed over 600 frames after the assets load. The baseline has the same characters spawned and
 //! posed by the plugin but no retargeter; "added" is the difference of the medians.
 //! The worker runs while the rest of a frame does, so in a real game part of its time is hidden;
-//! this loop has no other work, so the figures are the worst case. libtorch uses one thread.
+//! this loop has no other work, so the figures are the worst case. The networks run in pure Rust
+//! ([`ace_models::runtime`]), one thread per checkpoint.
 //!
 //! Rows: Spot (URDF, link entities spawned by the plugin), and with feature `scene` the bundled hound
 //! as Bevy's own glTF scene (`WorldAssetRoot`, Bevy's glTF loader, no renderer) whose skin joints the
@@ -19,7 +20,6 @@
 
 use std::time::{Duration, Instant};
 
-use ace_models::learn::set_threads;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_ace::prelude::*;
@@ -121,7 +121,6 @@ fn row(what: &str, n: usize, (base, base90): (f64, f64), (with, with90): (f64, f
 }
 
 fn main() {
-    set_threads(1);
     println!("| characters | N | frame without retargeters (median / p90) | with retargeters (median / p90) | added (median) |");
     println!("|---|---:|---:|---:|---:|");
     for n in [1usize, 4, 16] {

@@ -1,4 +1,4 @@
-//! Trained checkpoints as assets (feature `learn`): load `<dir>/ace.json` as a [`CheckpointAsset`]
+//! Trained checkpoints as assets (feature `runtime`): load `<dir>/ace.json` as a [`CheckpointAsset`]
 //! and its sibling files come with it.
 //!
 //! ```no_run
@@ -18,17 +18,17 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ace_models::learn::ace::{ACE_FILE, GENERATOR_FILE};
-use ace_models::learn::checkpoint::{CONFIG_FILE, CharacterInfo, WEIGHTS_FILE};
-use ace_models::learn::retarget::Retargeter;
-use ace_models::learn::{CheckpointFiles, Device};
+use ace_models::checkpoint::ace::{ACE_FILE, GENERATOR_FILE};
+use ace_models::checkpoint::prior::{CONFIG_FILE, WEIGHTS_FILE};
+use ace_models::checkpoint::{CharacterInfo, CheckpointFiles};
+use ace_models::runtime::Retargeter;
 use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
 use bevy::reflect::TypePath;
 
 use crate::assets::AceAssetError;
 
 /// The files of a trained checkpoint (prior and generator), checked to load and to belong together.
-/// The networks themselves live in the plugin's worker threads (libtorch objects are not `Sync`).
+/// The networks themselves live in the plugin's worker threads, one per checkpoint in use.
 #[derive(Asset, TypePath, Clone, Debug)]
 pub struct CheckpointAsset {
     /// The checkpoint's files, in memory.
@@ -75,9 +75,9 @@ impl AssetLoader for CheckpointLoader {
             }
         }
         let files = CheckpointFiles::in_memory(&dir, files);
-        let retargeter = Retargeter::load_files(&files, Device::Cpu)
+        let retargeter = Retargeter::load_files(&files)
             .map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
-        let character = retargeter.prior().character.clone();
+        let character = retargeter.character().clone();
         Ok(CheckpointAsset { files: Arc::new(files), character })
     }
 

@@ -3,9 +3,9 @@
 //! The Bevy layer of ACE retargeting: asset loaders for characters (`.urdf` robots, rigged `.glb`/`.gltf`
 //! creatures), `.bvh` human clips and trained checkpoints, characters spawned as one entity per link and
 //! posed from a [`Pose`] component, a human clip player, and the [`Retargeter`] component that drives a
-//! character from a human source with a checkpoint every frame (feature `learn`, on by default). With
-//! feature `scene` (on by default) a Retargeter also drives a rigged creature's own glTF scene: its
-//! skinned mesh deforms (see [`scene`]). The core
+//! character from a human source with a checkpoint every frame (feature `runtime`, on by default: the
+//! networks in pure Rust, no libtorch). With feature `scene` (on by default) a Retargeter also drives a
+//! rigged creature's own glTF scene: its skinned mesh deforms (see [`scene`]). The core
 //! (kinematics, import, learning) lives in [`ace_models`], which knows nothing of Bevy.
 //!
 //! ```no_run
@@ -29,17 +29,17 @@
 
 pub mod assets;
 pub mod character;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 pub mod checkpoint;
 pub mod convert;
 pub mod human;
 #[cfg(feature = "render")]
 pub mod render;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 pub mod retarget;
 #[cfg(feature = "scene")]
 pub mod scene;
-#[cfg(feature = "learn")]
+#[cfg(feature = "runtime")]
 mod worker;
 
 pub use ace_models;
@@ -53,10 +53,10 @@ pub mod prelude {
     #[cfg(feature = "scene")]
     pub use crate::scene::{CreatureScene, RootOrigin};
     pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
-    #[cfg(feature = "learn")]
+    #[cfg(feature = "runtime")]
     pub use crate::checkpoint::CheckpointAsset;
     pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};
-    #[cfg(feature = "learn")]
+    #[cfg(feature = "runtime")]
     pub use crate::retarget::{LiveFrameRefused, LiveHuman, LiveHumanFrame, RetargetError, RetargetStatus, Retargeter};
     pub use crate::{AcePlugin, AceSystems};
 }
@@ -71,14 +71,14 @@ pub enum AceSystems {
     Spawn,
     /// Advance clip players and sample their clips.
     Advance,
-    /// Drive characters with a [`retarget::Retargeter`] (feature `learn`): write the poses computed
+    /// Drive characters with a [`retarget::Retargeter`] (feature `runtime`): write the poses computed
     /// during the previous frame, send this frame's human states to the worker threads.
     Retarget,
     /// Turn poses into link and joint [`Transform`]s.
     Apply,
 }
 
-/// Registers the character (`.urdf`, and `.glb`/`.gltf` by asset type) and `.bvh` assets (and with feature `learn` the checkpoint asset) and the
+/// Registers the character (`.urdf`, and `.glb`/`.gltf` by asset type) and `.bvh` assets (and with feature `runtime` the checkpoint asset) and the
 /// systems that spawn, play, retarget and pose them.
 /// Needs an `AssetPlugin` and Bevy's transform plugin (both in `DefaultPlugins`).
 pub struct AcePlugin;
@@ -104,7 +104,7 @@ impl Plugin for AcePlugin {
                     (character::apply_poses, human::apply_human_poses).in_set(AceSystems::Apply),
                 ),
             );
-        #[cfg(feature = "learn")]
+        #[cfg(feature = "runtime")]
         app.init_asset::<checkpoint::CheckpointAsset>()
             .register_asset_loader(checkpoint::CheckpointLoader)
             .init_resource::<retarget::Workers>()

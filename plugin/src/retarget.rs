@@ -1,4 +1,4 @@
-//! Characters driven by a trained checkpoint (feature `learn`): the [`Retargeter`] component.
+//! Characters driven by a trained checkpoint (feature `runtime`): the [`Retargeter`] component.
 //!
 //! A character entity ([`Character`]) with a [`Retargeter`], or a rigged glTF creature's scene (feature
 //! `scene`, see `crate::scene`), follows a human source: an entity with a
@@ -28,7 +28,7 @@ use std::sync::Arc;
 use ace_models::human::clip::HumanFrame;
 use ace_models::human::state::HumanState;
 use ace_models::human_set::{HumanRow, PROJECT_FPS};
-use ace_models::learn::checkpoint::CharacterInfo;
+use ace_models::checkpoint::CharacterInfo;
 use bevy::asset::LoadState;
 use bevy::prelude::*;
 

@@ -1,5 +1,5 @@
-//! One worker thread per checkpoint in use. libtorch objects are `Send` but not `Sync`, so the
-//! networks never enter the ECS: each worker owns a [`Retargeter`] and the [`CharacterStream`] of
+//! One worker thread per checkpoint in use, so that the networks run beside the ECS's systems: each
+//! worker owns a [`Retargeter`] (the pure-Rust runtime) and the [`CharacterStream`] of
 //! every character it drives, and talks to the systems through channels. A request carries the
 //! human states of one frame for all of the checkpoint's characters; the worker steps them together
 //! (one batched pass of G and π per tick) and sends back each character's newest pose.
@@ -11,8 +11,8 @@ use std::thread;
 
 use ace_models::human_set::HumanRow;
 use ace_models::kinematics::{CharacterPose, KinematicTree};
-use ace_models::learn::retarget::{CharacterStream, Retargeter};
-use ace_models::learn::{CheckpointFiles, Device};
+use ace_models::checkpoint::CheckpointFiles;
+use ace_models::runtime::{CharacterStream, Retargeter};
 use ace_models::morphology::Morphology;
 use bevy::prelude::Entity;
 
@@ -45,8 +45,7 @@ pub(crate) struct Worker {
 }
 
 impl Drop for Worker {
-    /// Stops the thread and waits for it: libtorch's global state must outlive every operation, and
-    /// a thread still stepping while the process exits would meet it half torn down.
+    /// Stops the thread and waits for it, so that no thread still steps while the app tears down.
     fn drop(&mut self) {
         self.requests = None;
         if let Some(t) = self.thread.take() {
@@ -108,7 +107,7 @@ struct Driven {
 }
 
 fn serve(files: &CheckpointFiles, requests: Receiver<Request>, outcomes: Sender<Vec<Outcome>>) {
-    let retargeter = Retargeter::load_files(files, Device::Cpu).map_err(|e| e.to_string());
+    let retargeter = Retargeter::load_files(files).map_err(|e| e.to_string());
     let mut driven: HashMap<Entity, Driven> = HashMap::new();
     for Request { jobs, forget } in requests {
         for e in forget {

@@ -26,210 +26,21 @@
 //! prior's weights file it was trained against, and a free-form `provenance`. Files are written under temporary names
 //! and renamed into place (weights first); the checksums tie the files together.
 
-use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use serde::{Deserialize, Serialize};
-use serde_json::Value;
 use tch::{Device, Kind, Tensor, nn};
 
-use super::checkpoint::{CharacterInfo, LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
+use super::checkpoint::{LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
 pub use super::files::FileRecord;
-use super::files::{CheckpointFiles, load_weights, read_file, read_json, write_synced};
+use super::files::{CheckpointFiles, load_weights, read_file, write_synced};
 use super::nets::{Activation, Mlp};
-use super::prior::DeviceChoice;
-use crate::correspondence::Correspondence;
-use crate::features::FeatureWeights;
-use crate::human::{EndEffector, layout as human_layout};
-use crate::human_set::{HumanSplit, HumanStats};
-
-/// The `kind` of `ace.json`.
-pub const KIND: &str = "ace_adversarial";
-/// The format version of `ace.json` this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
-/// Name of the metadata file.
-pub const ACE_FILE: &str = "ace.json";
-/// Name of the generator's weights file.
-pub const GENERATOR_FILE: &str = "generator.safetensors";
-/// Name of the discriminator's weights file.
-pub const DISCRIMINATOR_FILE: &str = "discriminator.safetensors";
-
-/// Sizes and training settings of the adversarial stage. Every field has a default (the CPU
-/// defaults, sized for about a quarter of an hour per character on two CPU cores);
-/// [`AceConfig::paper`] gives the paper's network sizes. JSON may give any subset.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct AceConfig {
-    /// Hidden layer widths of G (paper: 512 × 3).
-    pub generator_hidden: Vec<usize>,
-    /// Hidden layer widths of D (paper: 512 × 3).
-    pub discriminator_hidden: Vec<usize>,
-    /// Weight of the adversarial loss w_adv.
-    pub w_adv: f64,
-    /// Weight of the feature loss w_fea.
-    pub w_fea: f64,
-    /// Per-block weights inside the feature loss.
-    pub feature_weights: FeatureWeights,
-    /// Compare the root height and end-effector positions in L_fea as displacements from each
-    /// body's mean pose ([`crate::features`], "Centring"); `false` compares them as they are.
-    pub centre_features: bool,
-    /// Compare the root's linear velocity in L_fea at the character dataset's speed scale
-    /// ([`crate::features`], "Speed"); `false` compares body lengths per second on both sides.
-    pub match_speed_scale: bool,
-    /// Compute the end-effector positions of the generated states' Ψ in L_fea from their joint
-    /// positions by forward kinematics ([`super::psi`], "End effectors by forward kinematics");
-    /// `false` reads the prior's predicted end-effector entries, as every run did before this setting
-    /// existed (their `ace.json` has no such field and reads as `false`).
-    pub kinematic_features: bool,
-    /// Weight of the gradient penalty w_gp (paper: 0.1).
-    pub w_gp: f64,
-    /// Adam's learning rate for G.
-    pub generator_lr: f64,
-    /// Adam's learning rate for D.
-    pub discriminator_lr: f64,
-    /// Adam's β₁ for both (0.5 is the usual choice for adversarial training).
-    pub adam_beta1: f64,
-    /// Human windows (and real transitions) per step.
-    pub batch_size: usize,
-    /// Frames per human window: G and π are rolled out over this many frames (gradients reach back
-    /// this far).
-    pub window: usize,
-    /// Consecutive windows a rollout continues for: each step picks the human clip up where the last
-    /// window ended and the character where G left it, and every this many steps (or when its clip
-    /// ends) a rollout starts again from a random window and a random dataset state. 1 starts every
-    /// window afresh.
-    pub rollout_windows: usize,
-    /// Generator steps.
-    pub steps: usize,
-    /// Discriminator updates per generator step (0 keeps D fixed; it is still evaluated for the log).
-    pub discriminator_steps: usize,
-    /// A checkpoint is saved every this many steps (and at the end).
-    pub checkpoint_every: usize,
-    /// Seed of initialisation and of every random draw of training.
-    pub seed: u64,
-    /// Where to train: the device the caller loads the prior onto ([`super::train_ace::train_ace`]
-    /// runs wherever the prior is).
-    pub device: DeviceChoice,
-    /// Manual end-effector mapping: character end-effector link name → human end effector (`null`
-    /// leaves that end effector out of Ψ). Entries override the automatic correspondence; links not
-    /// listed keep it.
-    pub end_effector_mapping: Option<BTreeMap<String, Option<EndEffector>>>,
-}
-
-impl Default for AceConfig {
-    fn default() -> Self {
-        AceConfig {
-            generator_hidden: vec![256; 3],
-            discriminator_hidden: vec![256; 3],
-            w_adv: 1.0,
-            w_fea: 10.0,
-            feature_weights: FeatureWeights::default(),
-            centre_features: true,
-            match_speed_scale: true,
-            kinematic_features: true,
-            w_gp: 0.1,
-            // At 2e-4 the Spot run collapsed after 3,260 steps (D took over, L_adv jumped from 1 to 8);
-            // at 1e-4 it stayed balanced to the end and its held-out FID was lower.
-            generator_lr: 1e-4,
-            discriminator_lr: 1e-4,
-            adam_beta1: 0.5,
-            batch_size: 128,
-            window: 8,
-            rollout_windows: 8,
-            steps: 4000,
-            discriminator_steps: 1,
-            checkpoint_every: 250,
-            seed: 0,
-            device: DeviceChoice::Auto,
-            end_effector_mapping: None,
-        }
-    }
-}
-
-impl AceConfig {
-    /// The paper's network sizes (§6.4): G and D both 512 × 3.
-    pub fn paper() -> Self {
-        AceConfig {
-            generator_hidden: vec![512; 3],
-            discriminator_hidden: vec![512; 3],
-            batch_size: 256,
-            steps: 20_000,
-            checkpoint_every: 1000,
-            ..AceConfig::default()
-        }
-    }
-
-    /// Checks that every value is in range.
-    pub fn check(&self) -> Result<(), LearnError> {
-        use super::limits::{self, in_range};
-        let bad = |m: String| Err(LearnError::Config(m));
-        in_range("batch_size", self.batch_size, 1, limits::BATCH_SIZE)?;
-        in_range("window", self.window, 1, limits::WINDOW)?;
-        in_range("rollout_windows", self.rollout_windows, 1, limits::STEPS)?;
-        in_range("steps", self.steps, 1, limits::STEPS)?;
-        in_range("checkpoint_every", self.checkpoint_every, 1, limits::STEPS)?;
-        in_range("discriminator_steps", self.discriminator_steps, 0, 1_000)?;
-        limits::widths("generator_hidden", &self.generator_hidden)?;
-        limits::widths("discriminator_hidden", &self.discriminator_hidden)?;
-        self.feature_weights.check().map_err(LearnError::Config)?;
-        for (name, v) in [
-            ("generator_lr", self.generator_lr),
-            ("discriminator_lr", self.discriminator_lr),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} must be positive, not {v}"));
-            }
-        }
-        for (name, v) in [("w_adv", self.w_adv), ("w_fea", self.w_fea), ("w_gp", self.w_gp)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} must be non-negative, not {v}"));
-            }
-        }
-        if self.w_adv == 0.0 && self.w_fea == 0.0 {
-            return bad("w_adv and w_fea are both zero: the generator would have nothing to learn".into());
-        }
-        if !(0.0..1.0).contains(&self.adam_beta1) {
-            return bad(format!("adam_beta1 must be in [0, 1), not {}", self.adam_beta1));
-        }
-        Ok(())
-    }
-
-    /// True when a run with `other` may resume from a checkpoint made with `self`: everything but
-    /// `steps`, `checkpoint_every` and `device` agrees.
-    pub fn resumable_with(&self, other: &AceConfig) -> bool {
-        let neutral = |c: &AceConfig| AceConfig {
-            steps: 0,
-            checkpoint_every: 1,
-            device: DeviceChoice::Cpu,
-            ..c.clone()
-        };
-        neutral(self) == neutral(other)
-    }
-
-    /// Applies [`AceConfig::end_effector_mapping`] to an automatic correspondence. Unknown link
-    /// names are an error that lists the character's end effectors.
-    pub fn resolve_mapping(&self, automatic: Correspondence) -> Result<Correspondence, LearnError> {
-        let Some(manual) = &self.end_effector_mapping else {
-            return Ok(automatic);
-        };
-        let mut overrides = Vec::with_capacity(manual.len());
-        for (link, human) in manual {
-            let index = automatic.link_index(link).ok_or_else(|| {
-                LearnError::Config(format!(
-                    "end_effector_mapping: `{link}` is not an end effector of the character (they are: {})",
-                    automatic.character_links.join(", ")
-                ))
-            })?;
-            overrides.push((index, *human));
-        }
-        automatic
-            .with_overrides(&overrides)
-            .map_err(|e| LearnError::Config(format!("end_effector_mapping: {e}")))
-    }
-}
+pub use crate::checkpoint::ace::{
+    ACE_FILE, AceConfig, AceRecord, BodyLengths, DISCRIMINATOR_FILE, FORMAT_VERSION, GENERATOR_FILE, KIND, read_record,
+};
+use crate::human::layout as human_layout;
 
 /// Fixed offsets mixed into [`AceConfig::seed`] so that G and D start from different draws.
 const GENERATOR_STREAM: u64 = 0x6765_6e65_7261_746f;
@@ -397,72 +208,6 @@ pub fn generator_adv_loss(d: &Discriminator, prev: &Tensor, cur: &Tensor) -> Ten
     (-d.forward(prev, cur)).softplus().mean(Kind::Float)
 }
 
-/// The body lengths Ψ was normalised with during training.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BodyLengths {
-    /// The character's (m).
-    pub character: f32,
-    /// One length for every human clip (m), when given; else each clip's own.
-    pub human_override: Option<f32>,
-    /// Each training clip's own body length (m), by relative path.
-    pub human_clips: BTreeMap<String, f32>,
-}
-
-/// Reads the configuration stored in `ace.json`. One written before [`AceConfig::kinematic_features`]
-/// existed trained on the prior's predicted end-effector entries, so there the missing setting reads as
-/// `false`; a partial configuration a user gives still gets the default.
-fn stored_config<'de, D: serde::Deserializer<'de>>(d: D) -> Result<AceConfig, D::Error> {
-    let mut v = Value::deserialize(d)?;
-    if let Some(o) = v.as_object_mut() {
-        o.entry("kinematic_features").or_insert(Value::Bool(false));
-    }
-    serde_json::from_value(v).map_err(serde::de::Error::custom)
-}
-
-/// Everything `ace.json` holds (see the module docs), in file order.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AceRecord {
-    /// [`KIND`].
-    pub kind: String,
-    /// [`FORMAT_VERSION`].
-    pub format_version: u32,
-    /// The character.
-    pub character: CharacterInfo,
-    /// Generator steps done.
-    pub step: usize,
-    /// The configuration.
-    #[serde(deserialize_with = "stored_config")]
-    pub config: AceConfig,
-    /// The end-effector correspondence Ψ used, with its scores and source.
-    pub correspondence: Correspondence,
-    /// x^h normalisation statistics (over the training clips).
-    pub human_stats: HumanStats,
-    /// The folder the human clips came from.
-    pub human_folder: PathBuf,
-    /// The held-out split of the human clips.
-    pub human_split: HumanSplit,
-    /// Body lengths of Ψ.
-    pub body_lengths: BodyLengths,
-    /// Added to the human's Ψ before L_fea compares it ([`crate::features::centring_offset`]); empty
-    /// when trained without centring (and in checkpoints from before it).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub feature_offset: Vec<f32>,
-    /// The dataset controller's speed scale at which L_fea compares the root's linear velocity
-    /// ([`crate::features::human_speed_factor`]); absent when trained without it (and in
-    /// checkpoints from before it), which compares body lengths per second.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub speed_scale: Option<f32>,
-    /// The generator's weights file.
-    pub generator: FileRecord,
-    /// The discriminator's weights file.
-    pub discriminator: FileRecord,
-    /// The prior's weights file G was trained against.
-    pub prior: FileRecord,
-    /// Free-form record of how it was made (command line, data files, commit, …).
-    pub provenance: Value,
-}
-
 /// G and D with their record: what training writes and inference reads.
 #[derive(Debug)]
 pub struct AceCheckpoint {
@@ -556,49 +301,8 @@ impl AceCheckpoint {
         device: Device,
         with_discriminator: bool,
     ) -> Result<AceCheckpoint, LearnError> {
-        let dir = files.dir();
-        let path = files.path(ACE_FILE);
-        let record: AceRecord = read_json(files, ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")?;
-        let corrupt = |problem: String| LearnError::CorruptFile {
-            path: path.clone(),
-            problem,
-        };
-        record.config.check().map_err(|e| corrupt(e.to_string()))?;
+        let record = AceRecord::read(files, prior_mask)?;
         let dim = record.character.layout.dim();
-        if prior_mask.len() != dim {
-            return Err(LearnError::WrongCharacter {
-                path: path.clone(),
-                problem: format!(
-                    "`{}` has states of width {dim}, the prior in {} has {}",
-                    record.character.name,
-                    dir.display(),
-                    prior_mask.len()
-                ),
-            });
-        }
-        for (name, len) in [
-            ("mean", record.human_stats.mean.len()),
-            ("std", record.human_stats.std.len()),
-        ] {
-            if len != human_layout::DIM {
-                return Err(corrupt(format!(
-                    "`human_stats.{name}` has {len} entries, x^h has {}",
-                    human_layout::DIM
-                )));
-            }
-        }
-        if let Some(i) = record
-            .human_stats
-            .std
-            .iter()
-            .position(|s| !(s.is_finite() && *s > 0.0))
-        {
-            return Err(corrupt(format!("`human_stats.std` entry {i} is not positive")));
-        }
-        record
-            .prior
-            .verify(&files.path(PRIOR_WEIGHTS_FILE), &files.read(PRIOR_WEIGHTS_FILE)?, ACE_FILE)?;
-
         let generator = Generator::new(&record.config, dim, prior_latent, prior_mask, device);
         load_weights(files, GENERATOR_FILE, &record.generator, generator.var_store(), "network", ACE_FILE)?;
         let discriminator = if with_discriminator {
@@ -616,14 +320,14 @@ impl AceCheckpoint {
     }
 }
 
-/// Reads the `ace.json` in `dir`, checking kind and version before the rest.
-pub fn read_record(dir: &Path) -> Result<AceRecord, LearnError> {
-    read_json(&CheckpointFiles::on_disk(dir), ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::BTreeMap;
+
+    use crate::correspondence::Correspondence;
+    use crate::human::EndEffector;
+    use crate::learn::prior::DeviceChoice;
     use crate::learn::checkpoint::Normaliser;
     use crate::learn::prior::test_support::spot;
     use crate::learn::rows_to_tensor;

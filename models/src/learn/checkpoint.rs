@@ -1,4 +1,5 @@
-//! Motion-prior checkpoints on disk, and the error type of the learning modules.
+//! Motion-prior checkpoints on disk with their networks (the files without tensors, and the error type,
+//! are [`crate::checkpoint`]; they are re-exported here).
 //!
 //! One checkpoint is one directory holding two files:
 //! - [`CONFIG_FILE`] (`config.json`, pretty JSON): `kind` = [`KIND`], `format_version` =
@@ -19,342 +20,20 @@
 //! or directory and the problem.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use tch::{Device, TchError, Tensor};
-use thiserror::Error;
+use tch::{Device, Tensor};
 
-use super::ShapeError;
-use super::files::{CheckpointFiles, FileRecord, load_weights, read_json, write_synced};
+use super::files::{CheckpointFiles, FileRecord, load_weights, write_synced};
 use super::prior::{MotionPrior, PriorConfig};
-use crate::character_state::CharacterLayout;
-use crate::dataset::MotionSet;
+pub use crate::checkpoint::LearnError;
+pub use crate::checkpoint::prior::{
+    CONFIG_FILE, CharacterInfo, FORMAT_VERSION, KIND, Normaliser, StateBounds, WEIGHTS_FILE,
+};
+use crate::checkpoint::prior::PriorRecord;
 use crate::kinematics::KinematicTree;
 use crate::morphology::Morphology;
-
-/// The `kind` of a motion-prior checkpoint.
-pub const KIND: &str = "ace_motion_prior";
-/// The checkpoint format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
-/// Name of the configuration and metadata file in a checkpoint directory.
-pub const CONFIG_FILE: &str = "config.json";
-/// Name of the weights file in a checkpoint directory.
-pub const WEIGHTS_FILE: &str = "prior.safetensors";
-
-/// Errors of the learning modules: checkpoints, configurations, training data and libtorch.
-#[derive(Debug, Error)]
-pub enum LearnError {
-    /// A file that should exist does not.
-    #[error("{}: missing file", path.display())]
-    MissingFile {
-        /// The file.
-        path: PathBuf,
-    },
-    /// A file that exists but cannot be parsed, or whose content is inconsistent.
-    #[error("{}: corrupt file: {problem}", path.display())]
-    CorruptFile {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        problem: String,
-    },
-    /// A file of another kind or format version.
-    #[error("{}: {problem}", path.display())]
-    Format {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        problem: String,
-    },
-    /// Stored tensors whose names or shapes do not match the configuration.
-    #[error("{}: shape mismatch: {problem}", path.display())]
-    ShapeMismatch {
-        /// The file.
-        path: PathBuf,
-        /// Which tensor and which shapes.
-        problem: String,
-    },
-    /// A checkpoint made for another character than the one expected.
-    #[error("{}: checkpoint of another character: {problem}", path.display())]
-    WrongCharacter {
-        /// The checkpoint directory.
-        path: PathBuf,
-        /// How the characters differ.
-        problem: String,
-    },
-    /// A file or directory that cannot be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The file or directory.
-        path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
-    /// A configuration value out of range, or a run directory that does not fit the configuration.
-    #[error("invalid configuration: {0}")]
-    Config(String),
-    /// Training data that cannot be used (too short, wrong width, …).
-    #[error("invalid training data: {0}")]
-    Data(String),
-    /// Tensors of the wrong shape handed to the learning code.
-    #[error(transparent)]
-    Shape(#[from] ShapeError),
-    /// An error raised by libtorch.
-    #[error("libtorch: {0}")]
-    Torch(#[from] TchError),
-}
-
-impl LearnError {
-    /// An [`LearnError::Io`] for `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> LearnError {
-        LearnError::Io {
-            path: path.to_path_buf(),
-            source,
-        }
-    }
-}
-
-/// Per-entry normalisation statistics of a state vector: `(x − mean) / std`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Normaliser {
-    /// Mean of each entry.
-    pub mean: Vec<f32>,
-    /// Standard deviation of each entry (positive).
-    pub std: Vec<f32>,
-}
-
-impl Normaliser {
-    /// The statistics a dataset was stored with.
-    pub fn of_set(set: &MotionSet) -> Normaliser {
-        Normaliser {
-            mean: set.mean.clone(),
-            std: set.std.clone(),
-        }
-    }
-
-    /// Number of entries.
-    pub fn dim(&self) -> usize {
-        self.mean.len()
-    }
-
-    fn tensors(&self, device: Device) -> (Tensor, Tensor) {
-        (
-            Tensor::from_slice(&self.mean).to_device(device),
-            Tensor::from_slice(&self.std).to_device(device),
-        )
-    }
-
-    /// `(x − mean) / std` for `x: [.., D]` (on `x`'s device).
-    pub fn normalise(&self, x: &Tensor) -> Tensor {
-        let (m, s) = self.tensors(x.device());
-        (x - m) / s
-    }
-
-    /// `x·std + mean`, the inverse of [`Normaliser::normalise`].
-    pub fn denormalise(&self, x: &Tensor) -> Tensor {
-        let (m, s) = self.tensors(x.device());
-        x * s + m
-    }
-}
-
-/// Per-entry bounds of normalised states, `[lo, hi]`: the range a dataset spans, widened by a margin.
-/// The prior's decoder output is clamped to them ([`MotionPrior::set_bounds`]); a checkpoint stores
-/// the prior's bounds in `config.json`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StateBounds {
-    /// Lower bound of each entry.
-    pub lo: Vec<f32>,
-    /// Upper bound of each entry.
-    pub hi: Vec<f32>,
-}
-
-impl StateBounds {
-    /// Practically no bounds: `[−f32::MAX, f32::MAX]` for each of `dim` entries (finite, so that JSON
-    /// can hold them).
-    pub fn unbounded(dim: usize) -> StateBounds {
-        StateBounds {
-            lo: vec![-f32::MAX; dim],
-            hi: vec![f32::MAX; dim],
-        }
-    }
-
-    /// The normalised range of every entry over the frames of `set`, widened on each side by `margin`
-    /// times its width; entries the mask zeroes get `[0, 0]`.
-    pub fn of_set(set: &MotionSet, mask: &[f32], margin: f64) -> StateBounds {
-        let dim = set.layout.dim();
-        let mut lo = vec![f32::INFINITY; dim];
-        let mut hi = vec![f32::NEG_INFINITY; dim];
-        for row in set.states.chunks_exact(dim) {
-            for (j, &x) in row.iter().enumerate() {
-                let v = (x - set.mean[j]) / set.std[j];
-                lo[j] = lo[j].min(v);
-                hi[j] = hi[j].max(v);
-            }
-        }
-        for j in 0..dim {
-            if mask.get(j).is_some_and(|&m| m == 0.0) || lo[j] > hi[j] {
-                (lo[j], hi[j]) = (0.0, 0.0);
-            } else {
-                let pad = (f64::from(hi[j] - lo[j]) * margin) as f32;
-                (lo[j], hi[j]) = (lo[j] - pad, hi[j] + pad);
-            }
-        }
-        StateBounds { lo, hi }
-    }
-}
-
-/// The character a checkpoint was trained for. Stored as the `character` object of both `config.json`
-/// and `ace.json`; reading it checks that the widths agree.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(into = "CharacterFile", try_from = "CharacterFile")]
-pub struct CharacterInfo {
-    /// Robot name.
-    pub name: String,
-    /// Layout of its state x^r.
-    pub layout: CharacterLayout,
-    /// Joint name of each DoF.
-    pub dof_names: Vec<String>,
-    /// End-effector link names, in state order.
-    pub end_effector_links: Vec<String>,
-}
-
-impl CharacterInfo {
-    /// The character of a dataset.
-    pub fn of_set(set: &MotionSet) -> CharacterInfo {
-        CharacterInfo {
-            name: set.character.clone(),
-            layout: set.layout,
-            dof_names: set.dof_names.clone(),
-            end_effector_links: set.end_effector_links.clone(),
-        }
-    }
-
-    /// A loaded character.
-    pub fn of_character(tree: &KinematicTree, morph: &Morphology) -> CharacterInfo {
-        CharacterInfo {
-            name: tree.name.clone(),
-            layout: CharacterLayout::new(tree, morph),
-            dof_names: tree.dof_names().into_iter().map(String::from).collect(),
-            end_effector_links: morph.end_effector_links(tree),
-        }
-    }
-
-    /// `None` when `self` (stored) and `expected` are the same character, else how they differ.
-    pub fn difference(&self, expected: &CharacterInfo) -> Option<String> {
-        let describe = |c: &CharacterInfo| {
-            format!(
-                "`{}` ({} DoF, {} end effectors, state dim {})",
-                c.name,
-                c.layout.dof,
-                c.layout.end_effectors,
-                c.layout.dim()
-            )
-        };
-        if self.layout != expected.layout || self.name != expected.name {
-            return Some(format!(
-                "it was trained for {}, expected {}",
-                describe(self),
-                describe(expected)
-            ));
-        }
-        if let Some((a, b)) = self
-            .dof_names
-            .iter()
-            .zip(&expected.dof_names)
-            .find(|(a, b)| a != b)
-        {
-            return Some(format!(
-                "`{}`: stored DoF `{a}` where the character has `{b}`",
-                self.name
-            ));
-        }
-        if let Some((a, b)) = self
-            .end_effector_links
-            .iter()
-            .zip(&expected.end_effector_links)
-            .find(|(a, b)| a != b)
-        {
-            return Some(format!(
-                "`{}`: stored end effector `{a}` where the character has `{b}`",
-                self.name
-            ));
-        }
-        None
-    }
-}
-
-/// [`CharacterInfo`] as stored: the state width is written out so a reader sees it without adding up
-/// the layout, and is checked on reading.
-#[derive(Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CharacterFile {
-    name: String,
-    state_dim: usize,
-    layout: LayoutFile,
-    dof_names: Vec<String>,
-    end_effector_links: Vec<String>,
-}
-
-#[derive(Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct LayoutFile {
-    dof: usize,
-    end_effectors: usize,
-}
-
-impl From<CharacterInfo> for CharacterFile {
-    fn from(c: CharacterInfo) -> CharacterFile {
-        CharacterFile {
-            name: c.name,
-            state_dim: c.layout.dim(),
-            layout: LayoutFile {
-                dof: c.layout.dof,
-                end_effectors: c.layout.end_effectors,
-            },
-            dof_names: c.dof_names,
-            end_effector_links: c.end_effector_links,
-        }
-    }
-}
-
-impl TryFrom<CharacterFile> for CharacterInfo {
-    type Error = String;
-
-    fn try_from(f: CharacterFile) -> Result<CharacterInfo, String> {
-        let layout = CharacterLayout {
-            dof: f.layout.dof,
-            end_effectors: f.layout.end_effectors,
-        };
-        if f.state_dim != layout.dim() {
-            return Err(format!(
-                "character `{}`: state_dim {} disagrees with the layout ({} DoF, {} end effectors: width {})",
-                f.name,
-                f.state_dim,
-                layout.dof,
-                layout.end_effectors,
-                layout.dim()
-            ));
-        }
-        if f.dof_names.len() != layout.dof || f.end_effector_links.len() != layout.end_effectors {
-            return Err(format!(
-                "character `{}`: {} DoF names and {} end-effector links for a layout of {} and {}",
-                f.name,
-                f.dof_names.len(),
-                f.end_effector_links.len(),
-                layout.dof,
-                layout.end_effectors
-            ));
-        }
-        Ok(CharacterInfo {
-            name: f.name,
-            layout,
-            dof_names: f.dof_names,
-            end_effector_links: f.end_effector_links,
-        })
-    }
-}
 
 /// A trained (or training) motion prior with everything needed to use it: configuration,
 /// normalisation statistics, mask, character and bookkeeping (see the module docs for the files).
@@ -376,22 +55,26 @@ pub struct PriorCheckpoint {
     pub prior: MotionPrior,
 }
 
-/// `config.json`, field order as written.
-#[derive(Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ConfigFile {
-    kind: String,
-    format_version: u32,
-    character: CharacterInfo,
-    step: usize,
-    seed: u64,
-    config: PriorConfig,
-    mean: Vec<f32>,
-    std: Vec<f32>,
-    mask: Vec<f32>,
-    bounds: StateBounds,
-    weights: FileRecord,
-    provenance: Value,
+/// The tensor side of [`Normaliser`].
+impl Normaliser {
+    fn tensors(&self, device: Device) -> (Tensor, Tensor) {
+        (
+            Tensor::from_slice(&self.mean).to_device(device),
+            Tensor::from_slice(&self.std).to_device(device),
+        )
+    }
+
+    /// `(x − mean) / std` for `x: [.., D]` (on `x`'s device).
+    pub fn normalise(&self, x: &Tensor) -> Tensor {
+        let (m, s) = self.tensors(x.device());
+        (x - m) / s
+    }
+
+    /// `x·std + mean`, the inverse of [`Normaliser::normalise`].
+    pub fn denormalise(&self, x: &Tensor) -> Tensor {
+        let (m, s) = self.tensors(x.device());
+        x * s + m
+    }
 }
 
 impl PriorCheckpoint {
@@ -429,9 +112,9 @@ impl PriorCheckpoint {
         result
     }
 
-    fn record(&self, weights: &[u8]) -> ConfigFile {
+    fn record(&self, weights: &[u8]) -> PriorRecord {
         let c = &self.character;
-        ConfigFile {
+        PriorRecord {
             kind: KIND.into(),
             format_version: FORMAT_VERSION,
             character: c.clone(),
@@ -455,34 +138,12 @@ impl PriorCheckpoint {
 
     /// [`PriorCheckpoint::load`] from files on disk or in memory.
     pub fn load_files(files: &CheckpointFiles, device: Device) -> Result<PriorCheckpoint, LearnError> {
-        let config_path = files.path(CONFIG_FILE);
-        let record: ConfigFile = read_json(files, CONFIG_FILE, KIND, FORMAT_VERSION, "a motion-prior checkpoint")?;
+        let record = PriorRecord::read(files)?;
         let corrupt = |problem: String| LearnError::CorruptFile {
-            path: config_path.clone(),
+            path: files.path(CONFIG_FILE),
             problem,
         };
         let dim = record.character.layout.dim();
-        for (name, len) in [
-            ("mean", record.mean.len()),
-            ("std", record.std.len()),
-            ("mask", record.mask.len()),
-            ("bounds.lo", record.bounds.lo.len()),
-            ("bounds.hi", record.bounds.hi.len()),
-        ] {
-            if len != dim {
-                return Err(corrupt(format!(
-                    "`{name}` has {len} entries, the state has {dim}"
-                )));
-            }
-        }
-        if let Some(i) = record.std.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(corrupt(format!(
-                "`std` entry {i} is {}, not positive",
-                record.std[i]
-            )));
-        }
-        record.config.check().map_err(|e| corrupt(e.to_string()))?;
-
         let mut prior = MotionPrior::new(&record.config, dim, device);
         prior.set_mask(&record.mask).map_err(|e| corrupt(e.to_string()))?;
         prior
@@ -518,13 +179,7 @@ impl PriorCheckpoint {
     /// Fails with [`LearnError::WrongCharacter`] (naming `dir`) unless the checkpoint's character is
     /// `expected`: same name, layout, DoF names and end-effector links.
     pub fn check_character(&self, dir: &Path, expected: &CharacterInfo) -> Result<(), LearnError> {
-        match self.character.difference(expected) {
-            None => Ok(()),
-            Some(problem) => Err(LearnError::WrongCharacter {
-                path: dir.to_path_buf(),
-                problem,
-            }),
-        }
+        self.character.check(dir, expected)
     }
 }
 

@@ -1,168 +1,21 @@
-//! File handling shared by the motion prior ([`super::checkpoint`], [`super::prior`]) and the
-//! adversarial stage ([`super::ace`], [`super::train_ace`]): checksums and records of weights files,
-//! synced writes, safetensors weights checked against a `VarStore`, loss logs kept across resumed runs,
-//! and the per-step random generators that make resumed runs draw what uninterrupted ones would.
+//! File handling of training shared by the motion prior ([`super::checkpoint`], [`super::prior`]) and
+//! the adversarial stage ([`super::ace`], [`super::train_ace`]): safetensors weights loaded into a
+//! `VarStore`, loss logs kept across resumed runs, and the per-step random generators that make resumed
+//! runs draw what uninterrupted ones would. The files themselves (records, checksums, metadata) are
+//! [`crate::checkpoint::files`].
 
 use std::collections::BTreeMap;
 use std::fs;
 use std::io::{BufRead, BufReader, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use safetensors::{Dtype, SafeTensors};
-use serde::de::DeserializeOwned;
-use serde::{Deserialize, Serialize};
-use serde_json::Value;
-use tch::{Kind, Tensor, nn};
+use tch::{Tensor, nn};
 
-use super::checkpoint::LearnError;
-
-/// A weights file's size and FNV-1a 64 checksum.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FileRecord {
-    /// File name inside the checkpoint directory.
-    pub file: String,
-    /// Size in bytes.
-    pub bytes: u64,
-    /// FNV-1a 64 of the content, 16 hex digits.
-    pub fnv1a64: String,
-}
-
-impl FileRecord {
-    /// The record of `bytes` stored as `file`.
-    pub fn of(file: &str, bytes: &[u8]) -> FileRecord {
-        FileRecord {
-            file: file.into(),
-            bytes: bytes.len() as u64,
-            fnv1a64: format!("{:016x}", fnv1a64(bytes)),
-        }
-    }
-
-    /// Fails with [`LearnError::CorruptFile`] naming `path` unless `bytes` match the record.
-    pub fn verify(&self, path: &Path, bytes: &[u8], recorded_in: &str) -> Result<(), LearnError> {
-        if *self == FileRecord::of(&self.file, bytes) {
-            return Ok(());
-        }
-        Err(LearnError::CorruptFile {
-            path: path.into(),
-            problem: format!(
-                "its content differs from the one `{recorded_in}` records ({} bytes, checksum {}); the \
-                 files are not from the same save",
-                self.bytes, self.fnv1a64
-            ),
-        })
-    }
-}
-
-/// FNV-1a, 64 bits: a cheap checksum that ties a metadata file to the weights files it records.
-pub(crate) fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-/// Reads a whole file; a missing one is [`LearnError::MissingFile`].
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
-    match fs::read(path) {
-        Ok(b) => Ok(b),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Err(LearnError::MissingFile { path: path.into() })
-        }
-        Err(e) => Err(LearnError::io(path, e)),
-    }
-}
-
-/// The files of a checkpoint directory, read from disk or handed over in memory (by an asset reader,
-/// say). Either way errors name `dir/<file>`.
-#[derive(Clone, Debug)]
-pub struct CheckpointFiles {
-    dir: PathBuf,
-    memory: Option<BTreeMap<String, Vec<u8>>>,
-}
-
-impl CheckpointFiles {
-    /// The files in directory `dir`.
-    pub fn on_disk(dir: &Path) -> CheckpointFiles {
-        CheckpointFiles {
-            dir: dir.to_path_buf(),
-            memory: None,
-        }
-    }
-
-    /// Files already read, by file name; `dir` is where they came from, for messages.
-    pub fn in_memory(dir: &Path, files: BTreeMap<String, Vec<u8>>) -> CheckpointFiles {
-        CheckpointFiles {
-            dir: dir.to_path_buf(),
-            memory: Some(files),
-        }
-    }
-
-    /// The directory (the source, for files in memory).
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    /// The path of file `name`, as messages name it.
-    pub fn path(&self, name: &str) -> PathBuf {
-        self.dir.join(name)
-    }
-
-    /// The content of file `name`; a missing one is [`LearnError::MissingFile`].
-    pub fn read(&self, name: &str) -> Result<Vec<u8>, LearnError> {
-        match &self.memory {
-            None => read_file(&self.path(name)),
-            Some(files) => files
-                .get(name)
-                .cloned()
-                .ok_or_else(|| LearnError::MissingFile { path: self.path(name) }),
-        }
-    }
-}
-
-/// Reads the JSON metadata file `name` of a checkpoint: its `kind` must be `kind` and its
-/// `format_version` `version`, checked before the rest so that another file or version gets a plain
-/// error; `what` names the expected kind in that error ("a motion-prior checkpoint").
-pub(crate) fn read_json<T: DeserializeOwned>(
-    files: &CheckpointFiles,
-    name: &str,
-    kind: &str,
-    version: u32,
-    what: &str,
-) -> Result<T, LearnError> {
-    let bytes = files.read(name)?;
-    let path = files.path(name);
-    let path = path.as_path();
-    let corrupt = |problem: String| LearnError::CorruptFile {
-        path: path.into(),
-        problem,
-    };
-    let value: Value = serde_json::from_slice(&bytes).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
-    let format = |problem: String| LearnError::Format {
-        path: path.into(),
-        problem,
-    };
-    match value.get("kind").and_then(Value::as_str) {
-        Some(k) if k == kind => {}
-        other => {
-            return Err(format(format!(
-                "not {what} (kind {}, expected `{kind}`)",
-                other.map_or("missing".to_string(), |k| format!("`{k}`"))
-            )));
-        }
-    }
-    match value.get("format_version").and_then(Value::as_u64) {
-        Some(v) if v == u64::from(version) => {}
-        v => {
-            return Err(format(format!(
-                "format version {} is not supported (this build reads version {version})",
-                v.map_or("(none)".to_string(), |v| v.to_string())
-            )));
-        }
-    }
-    serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
-}
+pub use crate::checkpoint::files::{CheckpointFiles, FileRecord};
+pub(crate) use crate::checkpoint::files::{read_file, read_json, read_weights};
+use crate::checkpoint::LearnError;
 
 /// Writes `bytes` to `path` (created or truncated) and waits until they are on disk.
 pub(crate) fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> {
@@ -174,10 +27,9 @@ pub(crate) fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), LearnError> 
     .map_err(|e| LearnError::io(path, e))
 }
 
-/// Checks the safetensors file `name` against the variables of `vs` and against `record`, then copies
-/// it into them: no tensor that is not a variable, every variable present with its shape and as F32,
-/// the content the one recorded. Messages call the network `network` (e.g. "prior") and name
-/// `described_in`, the metadata file that describes it and records the weights.
+/// Checks the safetensors file `name` against the variables of `vs` and against `record` (see
+/// [`read_weights`]: no tensor that is not a variable, every variable present with its shape and as
+/// F32, the content the one recorded), then copies it into them.
 pub(crate) fn load_weights(
     files: &CheckpointFiles,
     name: &str,
@@ -186,66 +38,16 @@ pub(crate) fn load_weights(
     network: &str,
     described_in: &str,
 ) -> Result<(), LearnError> {
-    let bytes = files.read(name)?;
-    let path = files.path(name);
-    let path = path.as_path();
-    let corrupt = |problem: String| LearnError::CorruptFile {
-        path: path.into(),
-        problem,
-    };
-    let mismatch = |problem: String| LearnError::ShapeMismatch {
-        path: path.into(),
-        problem,
-    };
-    let st = SafeTensors::deserialize(&bytes).map_err(|e| {
-        corrupt(format!(
-            "not a readable safetensors file ({} bytes): {e}",
-            bytes.len()
-        ))
-    })?;
-    // Sorted, so that the first problem reported does not depend on hash order.
     let vars: BTreeMap<String, Tensor> = vs.variables().into_iter().collect();
-    let mut stored = st.names();
-    stored.sort();
-    if let Some(extra) = stored.into_iter().find(|n| !vars.contains_key(*n)) {
-        return Err(mismatch(format!(
-            "tensor `{extra}` is not a variable of the {network} `{described_in}` describes"
-        )));
-    }
-    for (name, var) in &vars {
-        let t = st
-            .tensor(name)
-            .map_err(|_| mismatch(format!("tensor `{name}` is missing")))?;
-        let shape: Vec<i64> = t.shape().iter().map(|&d| d as i64).collect();
-        if shape != var.size() {
-            return Err(mismatch(format!(
-                "tensor `{name}` has shape {shape:?}, `{described_in}` gives {:?}",
-                var.size()
-            )));
-        }
-        if t.dtype() != Dtype::F32 {
-            return Err(corrupt(format!(
-                "tensor `{name}` has dtype {:?}, expected F32",
-                t.dtype()
-            )));
-        }
-        let bad = t
-            .data()
-            .chunks_exact(4)
-            .filter(|b| !f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
-            .count();
-        if bad > 0 {
-            return Err(corrupt(format!(
-                "tensor `{name}` holds {bad} non-finite value(s) (NaN or infinity): the {network} weights are \
-                 damaged (a diverged training run?); retrain or restore them"
-            )));
-        }
-    }
-    record.verify(path, &bytes, described_in)?;
+    let shapes = vars
+        .iter()
+        .map(|(name, v)| (name.clone(), v.size().iter().map(|&d| d as usize).collect()))
+        .collect();
+    let weights = read_weights(files, name, record, &shapes, true, network, described_in)?;
     tch::no_grad(|| -> Result<(), LearnError> {
         for (name, var) in &vars {
-            let t = st.tensor(name).expect("checked above");
-            let src = Tensor::f_from_data_size(t.data(), &var.size(), Kind::Float)?;
+            let (_, values) = weights.get(name);
+            let src = Tensor::f_from_slice(values)?.f_view(var.size().as_slice())?;
             var.shallow_clone().f_copy_(&src)?;
         }
         Ok(())
@@ -304,14 +106,6 @@ pub(crate) fn step_rng(seed: u64, stream: u64, step: usize) -> Pcg64 {
 mod tests {
     use super::*;
     use crate::learn::prior::test_support::scratch_dir;
-
-    #[test]
-    fn checksum_is_fnv1a() {
-        // Published FNV-1a 64 test vectors.
-        assert_eq!(fnv1a64(b""), 0xcbf29ce484222325);
-        assert_eq!(fnv1a64(b"a"), 0xaf63dc4c8601ec8c);
-        assert_eq!(fnv1a64(b"foobar"), 0x85944171f73967e8);
-    }
 
     #[test]
     fn loss_log_keeps_earlier_steps_and_their_seconds() {

@@ -26,20 +26,12 @@ pub mod psi;
 pub mod retarget;
 pub mod train_ace;
 
+pub use crate::checkpoint::{ShapeError, limits};
 pub use files::CheckpointFiles;
 /// The device type inference and training take (libtorch's), for callers that do not use tch.
 pub use tch::Device;
 
 use tch::{Kind, Tensor};
-
-/// Errors raised when data handed to the learning code has the wrong shape.
-#[derive(Debug, thiserror::Error)]
-pub enum ShapeError {
-    #[error("state rows have inconsistent widths: row 0 has {expected} values, row {row} has {found}")]
-    Ragged { expected: usize, row: usize, found: usize },
-    #[error("expected a 2-D float tensor of width {expected}, got shape {found:?}")]
-    Tensor { expected: usize, found: Vec<i64> },
-}
 
 /// The device training and inference run on: the first CUDA device when libtorch sees one, else the CPU.
 pub fn default_device() -> Device {
@@ -97,39 +89,5 @@ mod tests {
         let t = Tensor::zeros([4, 5], (Kind::Float, Device::Cpu));
         let e = tensor_to_rows(&t, 92).unwrap_err();
         assert!(e.to_string().contains("width 92") && e.to_string().contains("[4, 5]"), "{e}");
-    }
-}
-
-/// Upper bounds of the training configurations' sizes, checked before any work (a `batch_size` of 10⁹
-/// would otherwise ask libtorch for gigabytes and abort the process).
-pub mod limits {
-    /// Windows or transitions per optimiser step.
-    pub const BATCH_SIZE: usize = 65_536;
-    /// Width of a hidden layer.
-    pub const HIDDEN_WIDTH: usize = 16_384;
-    /// Hidden layers per network.
-    pub const HIDDEN_LAYERS: usize = 64;
-    /// Frames per training window or rollout.
-    pub const WINDOW: usize = 1_024;
-    /// Optimiser steps.
-    pub const STEPS: usize = 100_000_000;
-    /// Latent dimensions and experts.
-    pub const LATENT: usize = 4_096;
-
-    /// `Err` naming `field`, its value and the valid range unless `lo ≤ v ≤ hi`.
-    pub fn in_range(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), super::checkpoint::LearnError> {
-        if (lo..=hi).contains(&v) {
-            Ok(())
-        } else {
-            Err(super::checkpoint::LearnError::Config(format!(
-                "`{field}` = {v} is out of range: expected {lo} to {hi}"
-            )))
-        }
-    }
-
-    /// [`in_range`] for each width of a hidden-layer list, and for their count.
-    pub fn widths(field: &str, w: &[usize]) -> Result<(), super::checkpoint::LearnError> {
-        in_range(&format!("{field} (number of layers)"), w.len(), 0, HIDDEN_LAYERS)?;
-        w.iter().try_for_each(|&v| in_range(field, v, 1, HIDDEN_WIDTH))
     }
 }

@@ -51,18 +51,15 @@ use std::time::Instant;
 
 use rand::{Rng, RngExt, SeedableRng};
 use rand_pcg::Pcg64;
-use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tch::nn::OptimizerConfig;
 use tch::{Device, Kind, Tensor, nn};
 
 use super::checkpoint::{CONFIG_FILE, CharacterInfo, LearnError, Normaliser, PriorCheckpoint, StateBounds};
+pub use crate::checkpoint::prior::{DeviceChoice, PriorConfig, SamplingSchedule, state_mask};
 use super::files::{open_losses, step_rng};
 use super::nets::{Activation, Mann, MannSpec, Mlp};
-use crate::character_state::CharacterLayout;
 use crate::dataset::MotionSet;
-use crate::kinematics::KinematicTree;
-use crate::morphology::Morphology;
 
 /// Name of the loss log in a run directory.
 pub const LOSSES_FILE: &str = "prior_losses.csv";
@@ -70,60 +67,6 @@ pub const LOSSES_FILE: &str = "prior_losses.csv";
 /// The columns of [`LOSSES_FILE`]; `seconds` is column [`SECONDS_COLUMN`].
 const HEADER: &str = "step,total,reconstruction,kl,sampling_probability,seconds";
 const SECONDS_COLUMN: usize = 5;
-
-/// Where training and inference run.
-///
-/// Written `"auto"`, `"cpu"`, `"cuda"` (device 0), `"cuda:N"` or `{ cuda = N }`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DeviceChoice {
-    /// The first CUDA device when libtorch sees one, else the CPU.
-    #[default]
-    Auto,
-    /// The CPU.
-    Cpu,
-    /// CUDA device `n`.
-    Cuda(usize),
-}
-
-impl<'de> Deserialize<'de> for DeviceChoice {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        const EXPECTED: &str = "\"auto\", \"cpu\", \"cuda\", \"cuda:N\" or { cuda = N }";
-        impl<'de> serde::de::Visitor<'de> for V {
-            type Value = DeviceChoice;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str(EXPECTED)
-            }
-            fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<DeviceChoice, E> {
-                match s {
-                    "auto" => Ok(DeviceChoice::Auto),
-                    "cpu" => Ok(DeviceChoice::Cpu),
-                    "cuda" => Ok(DeviceChoice::Cuda(0)),
-                    _ => s
-                        .strip_prefix("cuda:")
-                        .and_then(|n| n.parse().ok())
-                        .map(DeviceChoice::Cuda)
-                        .ok_or_else(|| E::custom(format!("unknown device `{s}`: expected {EXPECTED}"))),
-                }
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, mut m: A) -> Result<DeviceChoice, A::Error> {
-                let key: String = m
-                    .next_key()?
-                    .ok_or_else(|| serde::de::Error::custom(format!("empty device table: expected {EXPECTED}")))?;
-                if key != "cuda" {
-                    return Err(serde::de::Error::custom(format!("unknown device `{key}`: expected {EXPECTED}")));
-                }
-                let n: usize = m.next_value()?;
-                if let Some(k) = m.next_key::<String>()? {
-                    return Err(serde::de::Error::custom(format!("unexpected `{k}` in the device table: expected {EXPECTED}")));
-                }
-                Ok(DeviceChoice::Cuda(n))
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
 
 impl DeviceChoice {
     /// The libtorch device.
@@ -134,196 +77,6 @@ impl DeviceChoice {
             DeviceChoice::Cuda(n) => Device::Cuda(n),
         }
     }
-}
-
-/// The probability of feeding the model's own prediction as the next previous state, as a function of
-/// training progress: 0 until fraction `start` of the steps, then rising linearly to `max_probability`
-/// at fraction `end`, then constant (MVAE's supervised → scheduled → autoregressive phases).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SamplingSchedule {
-    /// Fraction of the steps trained on data only.
-    pub start: f64,
-    /// Fraction of the steps at which the probability reaches `max_probability`.
-    pub end: f64,
-    /// Final probability.
-    pub max_probability: f64,
-}
-
-impl Default for SamplingSchedule {
-    fn default() -> Self {
-        SamplingSchedule {
-            start: 0.1,
-            end: 0.3,
-            max_probability: 1.0,
-        }
-    }
-}
-
-impl SamplingSchedule {
-    /// The probability at optimiser step `step` of `steps`.
-    pub fn probability(&self, step: usize, steps: usize) -> f64 {
-        let f = step as f64 / steps.max(1) as f64;
-        if f < self.start {
-            0.0
-        } else if f >= self.end {
-            self.max_probability
-        } else {
-            self.max_probability * (f - self.start) / (self.end - self.start)
-        }
-    }
-}
-
-/// Sizes and training settings of the motion prior. Every field has a default (the CPU defaults, sized
-/// for a run of about a quarter of an hour on two CPU cores); [`PriorConfig::paper`] gives the paper's
-/// network sizes. JSON may give any subset.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct PriorConfig {
-    /// Width of z (paper: 32).
-    pub latent: usize,
-    /// Hidden layer widths of the encoder (paper: 512 × 4).
-    pub encoder_hidden: Vec<usize>,
-    /// Hidden layer widths of the decoder's main network, before its output layer (paper: 512 × 3).
-    pub decoder_hidden: Vec<usize>,
-    /// Number of experts K (paper: 8).
-    pub experts: usize,
-    /// Hidden layer widths of the decoder's gating network.
-    pub gating_hidden: Vec<usize>,
-    /// β, the weight of the KL term (per-entry KL against per-entry squared error). Small enough that z
-    /// carries the transition, which ACE's generator needs to steer the character: on Spot, decoding
-    /// with the encoder's z had 1.4 times less error than with z = 0 at β = 0.5, six times less at 0.05.
-    pub kl_weight: f64,
-    /// Free bits λ (nats per latent entry, 0 = off): each latent entry's batch-mean KL counts as at
-    /// least λ in the loss, so entries below it cost nothing and the latent is not driven to collapse.
-    /// A character whose next state follows almost entirely from the previous one (a wheeled base
-    /// whose commands change rarely) otherwise ends with a decoder that ignores z, which leaves ACE's
-    /// generator nothing to steer.
-    pub free_bits: f64,
-    /// Adam's learning rate.
-    pub learning_rate: f64,
-    /// Windows per optimiser step.
-    pub batch_size: usize,
-    /// Optimiser steps.
-    pub steps: usize,
-    /// Transitions per window (the rollout length of scheduled sampling).
-    pub rollout: usize,
-    /// Probability of feeding back the model's own prediction over training.
-    pub sampling: SamplingSchedule,
-    /// A checkpoint is saved every this many steps (and at the end).
-    pub checkpoint_every: usize,
-    /// Margin of the output bounds, as a fraction of each entry's range in the data ([`StateBounds`]).
-    pub bound_margin: f64,
-    /// Seed of every random draw of initialisation and training.
-    pub seed: u64,
-    /// Where to train.
-    pub device: DeviceChoice,
-}
-
-impl Default for PriorConfig {
-    fn default() -> Self {
-        PriorConfig {
-            latent: 32,
-            encoder_hidden: vec![256; 4],
-            decoder_hidden: vec![256; 3],
-            experts: 8,
-            gating_hidden: vec![64, 64],
-            kl_weight: 0.05,
-            free_bits: 0.0,
-            learning_rate: 3e-4,
-            batch_size: 64,
-            steps: 16_000,
-            rollout: 8,
-            sampling: SamplingSchedule::default(),
-            checkpoint_every: 500,
-            bound_margin: 0.25,
-            seed: 0,
-            device: DeviceChoice::Auto,
-        }
-    }
-}
-
-impl PriorConfig {
-    /// The paper's sizes (§6.4): encoder 512 × 4, decoder 8 experts of 512 units × 3 layers, z of 32.
-    /// The paper does not give the optimisation settings; these follow MVAE.
-    pub fn paper() -> Self {
-        PriorConfig {
-            encoder_hidden: vec![512; 4],
-            decoder_hidden: vec![512; 3],
-            learning_rate: 1e-4,
-            steps: 40_000,
-            checkpoint_every: 1000,
-            ..PriorConfig::default()
-        }
-    }
-
-    /// Checks that every value is in range.
-    pub fn check(&self) -> Result<(), LearnError> {
-        use super::limits::{self, in_range};
-        let bad = |m: String| Err(LearnError::Config(m));
-        let s = &self.sampling;
-        in_range("latent", self.latent, 1, limits::LATENT)?;
-        in_range("experts", self.experts, 1, 256)?;
-        in_range("batch_size", self.batch_size, 1, limits::BATCH_SIZE)?;
-        in_range("rollout", self.rollout, 1, limits::WINDOW)?;
-        in_range("steps", self.steps, 1, limits::STEPS)?;
-        in_range("checkpoint_every", self.checkpoint_every, 1, limits::STEPS)?;
-        limits::widths("encoder_hidden", &self.encoder_hidden)?;
-        limits::widths("decoder_hidden", &self.decoder_hidden)?;
-        limits::widths("gating_hidden", &self.gating_hidden)?;
-        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            return bad(format!(
-                "learning_rate must be positive, not {}",
-                self.learning_rate
-            ));
-        }
-        if !(self.bound_margin.is_finite() && self.bound_margin >= 0.0) {
-            return bad(format!(
-                "bound_margin must be non-negative, not {}",
-                self.bound_margin
-            ));
-        }
-        if !(self.free_bits.is_finite() && self.free_bits >= 0.0) {
-            return bad(format!("free_bits must be non-negative, not {}", self.free_bits));
-        }
-        if !(self.kl_weight.is_finite() && self.kl_weight >= 0.0) {
-            return bad(format!("kl_weight must be non-negative, not {}", self.kl_weight));
-        }
-        let ordered = 0.0 <= s.start && s.start <= s.end && s.end <= 1.0;
-        if !ordered || !(0.0..=1.0).contains(&s.max_probability) {
-            return bad(format!(
-                "sampling needs 0 ≤ start ≤ end ≤ 1 and max_probability in [0, 1], not {s:?}"
-            ));
-        }
-        Ok(())
-    }
-
-    /// True when `other` builds the same networks and trains them the same way, so that a run with
-    /// `other` may resume from a checkpoint made with `self`: everything but `steps`,
-    /// `checkpoint_every` and `device` must agree.
-    pub fn resumable_with(&self, other: &PriorConfig) -> bool {
-        let neutral = |c: &PriorConfig| PriorConfig {
-            steps: 0,
-            checkpoint_every: 1,
-            device: DeviceChoice::Cpu,
-            ..c.clone()
-        };
-        neutral(self) == neutral(other)
-    }
-}
-
-/// The entries of x^r the networks model: 1 for every entry except the joint positions of wheel DoFs
-/// ([`Morphology::wheels`]), which are 0.
-pub fn state_mask(tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
-    let layout = CharacterLayout::new(tree, morph);
-    let mut mask = vec![1.0; layout.dim()];
-    let q0 = layout.joint_positions().start;
-    for &w in &morph.wheels {
-        if let Some(d) = tree.links[w].joint.as_ref().and_then(|j| j.dof) {
-            mask[q0 + d] = 0.0;
-        }
-    }
-    mask
 }
 
 /// The losses of one transition, as tensors (scalars but for `prediction`).
@@ -789,7 +542,8 @@ pub(crate) mod test_support {
 
     use super::*;
     use crate::dataset::{DatasetConfig, generate};
-    use crate::morphology::load_character;
+    use crate::kinematics::KinematicTree;
+    use crate::morphology::{Morphology, load_character};
 
     /// Asserts that `vs` holds exactly the `expected` tensors: the same names, equal values. `what` names
     /// whose weights they are (e.g. a resumed run's against those it saved).
@@ -887,6 +641,7 @@ pub(crate) mod test_support {
 mod tests {
     use super::test_support::*;
     use super::*;
+    use crate::character_state::CharacterLayout;
     use crate::morphology::load_character;
 
     fn batch(set: &MotionSet, frames: &[usize]) -> Tensor {

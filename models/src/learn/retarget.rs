@@ -16,38 +16,22 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Vector2};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use tch::{Device, Tensor};
 
 use super::ace::AceCheckpoint;
-use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
+use super::checkpoint::{LearnError, PriorCheckpoint};
 use super::files::CheckpointFiles;
 use super::prior::normals;
 use super::{rows_to_tensor, tensor_to_rows};
-use crate::character_state::{CharacterLayout, StateScratch, character_state, character_state_into, decode_pose};
-use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
-use crate::controller::wheels;
+use crate::cleanup::Cleanup;
 use crate::human::HumanClip;
-use crate::human_set::{HumanRow, PROJECT_FPS};
-use crate::kinematics::{CharacterPose, KinematicTree};
+use crate::human_set::HumanRow;
+use crate::kinematics::KinematicTree;
 use crate::morphology::Morphology;
-
-/// Largest ratio between a character's body length and the one its checkpoint was trained with
-/// ([`Retargeter::check_character`]).
-pub const BODY_LENGTH_TOLERANCE: f32 = 1.25;
-
-/// A retargeted motion: one state and one pose per human frame.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RetargetedMotion {
-    /// Frame rate (the project's, [`PROJECT_FPS`]).
-    pub fps: f32,
-    /// Denormalised x^r per frame (joint entries as in `poses`).
-    pub states: Vec<Vec<f32>>,
-    /// The character's pose per frame, starting from the standing pose at the origin facing +x.
-    pub poses: Vec<CharacterPose>,
-}
+use crate::runtime::decode::{self, StateDecoder, check_character, clip_rows, root_height_range, standing_state};
+pub use crate::runtime::decode::{BODY_LENGTH_TOLERANCE, RetargetedFrame, RetargetedMotion};
 
 /// A loaded prior and generator (see the module docs).
 #[derive(Debug)]
@@ -84,12 +68,7 @@ impl Retargeter {
         mut prior: PriorCheckpoint,
         ace: AceCheckpoint,
     ) -> Result<Retargeter, LearnError> {
-        if let Some(problem) = ace.record.character.difference(&prior.character) {
-            return Err(LearnError::WrongCharacter {
-                path: dir.join(super::ace::ACE_FILE),
-                problem: format!("the generator does not match the prior beside it: {problem}"),
-            });
-        }
+        ace.record.check_prior(dir, &prior.character)?;
         prior.prior.freeze();
         let device = prior.prior.device();
         let stats = &ace.record.human_stats;
@@ -130,34 +109,15 @@ impl Retargeter {
     }
 
     /// Fails with [`LearnError::WrongCharacter`] unless `tree` and `morph` are the checkpoint's
-    /// character.
-    /// Also fails when the character's body length differs from the one recorded in training by more
-    /// than [`BODY_LENGTH_TOLERANCE`]: the same joints at another scale (a URDF scaled ×10) are another
-    /// character to the prior, whose states are in metres.
+    /// character, at the body length it was trained with (within [`BODY_LENGTH_TOLERANCE`]).
     pub fn check_character(&self, tree: &KinematicTree, morph: &Morphology) -> Result<(), LearnError> {
-        self.prior
-            .check_character(&self.dir, &CharacterInfo::of_character(tree, morph))?;
-        let recorded = self.ace.record.body_lengths.character;
-        let measured = crate::features::character_body_length(tree, morph);
-        let ratio = measured / recorded;
-        if !(ratio.is_finite() && (1.0 / BODY_LENGTH_TOLERANCE..=BODY_LENGTH_TOLERANCE).contains(&ratio)) {
-            return Err(LearnError::WrongCharacter {
-                path: self.dir.join(super::ace::ACE_FILE),
-                problem: format!(
-                    "it was trained for `{}` with a body length of {recorded:.3} m; this `{}` measures {measured:.3} m \
-                     (×{ratio:.2}, more than ×{BODY_LENGTH_TOLERANCE} apart): the same joints at another size are \
-                     another character to the prior; train a checkpoint for it",
-                    self.prior.character.name, tree.name
-                ),
-            });
-        }
-        Ok(())
+        check_character(&self.dir, &self.prior.character, self.ace.record.body_lengths.character, tree, morph)
     }
 
     /// The normalised x^r of the character standing at rest (the standing pose, zero velocities).
     pub fn start_state(&self, tree: &KinematicTree, morph: &Morphology) -> Result<Vec<f32>, LearnError> {
         self.check_character(tree, morph)?;
-        Ok(standing_state(&self.prior, tree, morph))
+        Ok(standing_state(&self.prior.stats, &self.prior.mask, tree, morph))
     }
 
     /// Starts driving one character (the checkpoint's): standing at rest at the origin facing +x,
@@ -166,7 +126,7 @@ impl Retargeter {
         let start = self.start_state(tree, morph)?;
         Ok(CharacterStream {
             prev: rows_to_tensor(&[start], self.prior.prior.device())?,
-            decoder: StateDecoder::new(tree, morph, &self.cleanup, root_height_range(&self.prior)),
+            decoder: StateDecoder::new(tree, morph, &self.cleanup, prior_root_height_range(&self.prior)),
         })
     }
 
@@ -206,6 +166,14 @@ impl Retargeter {
             .collect())
     }
 
+    /// One batched pass of the networks, `π(G(x^h, prev), prev)`: the normalised next states of
+    /// `x_h.len()` characters from their human states and normalised previous states `prev`, one row
+    /// each. [`Retargeter::step`] is this plus the poses.
+    pub fn networks(&self, x_h: &[HumanRow], prev: &[Vec<f32>]) -> Result<Vec<Vec<f32>>, LearnError> {
+        let prev = rows_to_tensor(prev, self.prior.prior.device())?;
+        Ok(tensor_to_rows(&self.advance(x_h, &prev), self.state_dim())?)
+    }
+
     /// `π(G(x^h, prev), prev)` without gradients, normalised.
     fn advance(&self, x_h: &[HumanRow], prev: &Tensor) -> Tensor {
         tch::no_grad(|| {
@@ -217,24 +185,18 @@ impl Retargeter {
         })
     }
 
-    /// Retargets a human clip (resampled to [`PROJECT_FPS`] if needed) from the standing pose (see the
-    /// module docs).
+    /// Retargets a human clip (resampled to the project's frame rate if needed) from the standing pose
+    /// (see the module docs).
     pub fn retarget_clip(
         &self,
         tree: &KinematicTree,
         morph: &Morphology,
         clip: &HumanClip,
     ) -> Result<RetargetedMotion, LearnError> {
-        let states = if (clip.fps - PROJECT_FPS).abs() > 1e-3 {
-            clip.resampled(PROJECT_FPS).states()
-        } else {
-            clip.states()
-        };
-        let rows: Vec<HumanRow> = states.into_iter().map(|s| s.0).collect();
-        self.retarget_states(tree, morph, &rows)
+        self.retarget_states(tree, morph, &clip_rows(clip))
     }
 
-    /// Retargets a sequence of x^h rows at [`PROJECT_FPS`] from the standing pose (see the module
+    /// Retargets a sequence of x^h rows at the project's frame rate from the standing pose (see the module
     /// docs); independent of the batch of [`Retargeter::step`].
     pub fn retarget_states(
         &self,
@@ -275,10 +237,10 @@ impl Retargeter {
 
 }
 
-/// The rollout loop of [`Retargeter`] and of the NKN baseline ([`super::nkn`]): `next(t, prev)`
-/// gives the normalised state of frame `t` (`[1, D]`) from the normalised previous one (the first
-/// is the standing state), and each state is turned into a pose with the character's joint
-/// limits, its wheels and `cleanup` (see the module docs), as a [`CharacterStream`] does.
+/// The rollout loop of [`Retargeter`] and of the NKN baseline ([`super::nkn`]) on tensors:
+/// `next(t, prev)` gives the normalised state of frame `t` (`[1, D]`) from the normalised previous one
+/// (the first is the standing state); poses come from the shared [`decode::roll_out`] with the
+/// character's joint limits, its wheels and `cleanup`, as a [`CharacterStream`] makes them.
 pub(crate) fn roll_out(
     tree: &KinematicTree,
     morph: &Morphology,
@@ -287,41 +249,19 @@ pub(crate) fn roll_out(
     frames: usize,
     next: &mut dyn FnMut(usize, &Tensor) -> Tensor,
 ) -> Result<RetargetedMotion, LearnError> {
-    let mut prev = rows_to_tensor(&[standing_state(prior, tree, morph)], prior.prior.device())?;
-    let mut decoder = StateDecoder::new(tree, morph, &cleanup, root_height_range(prior));
+    let start = rows_to_tensor(&[standing_state(&prior.stats, &prior.mask, tree, morph)], prior.prior.device())?;
+    let decoder = StateDecoder::new(tree, morph, &cleanup, prior_root_height_range(prior));
     let dim = prior.prior.state_dim();
-    let (mut states, mut poses) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
-    for t in 0..frames {
-        let cur = tch::no_grad(|| next(t, &prev));
-        let mut state = tensor_to_rows(&prior.stats.denormalise(&cur), dim)?.remove(0);
-        prev = cur;
-        poses.push(decoder.decode(tree, morph, &mut state));
-        states.push(state);
-    }
-    Ok(RetargetedMotion {
-        fps: PROJECT_FPS,
-        states,
-        poses,
+    decode::roll_out(tree, morph, start, decoder, frames, &mut |t, prev| {
+        let cur = tch::no_grad(|| next(t, prev));
+        let state = tensor_to_rows(&prior.stats.denormalise(&cur), dim)?.remove(0);
+        Ok((cur, state))
     })
 }
 
 /// The root heights the character's dataset spans (m), when the prior's bounds say.
-fn root_height_range(prior: &PriorCheckpoint) -> Option<(f32, f32)> {
-    data_range(prior, prior.character.layout.root_height().start)
-}
-
-/// The normalised x^r of the character standing at rest (the standing pose, zero velocities), masked
-/// as the prior's inputs are.
-fn standing_state(prior: &PriorCheckpoint, tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
-    let standing = tree.standing_pose();
-    let x = character_state(tree, morph, &standing, &standing, 1.0 / PROJECT_FPS);
-    let s = &prior.stats;
-    x.iter()
-        .zip(&s.mean)
-        .zip(&s.std)
-        .zip(&prior.mask)
-        .map(|(((v, m), sd), k)| (v - m) / sd * k)
-        .collect()
+fn prior_root_height_range(prior: &PriorCheckpoint) -> Option<(f32, f32)> {
+    root_height_range(&prior.character, &prior.stats, &prior.prior.state_bounds(), prior.config.bound_margin)
 }
 
 /// One character being retargeted frame by frame ([`Retargeter::stream`], [`Retargeter::step`]).
@@ -332,102 +272,17 @@ pub struct CharacterStream {
     decoder: StateDecoder,
 }
 
-/// One frame of a [`CharacterStream`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct RetargetedFrame {
-    /// Denormalised x^r (joint and end-effector entries as in `pose`).
-    pub state: Vec<f32>,
-    /// The character's pose.
-    pub pose: CharacterPose,
-}
-
-/// Turns a character's successive denormalised states into poses (see the module docs): the
-/// integrated root, joint limits, rolled wheels, the cleanup and its memory.
-#[derive(Debug)]
-struct StateDecoder {
-    layout: CharacterLayout,
-    wheels: Vec<crate::controller::Wheel>,
-    root: Isometry3<f32>,
-    wheel_q: Vec<f32>,
-    cleanup: CleanupPass,
-    cleanup_state: CleanupState,
-    root_height_range: Option<(f32, f32)>,
-    prev_pose: CharacterPose,
-    recomputed: Vec<f32>,
-    scratch: StateScratch,
-}
-
-impl StateDecoder {
-    fn new(tree: &KinematicTree, morph: &Morphology, cleanup: &Cleanup, root_height_range: Option<(f32, f32)>) -> StateDecoder {
-        let layout = CharacterLayout::new(tree, morph);
-        let standing = tree.standing_pose();
-        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup);
-        StateDecoder {
-            wheels: wheels::find(tree, morph, &standing),
-            root: standing.root,
-            wheel_q: standing.q.clone(),
-            cleanup_state: cleanup.start(),
-            cleanup,
-            root_height_range,
-            recomputed: vec![0.0; layout.dim()],
-            layout,
-            prev_pose: standing,
-            scratch: StateScratch::default(),
-        }
-    }
-
-    /// The pose of the next state; `state` is updated to carry the pose's joints (and, after a
-    /// cleanup, its end effectors).
-    fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32]) -> CharacterPose {
-        let layout = &self.layout;
-        let dt = 1.0 / PROJECT_FPS;
-        if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.is_active()) {
-            // The prior's clamp leaves a margin beyond the data; a low body can sink into the
-            // ground inside it.
-            let h = &mut state[layout.root_height()][0];
-            *h = h.clamp(lo, hi);
-        }
-        let mut pose = decode_pose(layout, &self.root, state);
-        tree.clamp(&mut pose.q);
-        let v = &state[layout.root_linear_velocity()];
-        let wz = state[layout.root_angular_velocity()][2];
-        wheels::roll(&self.wheels, &mut self.wheel_q, Vector2::new(v[0], v[1]), wz, dt);
-        for w in &self.wheels {
-            pose.q[w.dof] = self.wheel_q[w.dof];
-        }
-        if self.cleanup.is_active() {
-            self.cleanup.apply(tree, &mut self.cleanup_state, &mut pose);
-            // The end-effector entries follow the cleaned-up joints.
-            character_state_into(tree, morph, &self.prev_pose, &pose, dt, &mut self.scratch, &mut self.recomputed);
-            for r in [layout.ee_positions(), layout.ee_velocities()] {
-                state[r.clone()].copy_from_slice(&self.recomputed[r]);
-            }
-        }
-        state[layout.joint_positions()].copy_from_slice(&pose.q);
-        self.root = pose.root;
-        self.prev_pose = pose.clone();
-        pose
-    }
-}
-
-/// The range entry `j` of the states spans in the prior's dataset (denormalised): its bounds without
-/// their margin (`None` for a prior without finite bounds).
-fn data_range(prior: &PriorCheckpoint, j: usize) -> Option<(f32, f32)> {
-    let b = prior.prior.state_bounds();
-    let m = prior.config.bound_margin as f32;
-    let pad = (b.hi[j] - b.lo[j]) * m / (1.0 + 2.0 * m);
-    let (lo, hi) = (b.lo[j] + pad, b.hi[j] - pad);
-    let (mean, std) = (prior.stats.mean[j], prior.stats.std[j]);
-    let (lo, hi) = (lo * std + mean, hi * std + mean);
-    (lo.is_finite() && hi.is_finite() && lo <= hi).then_some((lo, hi))
-}
-
 #[cfg(test)]
 mod tests {
     use std::fs;
 
     use super::*;
+    use crate::human_set::PROJECT_FPS;
+    use crate::character_state::CharacterLayout;
+    use crate::checkpoint::CharacterInfo;
+    use crate::controller::wheels;
     use crate::human::ImportOptions;
+    use nalgebra::Vector2;
     use crate::human_set::DEFAULT_FOLDER;
     use crate::learn::ace::{ACE_FILE, DISCRIMINATOR_FILE, GENERATOR_FILE};
     use crate::learn::checkpoint::WEIGHTS_FILE;
