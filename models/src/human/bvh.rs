@@ -303,7 +303,8 @@ fn strip_keyword<'a>(line: &'a str, keywords: &[&str]) -> Option<&'a str> {
                 }
                 rest = trimmed;
             }
-            if rest.len() >= part.len() && rest[..part.len()].eq_ignore_ascii_case(part) {
+            // Bytes, not chars: the line may hold any UTF-8 after a keyword's ASCII prefix.
+            if rest.as_bytes().get(..part.len()).is_some_and(|b| b.eq_ignore_ascii_case(part.as_bytes())) {
                 rest = &rest[part.len()..];
             } else {
                 ok = false;
@@ -607,6 +608,16 @@ mod tests {
 
     fn parse_err(text: &str) -> String {
         Bvh::parse(text, "bad.bvh").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_keyword_cut_inside_a_multibyte_character_is_an_error_not_a_panic() {
+        // Found by fuzzing: "Frames" + 'é' puts a char boundary inside the 7 bytes "Frames:" is compared
+        // with.
+        let e = parse_err(&SMALL.replace("Frames:\t2", "Frames\u{e9} 2"));
+        assert!(e.contains("bad.bvh") && e.contains("expected `Frames: <count>`"), "{e}");
+        let e = parse_err(&SMALL.replace("Frame Time:", "Frame Time\u{e9}"));
+        assert!(e.contains("bad.bvh") && e.contains("Frame Time"), "{e}");
     }
 
     #[test]
