@@ -141,13 +141,7 @@ impl Retargeter {
         streams: &mut [&mut CharacterStream],
         x_h: &[HumanRow],
     ) -> Result<Vec<RetargetedFrame>, LearnError> {
-        if streams.len() != x_h.len() {
-            return Err(LearnError::Data(format!(
-                "{} human states for {} characters: one per character",
-                x_h.len(),
-                streams.len()
-            )));
-        }
+        decode::check_batch(streams.len(), x_h.len())?;
         if streams.is_empty() {
             return Ok(Vec::new());
         }

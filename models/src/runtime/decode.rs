@@ -203,3 +203,11 @@ impl StateDecoder {
         pose
     }
 }
+
+/// Fails unless a batched step has one human state per character stream (both retargeters' `step`).
+pub(crate) fn check_batch(streams: usize, rows: usize) -> Result<(), LearnError> {
+    if streams != rows {
+        return Err(LearnError::Data(format!("{rows} human states for {streams} characters: one per character")));
+    }
+    Ok(())
+}
