@@ -149,7 +149,7 @@ fn git(args: &[&str]) -> Option<String> {
 /// The generator configuration of the dataset a prior was trained on, as its provenance records it
 /// (`ace train` regenerates the dataset from it, `ace eval` a fresh one with another seed).
 pub fn prior_dataset_config(prior: &PriorCheckpoint) -> Result<DatasetConfig> {
-    serde_json::from_value(prior.provenance["dataset"]["config"].clone())
+    DatasetConfig::from_record(prior.provenance["dataset"]["config"].clone())
         .context("the prior's provenance does not record its dataset configuration")
 }
 

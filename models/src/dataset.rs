@@ -75,6 +75,23 @@ pub struct DatasetConfig {
     pub controller: ControllerConfig,
 }
 
+impl DatasetConfig {
+    /// The configuration a dataset file or a prior's provenance recorded. Settings added since are
+    /// read as the behaviour the record was made with, not as today's defaults, so that a recorded
+    /// dataset regenerates byte for byte: a record without `controller.legs.cadence_limit` predates
+    /// the cadence limit and reads as `None`.
+    pub fn from_record(mut record: serde_json::Value) -> Result<Self, serde_json::Error> {
+        if let Some(legs) = record
+            .get_mut("controller")
+            .and_then(|c| c.get_mut("legs"))
+            .and_then(|l| l.as_object_mut())
+        {
+            legs.entry("cadence_limit").or_insert(serde_json::Value::Null);
+        }
+        serde_json::from_value(record)
+    }
+}
+
 impl Default for DatasetConfig {
     fn default() -> Self {
         DatasetConfig {
@@ -263,6 +280,13 @@ pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
     }
     if !(cfg.fps.is_finite() && (1.0..=1000.0).contains(&cfg.fps)) {
         return bad(format!("`fps` = {} is out of range: expected 1 to 1000", cfg.fps));
+    }
+    if let Some(k) = cfg.controller.legs.cadence_limit
+        && !(k.is_finite() && (1.0..=10.0).contains(&k))
+    {
+        return bad(format!(
+            "`controller.legs.cadence_limit` = {k} is out of range: expected 1 to 10 (times the law's stride frequency)"
+        ));
     }
     let [a, b] = cfg.episode_seconds;
     if !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b) {
@@ -467,7 +491,8 @@ impl MotionSet {
                 .parse::<f64>()
                 .map_err(|_| format!("metadata `{k}` is not a number"))
         };
-        let config: DatasetConfig = serde_json::from_str(get("config")?)
+        let config = serde_json::from_str(get("config")?)
+            .and_then(DatasetConfig::from_record)
             .map_err(|e| format!("metadata `config` is not a dataset configuration: {e}"))?;
         let layout_v = parse("layout")?;
         let field = |k: &str| {

@@ -69,6 +69,13 @@ pub fn stride_length(speed: f32, hip_height: f32) -> f32 {
     hip_height * STRIDE_COEFFICIENT * froude(speed, hip_height).powf(STRIDE_EXPONENT)
 }
 
+/// The speed at which the law's stride is `stride` long (m/s): the inverse of [`stride_length`].
+pub fn speed_for_stride(stride: f32, hip_height: f32) -> f32 {
+    let h = hip_height.max(1e-3);
+    let fr = (stride.max(0.0) / (STRIDE_COEFFICIENT * h)).powf(1.0 / STRIDE_EXPONENT);
+    speed_at_froude(fr, h)
+}
+
 /// Stride frequency predicted at speed `speed` (Hz): `v / λ`, held at its [`MIN_FROUDE`] value below
 /// that Froude number.
 pub fn stride_frequency(speed: f32, hip_height: f32) -> f32 {
@@ -143,6 +150,8 @@ mod tests {
         // Frequency grows more slowly than speed: f ∝ v^0.4 at a fixed size.
         let r = stride_frequency(2.0, h) / stride_frequency(1.0, h);
         assert!((r - 2f32.powf(0.4)).abs() < 1e-3, "{r}");
+        // The inverse of the stride law.
+        assert!((speed_for_stride(stride_length(0.63, h), h) - 0.63).abs() < 1e-4);
         // Standing still keeps a finite frequency.
         assert_eq!(
             stride_frequency(0.0, h),

@@ -11,15 +11,15 @@
 //! - no swing is shorter than 4 frames at walking Froude numbers (Fr < 0.3);
 //! - the datasets stay clean (UFR at most [`MAX_UFR`]) and have no 1–2-frame swings.
 //!
-//! Where a character's step region is too short for the law's strides, the controllers must step
-//! faster than the law to keep stances inside it; each test states where that is today:
-//! - the crab and the bundled hound meet the targets at every speed;
-//! - Spot meets them up to 1.5 m/s and steps at most 1.9× the law's frequency above (its step region
-//!   reaches 0.17 m fore and aft, the law's trot at 2.5 m/s wants a 0.25 m half-stance);
-//! - the real Spot (`spot_with_arm`, step region 0.08 m) steps 2.2–3.3× the law's frequency, and the
-//!   PhantomX hexapod (0.04–0.09 m) 1.4–1.6×: only the cleanliness targets are asserted for them, and
-//!   the real Spot still has a few swings under 4 frames at walking speeds (20 of 5149, 0.4 %; at most
-//!   1 % asserted).
+//! The controllers limit commands to what the legs follow at most
+//! [`ace_models::controller::LegConfig::cadence_limit`] times the law's stride frequency, and shorten
+//! the stance within the gait's duty range where the step region is short for the law's strides. Where
+//! each character stands today:
+//! - the bundled Spot, crab and hound, the real Spot (`spot_with_arm`), the PhantomX hexapod, the Fox,
+//!   the Wolf and the T-Rex meet every target at every commanded speed;
+//! - the Spider meets them walking straight ahead, but with the dataset's turning commands it steps
+//!   1.7–2.3× the law's frequency at 0.2–1 m/s (its feet stand 3.2 m from its root, so a turn moves them
+//!   fast while the stride is measured at the foot); only cleanliness is asserted for it then.
 
 mod common;
 use common::{creatures, robots};
@@ -111,7 +111,7 @@ fn bundled(name: &str) -> PathBuf {
 
 #[test]
 fn spot_steps_at_the_rate_of_an_animal_its_size() {
-    check("spot", &bundled("spot"), Some((1.5, 1.9)));
+    check("spot", &bundled("spot"), Some((f32::INFINITY, RATIO[1])));
 }
 
 #[test]
@@ -132,7 +132,7 @@ fn the_hound_steps_at_the_rate_of_an_animal_its_size() {
 #[test]
 fn the_real_spot_steps_at_the_rate_of_an_animal_its_size() {
     let Some(r) = robots() else { return };
-    check("spot_with_arm", &r.join("spot_arm/spot_with_arm.urdf"), None);
+    check("spot_with_arm", &r.join("spot_arm/spot_with_arm.urdf"), Some((f32::INFINITY, RATIO[1])));
 }
 
 #[test]
@@ -141,20 +141,13 @@ fn the_real_hexapod_steps_at_the_rate_of_an_animal_its_size() {
     check(
         "phantomx",
         &r.join("phantomx_hexapod/phantomx_description/urdf/phantomx.urdf"),
-        None,
+        Some((f32::INFINITY, RATIO[1])),
     );
 }
 
-/// Walking and running straight ahead, a creature whose tail hangs between its hind legs at rest steps
-/// at the law's rate up to the walk–trot transition: the tail is stowed clear of the legs instead of
-/// holding the hind feet to a third of their reach (it made the Wolf step 2.7–3.6× the law's frequency).
-/// Sideways and turning commands are left out: the step region across the body is held to 0.45 × the
-/// distance between the feet, which for a narrow-track quadruped is far shorter than the law's strides
-/// (see the note of the branch that added this test).
-#[test]
-fn the_wolf_walking_ahead_steps_at_the_rate_of_an_animal_its_size() {
+/// A dataset of `file` with forward and backward commands only.
+fn walking_ahead(label: &str, file: &Path) -> (GaitSummary, f32) {
     use ace_models::controller::{CommandConfig, ControllerConfig};
-    let Some(dir) = creatures() else { return };
     let commands = CommandConfig {
         lateral: [0.0, 0.0],
         yaw_rate: [0.0, 0.0],
@@ -169,7 +162,16 @@ fn the_wolf_walking_ahead_steps_at_the_rate_of_an_animal_its_size() {
         },
         ..DatasetConfig::default()
     };
-    let (gait, ufr) = measure_with("Wolf", &dir.join("Quaternius_Wolf/Wolf.gltf"), cfg);
+    measure_with(label, file, cfg)
+}
+
+/// Walking and running straight ahead, a creature whose tail hangs between its hind legs at rest steps
+/// at the law's rate up to the walk–trot transition: the tail is stowed clear of the legs instead of
+/// holding the hind feet to a third of their reach (it made the Wolf step 2.7–3.6× the law's frequency).
+#[test]
+fn the_wolf_walking_ahead_steps_at_the_rate_of_an_animal_its_size() {
+    let Some(dir) = creatures() else { return };
+    let (gait, ufr) = walking_ahead("Wolf", &dir.join("Quaternius_Wolf/Wolf.gltf"));
     assert_eq!(gait.one_or_two_frame_swings, 0);
     assert!(ufr <= MAX_UFR, "UFR {ufr}");
     let bins: Vec<_> = gait.bins.iter().filter(|b| b.strides >= MIN_STRIDES && b.speed[1] <= 1.5).collect();
@@ -184,5 +186,44 @@ fn the_wolf_walking_ahead_steps_at_the_rate_of_an_animal_its_size() {
             b.ratio,
             b.law
         );
+    }
+}
+
+/// The Spider walking straight ahead meets the targets at every speed; with the dataset's sideways
+/// and turning commands it does not (see the module docs), so only cleanliness is asserted for those.
+#[test]
+fn the_spider_steps_at_the_rate_of_an_animal_its_size_walking_ahead() {
+    let Some(dir) = creatures() else { return };
+    let spider = dir.join("Quaternius_Spider/Spider.glb");
+    let (gait, ufr) = walking_ahead("Spider ahead", &spider);
+    assert_eq!(gait.one_or_two_frame_swings, 0);
+    // One swing of 7,840 under 4 frames at walking speeds today.
+    assert!(gait.short_walking_swings * 100 <= gait.swings, "{}", gait.short_walking_swings);
+    assert!(ufr <= MAX_UFR, "UFR {ufr}");
+    let bins: Vec<_> = gait.bins.iter().filter(|b| b.strides >= MIN_STRIDES).collect();
+    assert!(bins.len() >= 4, "{:?}", gait.bins);
+    for b in bins {
+        assert!(
+            b.ratio >= RATIO[0] && b.ratio <= RATIO[1],
+            "{:.2}–{:.2} m/s: stride frequency {:.2} Hz is {:.2}× the law's {:.2} Hz",
+            b.speed[0],
+            b.speed[1],
+            b.frequency,
+            b.ratio,
+            b.law
+        );
+    }
+    check("Spider", &spider, None);
+}
+
+#[test]
+fn the_shared_creatures_step_at_the_rate_of_animals_their_size() {
+    let Some(dir) = creatures() else { return };
+    for (label, file) in [
+        ("Fox", "Fox/Fox.glb"),
+        ("Wolf", "Quaternius_Wolf/Wolf.gltf"),
+        ("T-Rex", "Quaternius_TRex/t-rex.glb"),
+    ] {
+        check(label, &dir.join(file), Some((f32::INFINITY, RATIO[1])));
     }
 }

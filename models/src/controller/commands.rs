@@ -95,6 +95,8 @@ pub struct CommandGenerator {
     max_speed: f32,
     /// Radius at which turning adds to the foot speed (m).
     turn_radius: f32,
+    /// Foot speeds forward and sideways the legs follow at a natural cadence (m/s), when limited so.
+    cadence: Option<[f32; 2]>,
     target: Command,
     current: Command,
     remaining: f32,
@@ -109,10 +111,21 @@ impl CommandGenerator {
             scale,
             max_speed,
             turn_radius,
+            cadence: None,
             target: Command::default(),
             current: Command::default(),
             remaining: 0.0,
         }
+    }
+
+    /// Limits commands to what the legs follow at a natural cadence ([`super::Rig::cadence_speeds`]):
+    /// `|v| / v_max(θ) + |ω|·turn_radius / side ≤ 1`, where `v_max(θ)` is the ellipse with semi-axes
+    /// `fore` (along the body) and `side` in the direction `θ` of `v` (a turning foot moves across its
+    /// leg's step region, as a sideways one does). A command beyond it is scaled down whole, turning
+    /// included.
+    pub fn with_cadence_speeds(mut self, speeds: Option<[f32; 2]>) -> Self {
+        self.cadence = speeds;
+        self
     }
 
     /// Back to standing still; the first target is "stand" for `stand_seconds`.
@@ -181,8 +194,20 @@ impl CommandGenerator {
         }
     }
 
-    /// Limits the linear speed to what the character can follow while turning at `c.wz`.
+    /// Limits the command to what the character can follow: by the cadence ellipse when set
+    /// ([`CommandGenerator::with_cadence_speeds`]), else its linear speed to what the legs follow while
+    /// turning at `c.wz`.
     fn limit(&self, mut c: Command) -> Command {
+        if let Some([fore, side]) = self.cadence {
+            let (fore, side) = (fore.max(1e-6), side.max(1e-6));
+            let load = (c.vx / fore).hypot(c.vy / side) + c.wz.abs() * self.turn_radius / side;
+            if load > 1.0 {
+                c.vx /= load;
+                c.vy /= load;
+                c.wz /= load;
+            }
+            return c;
+        }
         let s = c.speed();
         let allowed = (self.max_speed - c.wz.abs() * self.turn_radius).max(0.0);
         if s > allowed {
@@ -222,5 +247,26 @@ mod tests {
             assert!((-0.75..=2.5).contains(&t.vx), "{t:?}");
             assert!((-0.5..=0.5).contains(&t.vy) && (-1.0..=1.0).contains(&t.wz));
         }
+    }
+
+    #[test]
+    fn the_cadence_ellipse_scales_a_command_down_whole() {
+        let g = CommandGenerator::new(CommandConfig::default(), 0.5, 10.0, 0.3).with_cadence_speeds(Some([2.0, 0.5]));
+        let c = |vx, vy, wz| Command { vx, vy, wz };
+        // Inside the ellipse: unchanged.
+        let inside = g.limit(c(1.0, 0.2, 0.5));
+        assert_eq!((inside.vx, inside.vy, inside.wz), (1.0, 0.2, 0.5));
+        // Straight ahead at twice the forward cadence speed: halved.
+        assert!((g.limit(c(4.0, 0.0, 0.0)).vx - 2.0).abs() < 1e-6);
+        // Sideways, the shorter axis binds.
+        assert!((g.limit(c(0.0, -1.0, 0.0)).vy + 0.5).abs() < 1e-6);
+        // Diagonal plus turning: the load is 1 after scaling and the direction is kept.
+        let l = g.limit(c(2.0, 0.5, 1.0));
+        let load = (l.vx / 2.0).hypot(l.vy / 0.5) + l.wz.abs() * 0.3 / 0.5;
+        assert!((load - 1.0).abs() < 1e-5, "{l:?}");
+        assert!((l.vx / l.vy - 4.0).abs() < 1e-4 && (l.wz / l.vx - 0.5).abs() < 1e-4, "{l:?}");
+        // Without a cadence limit only the maximum speed binds.
+        let free = CommandGenerator::new(CommandConfig::default(), 0.5, 10.0, 0.3);
+        assert_eq!(free.limit(c(4.0, 0.0, 0.0)).vx, 4.0);
     }
 }

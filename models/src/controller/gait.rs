@@ -281,11 +281,40 @@ impl Gait {
         };
         self.duty[0] + (self.duty[1] - self.duty[0]) * t
     }
+
+    /// Duty factor at Froude number `froude` ([`Gait::duty_at`]), lowered within the gait's own range
+    /// (down to the smaller of its two duty factors) where a stance of `duty · stride` would not fit in
+    /// `room` (m): a walk whose step region is short for the law's strides keeps its stride and spends
+    /// less of it on the ground, as a walk does at its faster end, rather than stepping faster.
+    pub fn duty_fitting(&self, froude: f32, stride: f32, room: f32) -> f32 {
+        let duty = self.duty_at(froude);
+        if stride <= 0.0 || duty * stride <= room {
+            return duty;
+        }
+        (room / stride).max(self.duty[0].min(self.duty[1]).min(duty))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_stance_too_long_for_the_step_region_lowers_the_duty_within_the_gait() {
+        let g = &build_gaits(&[[0.3, 0.2], [0.3, -0.2], [-0.3, 0.2], [-0.3, -0.2]])[0];
+        let (lo, hi) = (g.duty[0].min(g.duty[1]), g.duty[0].max(g.duty[1]));
+        let fr = 0.1;
+        let d = g.duty_at(fr);
+        // Room for the whole stance: the gait's own duty.
+        assert_eq!(g.duty_fitting(fr, 0.4, 1.0), d);
+        // A little short: the stance fills the room exactly.
+        let room = 0.4 * d * 0.95;
+        let fitted = g.duty_fitting(fr, 0.4, room);
+        assert!((fitted * 0.4 - room).abs() < 1e-6 && fitted < d, "{fitted} vs {d}");
+        // Far too short: never below the gait's range.
+        assert_eq!(g.duty_fitting(fr, 0.4, 0.01), lo.min(d));
+        assert!(lo < hi);
+    }
 
     #[test]
     fn quadruped_and_hexapod_patterns() {

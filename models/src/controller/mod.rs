@@ -13,14 +13,18 @@
 //! multiplied by the speed scale: `leg length / 0.9 m` for legged characters (leg length = mean hip–foot
 //! distance at the nominal stance; 0.9 m is a human's), `standing height / 1.7 m` otherwise. The yaw
 //! rate (−1…1 rad/s) is not scaled. Linear speed is further limited to what the legs can follow cleanly:
-//! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root).
+//! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root), and, with
+//! [`LegConfig::cadence_limit`] (1.25 by default), to what they follow at that multiple of the law's
+//! stride frequency: the ellipse of [`Rig::cadence_speeds`] forward and sideways, a turn counted as a
+//! sidestep of its feet ([`CommandGenerator::with_cadence_speeds`]).
 //! [`ScalingConfig::speed_scale`] overrides the scale.
 //!
 //! # Gait timing
 //! Legs step as animals do ([`crate::dynamic_similarity`]): the gait, its duty factor and the stride
 //! frequency follow the Froude number of the foot speed `|v| + |ω|·R` and the hip height — the stride
-//! frequency is Alexander's `v / (2.3·h·Fr^0.3)`, raised only where a stance would not fit in the
-//! step radius and capped so that swings last at least [`LegConfig::min_swing_frames`] frames
+//! frequency is Alexander's `v / (2.3·h·Fr^0.3)`. Where a stance would not fit in the step radius,
+//! the duty factor is first lowered within the gait's range ([`gait::Gait::duty_fitting`]) and only
+//! then the frequency raised; it is capped so that swings last at least [`LegConfig::min_swing_frames`] frames
 //! ([`LegConfig::walking_min_swing_frames`] in the walks). The bundled Spot-like
 //! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
 //! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
@@ -152,6 +156,15 @@ pub struct LegConfig {
     pub bound_probability: f32,
     /// Time constant of the stepping frequency filter (s).
     pub frequency_time_constant: f32,
+    /// The highest stride frequency a command may ask of the legs, as a multiple of the law's
+    /// ([`crate::dynamic_similarity::stride_frequency`]): a command faster, in its direction, than the
+    /// legs can follow at that cadence with their stances inside the step regions is slowed to what
+    /// they can ([`Rig::cadence_speeds`]). Where the step region is short for the law's strides (a
+    /// narrow track, short legs), the character moves more slowly rather than patter. `None`: commands
+    /// are limited only by the shortest swing (the datasets recorded before this setting). The default,
+    /// 1.25, leaves room for the turns and sidesteps that a straight-ahead bound does not count: measured
+    /// over whole datasets, the bundled and shared characters then step at 1.0–1.6× the law.
+    pub cadence_limit: Option<f32>,
 }
 
 impl Default for LegConfig {
@@ -163,6 +176,7 @@ impl Default for LegConfig {
             walking_min_swing_frames: 5,
             bound_probability: 0.3,
             frequency_time_constant: 0.15,
+            cadence_limit: Some(1.25),
         }
     }
 }
@@ -269,7 +283,8 @@ const STANCE_SLIP: f32 = 2e-4;
 impl<'a> Controller<'a> {
     /// A controller for `rig` (built from `tree`) stepping at `fps`; call [`Controller::reset`] first.
     pub fn new(tree: &'a KinematicTree, rig: &'a Rig, cfg: &ControllerConfig, fps: f32) -> Self {
-        let commands = CommandGenerator::new(cfg.commands.clone(), rig.speed_scale, rig.max_speed, rig.foot_radius);
+        let commands = CommandGenerator::new(cfg.commands.clone(), rig.speed_scale, rig.max_speed, rig.foot_radius)
+            .with_cadence_speeds(rig.cadence_speeds);
         Controller {
             tree,
             rig,
@@ -514,15 +529,24 @@ impl<'a> Controller<'a> {
             self.stats.gait_changes += 1;
         }
         let gait = &rig.gaits[self.selector.current];
-        let duty = gait.duty_at(fr);
-        // Alexander's stride frequency, raised where the stance would overrun the step radius, capped
-        // by the shortest swing.
         let dir = if v_ahead.norm() > v.norm() { v_ahead } else { v };
         let r_min = rig
             .legs
             .iter()
             .map(|l| l.radius_toward(dir))
             .fold(f32::INFINITY, f32::min);
+        // With a cadence limit, a stance that would overrun the step radius at that multiple of the
+        // law's cadence spends less of the stride on the ground, within the gait's duty range.
+        let duty = match self.cfg.legs.cadence_limit {
+            Some(k) => gait.duty_fitting(
+                fr,
+                dynamic_similarity::stride_length(foot_speed, h) / k,
+                2.0 * legs::STANCE_USE * r_min,
+            ),
+            None => gait.duty_at(fr),
+        };
+        // Alexander's stride frequency, raised where the stance would overrun the step radius, capped
+        // by the shortest swing.
         let needed = foot_speed * duty / (2.0 * legs::STANCE_USE * r_min);
         let cap = rig::frequency_cap(&self.cfg, duty, fr_slower, 1.0 / self.dt);
         let target = dynamic_similarity::stride_frequency(foot_speed, h).max(needed).min(cap);

@@ -22,7 +22,7 @@ use super::chain::Chain;
 use super::collide::{Obb, Proxies};
 use super::gait::{Gait, build_gaits};
 use super::{ControllerConfig, ControllerError, calibrate, reach, wheels};
-use crate::dynamic_similarity::{froude, hip_height_at, speed_at_froude};
+use crate::dynamic_similarity::{froude, hip_height_at, speed_at_froude, speed_for_stride, stride_frequency, stride_length};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
 use crate::morphology::Morphology;
 
@@ -170,6 +170,11 @@ pub struct Rig {
     /// Largest foot speed `|v| + |ω|·foot_radius` the legs follow cleanly (m/s): the top linear speed
     /// when not turning. Infinite without legs.
     pub max_speed: f32,
+    /// With [`super::LegConfig::cadence_limit`]: the largest foot speed forward or back and sideways
+    /// (m/s) at which the legs keep their stances inside the step regions stepping at most that multiple
+    /// of the law's stride frequency (and within the shortest swing); commands are limited to the
+    /// ellipse with these semi-axes ([`super::CommandGenerator`]). `None` without the limit or legs.
+    pub cadence_speeds: Option<[f32; 2]>,
     /// Mean distance of the feet from the root axis (m), for turning.
     pub foot_radius: f32,
     /// Height a swinging foot rises before it moves horizontally (m; 0 without legs): the band within
@@ -198,6 +203,10 @@ pub fn tilted_root(h: f32, pitch: f32, roll: f32) -> Isometry3<f32> {
 pub fn subtree(tree: &KinematicTree, l: usize) -> Vec<usize> {
     (0..tree.links.len()).filter(|&x| tree.is_descendant(x, l)).collect()
 }
+
+/// Froude number below which a gait transition hands over from a walking gait (walk → trot near
+/// Fr 0.3–0.5, wave → ripple → tripod), as opposed to the trot → gallop one near Fr 2–3.
+const WALKING_HANDOVER: f32 = 1.0;
 
 impl Rig {
     /// Analyses a character for `cfg` at `fps` frames per second.
@@ -334,6 +343,7 @@ impl Rig {
             hip_height: 0.0,
             speed_scale: 1.0,
             max_speed: f32::INFINITY,
+            cadence_speeds: None,
             foot_radius: 0.0,
             clearance: 0.0,
             proxies,
@@ -378,9 +388,23 @@ impl Rig {
         // stance fits in the step radius at its highest cadence.
         // Top speeds are forward: the step regions' fore-and-aft semi-axes.
         let r_min = self.legs.iter().map(|l| l.r_fore).fold(f32::INFINITY, f32::min);
-        let capacity =
-            |duty: f32, fr: f32| frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
         let h = self.hip_height;
+        // With a cadence limit `k` and `walking`, also no faster than where the law's stride, stepped k
+        // times as often, fits the stance at the gait's smallest duty factor
+        // (`λ(v) ≤ 2·STANCE_USE·r·k / duty`), so that a walk too short in the leg for the law's strides
+        // hands over to the trot early. Only out of the walking gaits: the trot's hand-over to the gallop
+        // stays at the Froude number animals gallop at (the commands' cadence limit slows the trot).
+        let capacity = |g: &Gait, fr: f32, walking: bool| {
+            let duty = g.duty_at(fr);
+            let c = frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
+            match cfg.legs.cadence_limit.filter(|_| walking) {
+                Some(k) => {
+                    let floor = g.duty[0].min(g.duty[1]);
+                    c.min(speed_for_stride(2.0 * super::legs::STANCE_USE * r_min * k / floor, h))
+                }
+                None => c,
+            }
+        };
         for k in 1..self.gaits.len() {
             let (from, prev_from) = (self.gaits[k].from_froude, self.gaits[k - 1].from_froude);
             if from <= prev_from {
@@ -389,7 +413,7 @@ impl Rig {
             let limit = self.gaits[..k]
                 .iter()
                 .filter(|g| g.from_froude == prev_from)
-                .map(|g| capacity(g.duty_at(from), 0.99 * from)) // still in the slower gait
+                .map(|g| capacity(g, 0.99 * from, from < WALKING_HANDOVER)) // still in the slower gait
                 .fold(f32::INFINITY, f32::min)
                 * 0.95;
             let limit = froude(limit, h) / (1.0 + super::gait::GaitSelector::BAND);
@@ -409,10 +433,53 @@ impl Rig {
                 .gaits
                 .iter()
                 .filter(|g| g.from_froude == top)
-                .map(|g| capacity(g.duty_at(fr), fr))
+                .map(|g| capacity(g, fr, false))
                 .fold(f32::INFINITY, f32::min);
         }
         self.max_speed = v;
+        self.cadence_speeds = cfg.legs.cadence_limit.map(|k| {
+            let fore = self.legs.iter().map(|l| l.r_fore).fold(f32::INFINITY, f32::min);
+            let side = self.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
+            [self.cadence_speed(fore, k), self.cadence_speed(side, k)]
+        });
+    }
+
+    /// The largest foot speed (m/s, at most [`Rig::max_speed`], which keeps to the shortest swing) up to
+    /// which stances fit in step radius `r` at a stride frequency of at most `k` times the law's, in every
+    /// gait the selector may be in at that speed (the hysteresis band included), with the duty factor
+    /// the controller steps with ([`Gait::duty_fitting`]).
+    fn cadence_speed(&self, r: f32, k: f32) -> f32 {
+        const STEPS: usize = 400;
+        let h = self.hip_height;
+        let band = super::gait::GaitSelector::BAND;
+        // The next faster threshold above each gait's own.
+        let next = |g: &Gait| {
+            self.gaits
+                .iter()
+                .map(|o| o.from_froude)
+                .filter(|&f| f > g.from_froude)
+                .fold(f32::INFINITY, f32::min)
+        };
+        let mut ok = 0.0;
+        for i in 1..=STEPS {
+            let v = self.max_speed * i as f32 / STEPS as f32;
+            let fr = froude(v, h);
+            let fits = self
+                .gaits
+                .iter()
+                .filter(|g| g.from_froude * (1.0 - band) <= fr && fr <= next(g) * (1.0 + band))
+                .all(|g| {
+                    let room = 2.0 * super::legs::STANCE_USE * r;
+                    let duty = g.duty_fitting(fr, stride_length(v, h) / k, room);
+                    let needed = v * duty / room;
+                    needed <= k * stride_frequency(v, h) * 1.0001
+                });
+            if !fits {
+                break;
+            }
+            ok = v;
+        }
+        ok
     }
 }
 
