@@ -8,6 +8,7 @@ pub use ace_models as models;
 pub use bevy_ace as plugin;
 
 pub mod baselines;
+pub mod batch;
 pub mod characters;
 pub mod dataset;
 pub mod demo;

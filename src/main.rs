@@ -1,6 +1,6 @@
 //! `ace`: the command-line front of ACE retargeting.
 
-use ace::{dataset, demo, eval, inspect, metrics, retarget, train};
+use ace::{batch, dataset, demo, eval, inspect, metrics, retarget, train};
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -117,9 +117,10 @@ enum Command {
         humans: Option<PathBuf>,
     },
     /// Retarget a human clip onto a character: writes a glTF binary, the robot command trajectory
-    /// (JSON, CSV) and the clip's metrics.
+    /// (JSON, CSV) and the clip's metrics. Given a folder, retargets every BVH clip below it in
+    /// parallel into the folder --out, with a summary.json.
     Retarget {
-        /// The human clip (BVH).
+        /// The human clip (BVH), or a folder of clips (every .bvh below it, recursively).
         clip: PathBuf,
         /// A bundled character (spot, crab, stretch), a URDF file or a rigged glTF creature (.glb, .gltf).
         #[arg(long)]
@@ -129,8 +130,12 @@ enum Command {
         checkpoint: Option<PathBuf>,
         /// Output glTF binary (.glb); the trajectory and metrics are written beside it. For a rigged glTF
         /// creature it is the creature's own model with the clip as a new animation on its skeleton.
+        /// For a folder of clips, the output folder: each clip at its relative path, as a .glb.
         #[arg(long)]
         out: PathBuf,
+        /// For a folder of clips: how many clips run at once [default: one per core].
+        #[arg(long)]
+        jobs: Option<usize>,
         /// Leave the human skeleton out of the glTF (a glTF creature's model never has it).
         #[arg(long)]
         no_human: bool,
@@ -225,8 +230,8 @@ fn main() -> ExitCode {
         }),
         Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, no_human, keep_animations, animation_only, no_cleanup, mapping, backend } => retarget::run(
-            &retarget::RetargetArgs {
+        Command::Retarget { clip, character, checkpoint, out, jobs, no_human, keep_animations, animation_only, no_cleanup, mapping, backend } => {
+            let one = retarget::RetargetArgs {
                 clip,
                 character,
                 checkpoint,
@@ -236,8 +241,15 @@ fn main() -> ExitCode {
                 cleanup: !no_cleanup,
                 mapping,
                 backend,
-            },
-        ),
+            };
+            if one.clip.is_dir() {
+                batch::run(&batch::BatchArgs { one, jobs })
+            } else if jobs.is_some() {
+                Err(anyhow::anyhow!("--jobs is for a folder of clips; {} is one clip", one.clip.display()))
+            } else {
+                retarget::run(&one)
+            }
+        }
         Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick } => eval::run(&eval::EvalArgs {
             character,
             checkpoint,

@@ -228,9 +228,7 @@ impl HumanSet {
                 opts.held_out_fraction
             )));
         }
-        let mut files = Vec::new();
-        find_bvh(folder, &mut files)?;
-        files.sort();
+        let files = find_bvh_files(folder)?;
         let results = import_all(folder, &files, opts, progress);
 
         let mut clips = Vec::new();
@@ -375,6 +373,15 @@ fn import_all(
         .into_iter()
         .map(|r| r.expect("every file was imported"))
         .collect()
+}
+
+/// Every `.bvh` file (any case) below `folder`, in every subfolder, sorted by path: the clips a folder
+/// of mocap holds (symlinked folders are followed, each folder once).
+pub fn find_bvh_files(folder: &Path) -> Result<Vec<PathBuf>, HumanSetError> {
+    let mut files = Vec::new();
+    find_bvh(folder, &mut files)?;
+    files.sort();
+    Ok(files)
 }
 
 /// Every `.bvh` file (any case) below `dir`, in every subfolder. Iterative, and each folder is
