@@ -456,6 +456,84 @@ fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
     assert!(m.contains("generator.safetensors"), "{m}");
 }
 
+/// A character and its checkpoint loaded from a second asset source (`custom://`) read their
+/// sibling files there: the checkpoint's configuration, prior and generator, the character's profile,
+/// a `.gltf`'s buffer. The default source holds none of them, only a broken profile for Spot that
+/// must not be read.
+#[test]
+fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
+    use bevy::asset::io::AssetSourceBuilder;
+    let root = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-source");
+    let _ = std::fs::remove_dir_all(&root);
+    let (main, custom) = (root.join("default"), root.join("custom"));
+    for dir in [main.join("characters"), main.join("motions"), custom.join("characters"), custom.join("checkpoints/spot")] {
+        std::fs::create_dir_all(dir).unwrap();
+    }
+    for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
+        std::fs::copy(asset_path("checkpoints/spot").join(f), custom.join("checkpoints/spot").join(f)).unwrap();
+    }
+    std::fs::copy(asset_path("characters/spot.urdf"), custom.join("characters/spot.urdf")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), main.join("motions/walk.bvh")).unwrap();
+    std::fs::write(main.join("characters/spot.profile.toml"), "not a profile [").unwrap();
+    // The hound as a `.gltf` whose buffer is a file beside it.
+    std::fs::create_dir_all(custom.join("creatures")).unwrap();
+    let glb = std::fs::read(asset_path("creatures/hound.glb")).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let bin_len = u32::from_le_bytes(glb[bin_at..bin_at + 4].try_into().unwrap()) as usize;
+    json["buffers"][0]["uri"] = "hound.bin".into();
+    std::fs::write(custom.join("creatures/hound.gltf"), serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::write(custom.join("creatures/hound.bin"), &glb[bin_at + 8..bin_at + 8 + bin_len]).unwrap();
+
+    let mut app = App::new();
+    app.register_asset_source("custom", AssetSourceBuilder::platform_default(custom.to_str().unwrap(), None))
+        .add_plugins((
+            MinimalPlugins,
+            AssetPlugin { file_path: main.to_str().unwrap().into(), ..default() },
+            TransformPlugin,
+            AcePlugin,
+        ))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)))
+        .init_resource::<SeenErrors>()
+        .add_systems(Last, record_errors);
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let checkpoint: Handle<CheckpointAsset> = server.load("custom://checkpoints/spot/ace.json");
+    let spot = app
+        .world_mut()
+        .spawn((Character::new(server.load("custom://characters/spot.urdf")), Retargeter::new(checkpoint.clone(), player)))
+        .id();
+    let hound_gltf: Handle<CharacterAsset> = server.load("custom://creatures/hound.gltf");
+    update_until(&mut app, |w| match w.get::<RetargetStatus>(spot) {
+        Some(RetargetStatus::Failed(m)) => panic!("retargeter failed: {m}"),
+        Some(RetargetStatus::Running { tick: 0 }) => true,
+        _ => false,
+    });
+    let dir = app.world().resource::<Assets<CheckpointAsset>>().get(&checkpoint).unwrap().dir().to_path_buf();
+    assert_eq!(dir, std::path::Path::new("checkpoints/spot"));
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = false;
+    let want = offline("spot", "walk.bvh");
+    let mut seen = Vec::new();
+    for _ in 0..10 {
+        app.update();
+        let t = tick(&app, spot).unwrap();
+        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
+        seen.push(t);
+    }
+    assert_eq!(seen, (0..10).collect::<Vec<i64>>());
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+    let mut state = LoadState::Loading;
+    update_until(&mut app, |w| {
+        state = w.resource::<AssetServer>().load_state(&hound_gltf);
+        matches!(state, LoadState::Loaded | LoadState::Failed(_))
+    });
+    assert!(matches!(state, LoadState::Loaded), "the .gltf with its buffer beside it: {state:?}");
+    let hound = app.world().resource::<Assets<CharacterAsset>>().get(&hound_gltf).unwrap();
+    assert_eq!(hound.tree.dof(), load_creature(&asset_path("creatures/hound.glb")).unwrap().tree.dof());
+}
+
 // ---- Rigged glTF creatures driven through their own glTF scene ----
 
 use std::path::{Path, PathBuf};
@@ -533,6 +611,12 @@ fn creature_app() -> App {
 }
 
 fn creature_app_in(assets: &Path) -> App {
+    creature_app_ordered(assets, false)
+}
+
+/// A creature app with `AcePlugin` added before Bevy's glTF plugin when `ace_first` (the plugin's
+/// character loader registered before Bevy's glTF loader), after it otherwise.
+fn creature_app_ordered(assets: &Path, ace_first: bool) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -542,16 +626,66 @@ fn creature_app_in(assets: &Path) -> App {
         bevy::mesh::MeshPlugin,
         bevy::image::ImagePlugin::default(),
         bevy::animation::AnimationPlugin,
-        GltfPlugin::default(),
-        AcePlugin,
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)))
-    .init_resource::<SeenErrors>()
-    .add_systems(Last, record_errors);
+    ));
+    if ace_first {
+        app.add_plugins((AcePlugin, GltfPlugin::default()));
+    } else {
+        app.add_plugins((GltfPlugin::default(), AcePlugin));
+    }
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)))
+        .init_resource::<SeenErrors>()
+        .add_systems(Last, record_errors);
     // Bevy's glTF loader is registered when the plugins finish (`App::run` does this).
     app.finish();
     app.cleanup();
     app
+}
+
+/// Asserts that in the built `PostUpdate` schedule every system of the plugin's sets that touches what
+/// a system of Bevy's `AnimationSystems` touches is ordered after it: on the nodes a Retargeter
+/// drives, the plugin's pose wins whichever way the executor would break a tie. Bevy's
+/// `animate_targets` is `ambiguous_with_all`, so Bevy's ambiguity analysis never reports it; a
+/// stand-in writing `Transform`s as it does joins `AnimationSystems` (and never runs).
+fn assert_ace_systems_run_after_animation(app: &mut App) {
+    use bevy::app::AnimationSystems;
+    use bevy::ecs::schedule::Schedules;
+    #[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+    struct StandIn;
+    fn writes_transforms_as_animate_targets_does(_: Query<&mut Transform>) {}
+    app.add_systems(
+        PostUpdate,
+        writes_transforms_as_animate_targets_does.in_set(AnimationSystems).in_set(StandIn).run_if(|| false),
+    );
+    app.update();
+    let schedule = app.world().resource::<Schedules>().get(PostUpdate).unwrap();
+    let graph = schedule.graph();
+    let animation = graph.systems_in_set(AnimationSystems.intern()).unwrap();
+    let stand_in = graph.systems_in_set(StandIn.intern()).unwrap();
+    assert!(stand_in.len() == 1 && stand_in.iter().all(|k| animation.contains(k)), "the stand-in is in AnimationSystems");
+    let mut ace = Vec::new();
+    for set in [AceSystems::Spawn, AceSystems::Advance, AceSystems::Retarget, AceSystems::Apply] {
+        ace.extend(graph.systems_in_set(set.intern()).unwrap().iter().map(|&k| (k, set)));
+    }
+    // (The graph's systems moved into the built schedule: names come from there.)
+    let names: std::collections::HashMap<_, String> = schedule.systems().unwrap().map(|(k, s)| (k, s.name().to_string())).collect();
+    let unordered: Vec<String> = graph
+        .conflicting_systems()
+        .iter()
+        .flat_map(|(a, b, _)| [(a, b), (b, a)])
+        .filter(|(a, _)| animation.contains(*a))
+        .filter_map(|(a, b)| ace.iter().find(|(k, _)| k == b).map(|(_, set)| format!("{} and {} in {set:?}", names[a], names[b])))
+        .collect();
+    assert!(unordered.is_empty(), "not ordered after Bevy's animation: {unordered:?}");
+}
+
+/// The plugin's systems run after Bevy's animation: an order the executor's tie-break cannot decide.
+#[test]
+fn the_plugins_systems_are_ordered_after_bevys_animation() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-ordering");
+    std::fs::create_dir_all(&dir).unwrap();
+    for ace_first in [false, true] {
+        assert_ace_systems_run_after_animation(&mut creature_app_ordered(&dir, ace_first));
+    }
 }
 
 /// Bevy's animation beside a Retargeter: the Fox plays its own Walk clip through its `AnimationPlayer`
@@ -575,6 +709,11 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
 
     let mut app = creature_app_in(&dir);
+    // Without the plugin's ordering, animate_targets still ran first here (it comes first in the
+    // schedule's topological order and shares Transform with the plugin's systems, so the executor
+    // never overlaps them): the bones below would show the Retargeter's pose by that chance. The
+    // order itself is checked.
+    assert_ace_systems_run_after_animation(&mut app);
     let player = paused_player(&mut app, "walk.bvh");
     let server = app.world().resource::<AssetServer>().clone();
     let fox = app
@@ -615,6 +754,14 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     let elapsed = app.world().get::<AnimationPlayer>(animated).unwrap().animation(node).map(|a| a.elapsed());
     assert!(elapsed.is_some_and(|e| e > 1.0), "the Walk clip played for {elapsed:?} s");
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
+    // And it moves the bones compared above: once the scene is no longer driven, they leave the
+    // Retargeter's pose (the comparisons above would fail had the clip written last).
+    app.world_mut().entity_mut(fox).remove::<(Retargeter, CreatureScene)>();
+    for _ in 0..5 {
+        app.update();
+    }
+    let (_, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+    assert!(a > 0.05, "the Fox's clip turns the bones {a} rad from the Retargeter's pose");
 }
 
 fn hound() -> Creature {
@@ -726,11 +873,13 @@ fn a_creature_scene_moves_as_ace_retarget_writes_it() {
 }
 
 /// `load::<CharacterAsset>("x.glb")` is the plugin's loader; `"x.glb#Scene0"` and `load::<Gltf>` stay
-/// Bevy's, whichever comes first.
+/// Bevy's, whichever load comes first and whichever loader was registered first (a labelled path goes
+/// to the last loader registered for its extension, and `GltfPlugin` reserves its loader's place
+/// when added: a loader claiming `.glb` in a plugin added after it would take `#Scene0`).
 #[test]
 fn glb_files_load_as_characters_by_type_and_as_scenes_by_label() {
-    for character_first in [true, false] {
-        let mut app = creature_app();
+    for (ace_first, character_first) in [(false, true), (false, false), (true, true), (true, false)] {
+        let mut app = creature_app_ordered(creature_assets(), ace_first);
         let server = app.world().resource::<AssetServer>().clone();
         let (character, scene, gltf): (Handle<CharacterAsset>, Handle<WorldAsset>, Handle<Gltf>) = if character_first {
             let c = server.load("creatures/hound.glb");
@@ -746,12 +895,15 @@ fn glb_files_load_as_characters_by_type_and_as_scenes_by_label() {
                 .iter()
                 .all(|&id| matches!(s.get_load_state(id), Some(LoadState::Loaded | LoadState::Failed(_))))
         });
-        let c = app.world().resource::<Assets<CharacterAsset>>().get(&character).expect("a CharacterAsset");
+        let why = format!("ace first: {ace_first}, character first: {character_first}");
+        let c = app.world().resource::<Assets<CharacterAsset>>().get(&character).unwrap_or_else(|| panic!("{why}: a CharacterAsset"));
         assert_eq!(c.tree.name, "hound");
         assert_eq!(c.tree.dof(), hound().tree.dof());
         assert!(c.rig.is_some(), "a glTF character has its rig");
-        assert!(app.world().resource::<Assets<WorldAsset>>().get(&scene).is_some(), "Bevy's scene");
-        assert_eq!(app.world().resource::<Assets<Gltf>>().get(&gltf).map(|g| g.scenes.len()), Some(1));
+        let server = app.world().resource::<AssetServer>();
+        assert!(matches!(server.get_load_state(scene.id()), Some(LoadState::Loaded)), "{why}: {:?}", server.get_load_state(scene.id()));
+        assert!(app.world().resource::<Assets<WorldAsset>>().get(&scene).is_some(), "{why}: Bevy's scene");
+        assert_eq!(app.world().resource::<Assets<Gltf>>().get(&gltf).map(|g| g.scenes.len()), Some(1), "{why}");
     }
 }
 

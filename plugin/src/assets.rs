@@ -14,16 +14,17 @@ use ace_models::character::{RigPose, creature_from_document, gltf, is_gltf};
 use ace_models::human::{HumanClip, ImportOptions};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
-use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
+use bevy::asset::{Asset, AssetLoader, AssetPath, LoadContext, io::Reader};
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
 /// A character: a URDF robot or a rigged glTF creature, as its kinematic tree and morphology.
 ///
-/// When a profile file `<stem>.profile.toml` stands beside the file it sets the rest pose and
-/// overrides the automatic morphology analysis (feet, manipulators, wheels, head; for creatures also
-/// the scale, the facing axis and which bones move), as `ace_models::morphology::load_character` does
-/// for files. A URDF's mesh files are not read here, so mesh-only links have no extent in the analysis.
+/// When a profile file `<stem>.profile.toml` stands beside the file (in the same asset source) it
+/// sets the rest pose and overrides the automatic morphology analysis (feet, manipulators, wheels,
+/// head; for creatures also the scale, the facing axis and which bones move), as
+/// `ace_models::morphology::load_character` does for files. A URDF's mesh files are not read here,
+/// so mesh-only links have no extent in the analysis.
 #[derive(Asset, TypePath, Clone, Debug)]
 pub struct CharacterAsset {
     /// Links in topological order, joints, geometry.
@@ -56,6 +57,13 @@ pub enum AceAssetError {
     Import { path: String, message: String },
 }
 
+/// `path` (inside an asset source) in the asset source of the file `ctx` loads: a file's siblings
+/// (a profile, a glTF's buffers, a checkpoint's other files) are read from where the file came from
+/// (`custom://characters/x.urdf`'s profile from `custom://`), not from the default source.
+pub(crate) fn beside(ctx: &LoadContext<'_>, path: PathBuf) -> AssetPath<'static> {
+    AssetPath::from_path_buf(path).with_source(ctx.path().source().clone_owned())
+}
+
 async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<String, AceAssetError> {
     let path = ctx.path().to_string();
     let mut bytes = Vec::new();
@@ -82,7 +90,8 @@ impl AssetLoader for CharacterLoader {
         let path = ctx.path().to_string();
         let import = |message: String| AceAssetError::Import { path: path.clone(), message };
         let profile_path = Profile::path_beside(ctx.path().path());
-        let profile = match ctx.read_asset_bytes(profile_path.clone()).await {
+        let profile_asset = beside(ctx, profile_path.clone());
+        let profile = match ctx.read_asset_bytes(profile_asset).await {
             Ok(bytes) => {
                 let text = String::from_utf8(bytes)
                     .map_err(|_| import(format!("profile {} is not UTF-8 text", profile_path.display())))?;
@@ -126,7 +135,8 @@ async fn load_creature(
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut external = Vec::new();
     for uri in gltf::external_buffers(&bytes, &file).map_err(|e| import(e.problem.to_string()))? {
-        let data = ctx.read_asset_bytes(dir.join(&uri)).await.map_err(|e| e.to_string());
+        let buffer = beside(ctx, dir.join(&uri));
+        let data = ctx.read_asset_bytes(buffer).await.map_err(|e| e.to_string());
         external.push((uri, data));
     }
     let find = |uri: &str| {

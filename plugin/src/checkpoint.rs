@@ -11,8 +11,9 @@
 //!
 //! The loader is chosen by the asset type (it claims no file extension, so other `.json` loaders are
 //! unaffected). It reads the generator and the motion prior beside `ace.json` through the asset
-//! reader and loads them once to check that they belong together; a missing or broken file fails the
-//! load with its path and the problem.
+//! reader, from the asset source `ace.json` came from (`custom://checkpoints/spot/ace.json`'s from
+//! `custom://`), and loads them once to check that they belong together; a missing or broken file
+//! fails the load with its path and the problem.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -25,7 +26,7 @@ use ace_models::runtime::Retargeter;
 use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
 use bevy::reflect::TypePath;
 
-use crate::assets::AceAssetError;
+use crate::assets::{AceAssetError, beside};
 
 /// The files of a trained checkpoint (prior and generator), checked to load and to belong together.
 /// The networks themselves live in the plugin's worker threads, one per checkpoint in use.
@@ -69,8 +70,10 @@ impl AssetLoader for CheckpointLoader {
         reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
         files.insert(ACE_FILE.to_string(), bytes);
         for name in SIBLINGS {
-            // A missing file is left out: loading names it (`dir/<file>` is missing).
-            if let Ok(bytes) = ctx.read_asset_bytes(dir.join(name)).await {
+            // From the asset source `ace.json` came from. A missing file is left out: loading names
+            // it (`dir/<file>` is missing).
+            let sibling = beside(ctx, dir.join(name));
+            if let Ok(bytes) = ctx.read_asset_bytes(sibling).await {
                 files.insert(name.to_string(), bytes);
             }
         }
