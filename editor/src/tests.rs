@@ -247,3 +247,15 @@ fn the_export_of_a_creature_is_its_rig_clip() {
     assert_eq!(std::fs::read(&result.inputs.character).unwrap(), before);
     assert!(is_gltf(&result.inputs.character));
 }
+
+/// The panels show paths below the working directory relative to it (the screenshots in the docs must
+/// not carry a machine's folders), and other paths whole.
+#[test]
+fn panels_show_paths_relative_to_the_working_directory() {
+    let cwd = std::env::current_dir().unwrap();
+    let inside = cwd.join("assets/motions/walk.bvh");
+    assert_eq!(crate::ui::shown(&inside), Path::new("assets/motions/walk.bvh").display().to_string());
+    let outside = Path::new("/definitely/elsewhere/walk.bvh");
+    assert_eq!(crate::ui::shown(outside), outside.display().to_string());
+    assert_eq!(crate::ui::shown(&cwd), cwd.display().to_string());
+}

@@ -52,9 +52,9 @@ pub fn panels(
     let ctx = contexts.ctx_mut()?;
     // The text fields follow the session when it changes from elsewhere (a finished training).
     if state.shown.as_ref() != Some(&*session) {
-        state.clip = session.clip.display().to_string();
-        state.character = session.character.display().to_string();
-        state.checkpoint = session.checkpoint.as_ref().map(|c| c.display().to_string()).unwrap_or_default();
+        state.clip = shown(&session.clip);
+        state.character = shown(&session.character);
+        state.checkpoint = session.checkpoint.as_deref().map(shown).unwrap_or_default();
         let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         state.export = format!("out/editor/{}_{}.glb", stem(&session.clip), stem(&session.character));
         state.shown = Some(session.clone());
@@ -162,6 +162,18 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
 }
 
 /// A path field with a button; the absolute path when the button is clicked.
+/// `path` as the panels show it: relative to the working directory when it lies below it (the session
+/// holds absolute paths; a field's text is resolved against the working directory again when opened).
+pub(crate) fn shown(path: &Path) -> String {
+    std::env::current_dir()
+        .ok()
+        .and_then(|cwd| path.strip_prefix(cwd).ok().map(Path::to_path_buf))
+        .filter(|rel| !rel.as_os_str().is_empty())
+        .unwrap_or_else(|| path.to_path_buf())
+        .display()
+        .to_string()
+}
+
 fn path_row(ui: &mut egui::Ui, text: &mut String, button: &str) -> Option<PathBuf> {
     text_row(ui, text, button).map(|t| absolute(&t))
 }
@@ -341,7 +353,7 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState)
             }
         });
     }
-    ui.small(format!("checkpoint {}", result.inputs.checkpoint.display()));
+    ui.small(format!("checkpoint {}", shown(&result.inputs.checkpoint)));
     ui.separator();
     ui.heading("Export");
     ui.add(egui::TextEdit::singleline(&mut state.export).desired_width(280.0));

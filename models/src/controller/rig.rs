@@ -394,8 +394,10 @@ impl Rig {
         // (`λ(v) ≤ 2·STANCE_USE·r·k / duty`), so that a walk too short in the leg for the law's strides
         // hands over to the trot early. Only out of the walking gaits: the trot's hand-over to the gallop
         // stays at the Froude number animals gallop at (the commands' cadence limit slows the trot).
-        let capacity = |g: &Gait, fr: f32, walking: bool| {
-            let duty = g.duty_at(fr);
+        // `duty_fr`: the Froude number the duty factor is taken at (the transition's own, as before
+        // the cadence limit, so that datasets recorded without it regenerate unchanged).
+        let capacity = |g: &Gait, duty_fr: f32, fr: f32, walking: bool| {
+            let duty = g.duty_at(duty_fr);
             let c = frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
             match cfg.legs.cadence_limit.filter(|_| walking) {
                 Some(k) => {
@@ -413,7 +415,7 @@ impl Rig {
             let limit = self.gaits[..k]
                 .iter()
                 .filter(|g| g.from_froude == prev_from)
-                .map(|g| capacity(g, 0.99 * from, from < WALKING_HANDOVER)) // still in the slower gait
+                .map(|g| capacity(g, from, 0.99 * from, from < WALKING_HANDOVER)) // still in the slower gait
                 .fold(f32::INFINITY, f32::min)
                 * 0.95;
             let limit = froude(limit, h) / (1.0 + super::gait::GaitSelector::BAND);
@@ -433,7 +435,7 @@ impl Rig {
                 .gaits
                 .iter()
                 .filter(|g| g.from_froude == top)
-                .map(|g| capacity(g, fr, false))
+                .map(|g| capacity(g, fr, fr, false))
                 .fold(f32::INFINITY, f32::min);
         }
         self.max_speed = v;
