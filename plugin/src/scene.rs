@@ -33,8 +33,9 @@
 //!   systems (`AnimationSystems`), in [`crate::AceSystems::Apply`], the plugin writes the driven joints
 //!   from the pose and holds the skeleton's other nodes (the skin's other joints and their ancestors,
 //!   found by name) at rest. A playing `AnimationPlayer` of the scene is overridden there and still
-//!   shows on everything else (nodes outside the skeleton, morph weights). Stop the player, or remove
-//!   the Retargeter, to let the model's own clip show.
+//!   shows on everything else (nodes outside the skeleton, morph weights). To let the model's own clip
+//!   show again, remove the Retargeter together with [`CreatureScene`]: with only the Retargeter gone,
+//!   the last pose stays applied.
 //!
 //! The scene is shown as authored: y up, facing the file's forward axis, in the file's units (scale
 //! the entity to resize it). A URDF character's links face +x instead.
