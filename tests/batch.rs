@@ -6,24 +6,11 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+mod common;
+use common::{folder_bytes, root, shared};
 
 fn ace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ace")).args(args).current_dir(root()).output().expect("running ace")
-}
-
-fn human(rel: &str) -> Option<PathBuf> {
-    let p = root().join("../shared/data/human").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: {} is missing", p.display());
-        return None;
-    }
-    panic!("{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)", p.display());
 }
 
 fn fresh(name: &str) -> PathBuf {
@@ -31,25 +18,6 @@ fn fresh(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-/// Every file below `dir` with its bytes, by relative path.
-fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut pending = vec![dir.to_path_buf()];
-    while let Some(d) = pending.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                pending.push(p);
-            } else {
-                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
-                out.push((rel, std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 /// Four real clips of three skeleton conventions in nested folders, and a clip cut off in its header.
@@ -62,7 +30,7 @@ fn library() -> Option<PathBuf> {
         ("cmu_daz/02_03.bvh", "run.bvh"),
     ];
     for (from, to) in clips {
-        let src = human(from)?;
+        let src = shared(&format!("human/{from}"))?;
         let dst = lib.join(to);
         std::fs::create_dir_all(dst.parent().unwrap()).unwrap();
         std::fs::copy(src, dst).unwrap();
@@ -112,7 +80,7 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
     let one = fresh("out-one-job");
     let o1 = ace(&["retarget", lib.to_str().unwrap(), "--character", "spot", "--out", one.to_str().unwrap(), "--jobs", "1"]);
     assert!(!o1.status.success());
-    let without_summary = |d: &Path| files(d).into_iter().filter(|(n, _)| n != "summary.json").collect::<Vec<_>>();
+    let without_summary = |d: &Path| folder_bytes(d).into_iter().filter(|(n, _)| n != "summary.json").collect::<Vec<_>>();
     let (a, b) = (without_summary(&out), without_summary(&one));
     assert_eq!(a.len(), 16);
     assert!(a == b, "the outputs depend on the number of workers");
@@ -132,7 +100,7 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
 #[test]
 fn a_folder_run_refuses_outputs_it_cannot_write_before_any_work() {
     let Some(lib) = library() else { return };
-    let before = files(&lib);
+    let before = folder_bytes(&lib);
     let cases: [(Vec<String>, &str); 4] = [
         // Inside the input folder: it would write among the clips.
         (vec!["--out".into(), lib.join("out").to_string_lossy().into()], "inside the folder of input clips"),
@@ -151,7 +119,7 @@ fn a_folder_run_refuses_outputs_it_cannot_write_before_any_work() {
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && stderr.contains(expect), "{args:?}: {stderr}");
     }
-    assert!(files(&lib) == before, "the input folder changed");
+    assert!(folder_bytes(&lib) == before, "the input folder changed");
     assert!(!lib.join("out").exists());
     // --jobs with a single clip is a mistake worth saying.
     let clip = lib.join("run.bvh");

@@ -7,21 +7,8 @@ use std::process::{Command, Output};
 use ace::models::character::gltf::open;
 use serde_json::Value;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = root().join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: {} is missing", p.display());
-        return None;
-    }
-    panic!("{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)", p.display());
-}
+mod common;
+use common::{folder_bytes, root, shared};
 
 fn ace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ace")).args(args).current_dir(root()).output().expect("running ace")
@@ -608,18 +595,6 @@ fn retarget_without_the_cleanup_or_the_human_writes_what_it_says() {
     assert_eq!(alone_ufr, ufr);
     validate_gltf(&alone_glb);
     validate_gltf(&raw_glb);
-}
-
-/// Every file of a folder with its bytes, by name.
-fn folder_bytes(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.is_file())
-        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&p).unwrap()))
-        .collect();
-    files.sort();
-    files
 }
 
 /// Mean of `column` over the rows of an `ace_losses.csv` after step `after`.

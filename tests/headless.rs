@@ -12,6 +12,9 @@ use bevy::asset::LoadState;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 
+mod common;
+use common::{shared, update_until};
+
 const DT: f32 = 1.0 / 30.0;
 
 /// A headless app loading assets from the bundled `assets/` folder.
@@ -29,18 +32,6 @@ fn app_with_assets(asset_root: &str) -> App {
     ))
     .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)));
     app
-}
-
-/// Steps the app until `done` holds, at most 2000 frames.
-fn update_until(app: &mut App, mut done: impl FnMut(&mut World) -> bool) {
-    for _ in 0..2000 {
-        app.update();
-        if done(app.world_mut()) {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    panic!("condition not reached in 2000 frames");
 }
 
 fn assert_close(a: &Transform, b: &Transform, what: &str) {
@@ -590,19 +581,6 @@ fn train_tiny(dir: &Path, glb: &str, checkpoint: &str) {
             .unwrap();
         assert!(out.status.success(), "ace {args:?}: {}", String::from_utf8_lossy(&out.stderr));
     }
-}
-
-/// A file of the shared data beside the project; `None` (skip) only with `ACE_ALLOW_MISSING_DATA=1`.
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: {} is missing", p.display());
-        return None;
-    }
-    panic!("{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)", p.display());
 }
 
 /// A headless app that also loads glTF scenes (Bevy's loader, without a renderer).

@@ -8,24 +8,8 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = root().join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
-        eprintln!("skipping: {} is missing", p.display());
-        return None;
-    }
-    panic!(
-        "{} is missing: the shared data must stand beside the project (or set ACE_ALLOW_MISSING_DATA=1)",
-        p.display()
-    );
-}
+mod common;
+use common::{root, shared};
 
 fn ace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ace"))
