@@ -19,6 +19,7 @@ use ace::models::character::{Creature, RigPose, load_creature};
 use ace::models::kinematics::CharacterPose;
 use ace::models::nalgebra::{Matrix4, Vector3};
 use ace::output::Outputs;
+use ace::plugin::convert::node_transform;
 use ace::plugin::prelude::*;
 use ace::retarget::{Backend, Networks, Written, import_options, retarget_and_score, write};
 use ace::scoring::Scorer;
@@ -30,12 +31,11 @@ use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy::world_serialization::{WorldAssetRoot, WorldSerializationPlugin};
 
+mod common;
+use common::{root, update_until};
+
 const FPS: f32 = 30.0;
 const DT: f32 = 1.0 / FPS;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// What `ace retarget assets/motions/walk.bvh --character hound --out DIR/hound_walk.glb` does
 /// (`ace::retarget::run`, with its defaults: the Rust backend, cleanup on, the model whole), keeping the
@@ -78,31 +78,6 @@ fn app(assets: &Path) -> App {
     app.finish();
     app.cleanup();
     app
-}
-
-/// Steps the app until `done` holds, at most 2000 frames.
-fn update_until(app: &mut App, mut done: impl FnMut(&mut World) -> bool) {
-    for _ in 0..2000 {
-        app.update();
-        if done(app.world_mut()) {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    panic!("condition not reached in 2000 frames");
-}
-
-fn vec3(v: &Vector3<f32>) -> Vec3 {
-    Vec3::new(v.x, v.y, v.z)
-}
-
-fn bevy_transform(n: &NodeTransform) -> Transform {
-    let q = n.rotation.quaternion();
-    Transform {
-        translation: vec3(&n.translation),
-        rotation: Quat::from_xyzw(q.i, q.j, q.k, q.w),
-        scale: vec3(&n.scale),
-    }
 }
 
 /// The angle (rad) between two rotations, without the rounding `angle_between` suffers near zero
@@ -239,7 +214,7 @@ fn an_exported_rig_clip_plays_in_bevy_as_the_retargeted_poses() {
     let held: Vec<(Entity, Transform, String)> = rig_pose
         .held()
         .iter()
-        .map(|(i, name)| (entity(name), bevy_transform(rig_pose.rest(*i)), name.clone()))
+        .map(|(i, name)| (entity(name), node_transform(rig_pose.rest(*i)), name.clone()))
         .collect();
     // The armature root (the body root's parent) is held at rest: root motion is not on it.
     let armature = parent[body_root.node].expect("the body root hangs off an armature node");
@@ -261,7 +236,7 @@ fn an_exported_rig_clip_plays_in_bevy_as_the_retargeted_poses() {
         gaps.seek = gaps.seek.max((seek - k as f32 / FPS).abs());
         for ((d, &e), want) in driven.iter().zip(&driven_entities).zip(&expected[k]) {
             let got = *app.world().get::<Transform>(e).unwrap();
-            let want = bevy_transform(want);
+            let want = node_transform(want);
             let (dt, dr) = (got.translation.distance(want.translation), angle(got.rotation, want.rotation));
             assert!(
                 dt < pos_tol && dr < rot_tol,
@@ -319,8 +294,8 @@ fn an_exported_rig_clip_plays_in_bevy_as_the_retargeted_poses() {
     );
 
     // The comparison can fail: the clip moves the bones away from rest and the root across the ground.
-    let rest_rotation = |i: usize| bevy_transform(rig_pose.rest(driven[i].node)).rotation;
-    let turned = (0..driven.len()).map(|i| angle(bevy_transform(&expected[40][i]).rotation, rest_rotation(i))).fold(0.0, f32::max);
+    let rest_rotation = |i: usize| node_transform(rig_pose.rest(driven[i].node)).rotation;
+    let turned = (0..driven.len()).map(|i| angle(node_transform(&expected[40][i]).rotation, rest_rotation(i))).fold(0.0, f32::max);
     assert!(turned > 0.05, "the bones are {turned} rad from rest at frame 40");
     let travel = (poses.last().unwrap().root.translation.vector - poses[0].root.translation.vector).xy().norm();
     assert!(travel > 0.1 * size * c.rig.scale, "the walk moves the hound {travel} m");

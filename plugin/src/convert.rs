@@ -3,7 +3,10 @@
 //! `models` is right-handed with z up and x forward; Bevy is right-handed with y up. The change of
 //! basis is the proper rotation (x, y, z) ↦ (x, z, −y): a −90° turn about x, never a reflection.
 //! Shapes follow the same map, so a URDF cylinder along its local z is a Bevy cylinder along y.
+//! A rigged creature's node transforms are the exception: they stay in the glTF file's frame
+//! ([`node_transform`]).
 
+use ace_models::character::rig_pose::NodeTransform;
 use ace_models::nalgebra::{Isometry3, Quaternion, UnitQuaternion, Vector3};
 use bevy::math::{Quat, Vec3};
 use bevy::transform::components::Transform;
@@ -37,6 +40,17 @@ pub fn transform(iso: &Isometry3<f32>) -> Transform {
 /// A Bevy [`Transform`] as a `models` rigid transform (scale dropped).
 pub fn isometry(t: &Transform) -> Isometry3<f32> {
     Isometry3::from_parts(vector3(t.translation).into(), unit_quaternion(t.rotation))
+}
+
+/// A rigged creature's node transform as a [`Transform`], with no change of basis: node transforms are
+/// in the glTF file's own frame, which is the scene's (Bevy loads glTF as it is).
+pub fn node_transform(n: &NodeTransform) -> Transform {
+    let q = n.rotation.quaternion();
+    Transform {
+        translation: Vec3::new(n.translation.x, n.translation.y, n.translation.z),
+        rotation: Quat::from_xyzw(q.i, q.j, q.k, q.w),
+        scale: Vec3::new(n.scale.x, n.scale.y, n.scale.z),
+    }
 }
 
 #[cfg(test)]

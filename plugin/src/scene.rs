@@ -193,12 +193,12 @@ pub(crate) fn apply_scene_poses(
         }
         for (&joint, local) in entities.iter().zip(locals.iter()) {
             if let Ok(mut t) = joints.get_mut(joint) {
-                *t = bevy_transform(local);
+                *t = crate::convert::node_transform(local);
             }
         }
         for &(e, node) in &scene.held {
             if let Ok(mut t) = joints.get_mut(e) {
-                t.set_if_neq(bevy_transform(rig.rest(node)));
+                t.set_if_neq(crate::convert::node_transform(rig.rest(node)));
             }
         }
         let origin = match origin {
@@ -208,16 +208,7 @@ pub(crate) fn apply_scene_poses(
                 *transform
             }
         };
-        *transform = origin * bevy_transform(&rig.in_file_frame(&travel));
+        *transform = origin * crate::convert::node_transform(&rig.in_file_frame(&travel));
     }
 }
 
-/// A node transform of the file (whose frame is the scene's: Bevy loads glTF as it is) as a [`Transform`].
-fn bevy_transform(n: &NodeTransform) -> Transform {
-    let q = n.rotation.quaternion();
-    Transform {
-        translation: Vec3::new(n.translation.x, n.translation.y, n.translation.z),
-        rotation: Quat::from_xyzw(q.i, q.j, q.k, q.w),
-        scale: Vec3::new(n.scale.x, n.scale.y, n.scale.z),
-    }
-}
