@@ -813,7 +813,7 @@ fn axis_limits(
     // D = R_P · (L(t) · L_rest⁻¹) · R_P⁻¹ in the character frame (R_P maps the parent's file axes to
     // the character frame), then in the bone's axes.
     let rp = rig.bones[p].rest.rotation;
-    let rest_inv = rig.bones[b].local_rotation.inverse();
+    let rest_inv = rig.bones[b].rest_local.rotation.inverse();
     let m = basis.copied().unwrap_or_else(Matrix3::identity);
     let bq = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
     let angles: Vec<[f32; 3]> = keys

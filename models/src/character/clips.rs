@@ -28,8 +28,8 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
     for f in 0..frames {
         let t = f as f32 / fps;
         for (b, bone) in rig.bones.iter().enumerate() {
-            rot[b] = bone.local_rotation;
-            tra[b] = bone.local_translation;
+            rot[b] = bone.file_local.rotation;
+            tra[b] = bone.file_local.translation;
         }
         for tr in tracks {
             let v = tr.sample(t);
@@ -43,7 +43,7 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
         for (b, bone) in rig.bones.iter().enumerate() {
             let local = Matrix4::new_translation(&tra[b])
                 * rot[b].to_homogeneous()
-                * Matrix4::new_nonuniform_scaling(&bone.local_scale);
+                * Matrix4::new_nonuniform_scaling(&bone.file_local.scale);
             world[b] = match bone.parent {
                 Some(p) => world[p] * local,
                 None => bone.parent_world * local,
@@ -60,7 +60,7 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
             let bone = &rig.bones[j.bone];
             let Some(parent) = bone.parent else { continue };
             let rp = rig.bones[parent].rest.rotation;
-            let d = rp * (rot[j.bone] * bone.local_rotation.inverse()) * rp.inverse();
+            let d = rp * (rot[j.bone] * bone.rest_local.rotation.inverse()) * rp.inverse();
             let bq = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(j.basis));
             let (roll, pitch, yaw) = (bq.inverse() * d * bq).euler_angles();
             for (k, a) in [yaw, pitch, roll].into_iter().enumerate() {

@@ -22,8 +22,12 @@
 //!   carrying the geometry), joints `bone:yaw`, `bone:pitch`, `bone:roll` (only the axes it keeps).
 //!   For legs the axes are vertical, the knee's hinge axis and the leg's outward direction; elsewhere
 //!   the character frame's z, y and x at rest. Which bones move and their limits: see [`super::body_plan`].
-//! - **Rest pose** (all q = 0) is the file's node transforms, which glTF exporters write as the bind
-//!   pose; a warning says so when the inverse bind matrices disagree.
+//! - **Rest pose** (all q = 0) is the skin's bind pose, the pose the mesh was modelled in: joint `j`
+//!   stands at `M · IBM_j⁻¹`, with `M` the world matrix of the skinned mesh's node (three.js's
+//!   convention too), so the skinned vertices are the mesh's own. Exporters often leave the nodes in
+//!   another pose (a frame of a clip); then a warning says how many joints were moved to their bind
+//!   pose. Joints whose nodes already stand there keep their node transforms exactly. A clip's
+//!   channels still start from the nodes' own transforms ([`Bone::file_local`]), as a player's do.
 //! - **Geometry.** Each body bone gets a capsule for the core of the vertices it deforms most (see
 //!   [`fit_capsule`]); a foot gets the sphere of its contact instead. UFR, the cleanup and the
 //!   controllers use them as they use URDF geometry.
@@ -146,15 +150,66 @@ pub struct Bone {
     pub parent: Option<usize>,
     /// World pose at rest (rotation and translation; scale stripped).
     pub rest: Isometry3<f32>,
-    /// Rotation of the node's own local transform at rest, in the file's frame.
-    pub local_rotation: UnitQuaternion<f32>,
-    /// Translation and scale of the node's own local transform at rest (file frame and units).
-    pub local_translation: Vector3<f32>,
-    pub local_scale: Vector3<f32>,
+    /// Its local transform at rest (the bind pose; file frame and units).
+    pub rest_local: NodeTransform,
+    /// The node's own local transform in the file, which a clip's missing channels keep.
+    pub file_local: NodeTransform,
     /// World matrix of the node's parent at rest (file frame), for top-level bones.
     pub parent_world: Matrix4<f32>,
     /// Vertices it deforms (any weight > 0).
     pub deforms: usize,
+}
+
+/// A node's local translation, rotation and scale (glTF's TRS, file frame and units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeTransform {
+    pub translation: Vector3<f32>,
+    pub rotation: UnitQuaternion<f32>,
+    pub scale: Vector3<f32>,
+}
+
+impl NodeTransform {
+    /// The node's own transform as the file gives it.
+    pub fn of(node: &::gltf::Node) -> NodeTransform {
+        let (t, r, s) = node.transform().decomposed();
+        NodeTransform {
+            translation: Vector3::from(t),
+            rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(r[3], r[0], r[1], r[2])),
+            scale: Vector3::from(s),
+        }
+    }
+
+    /// `T · R · S`.
+    pub fn matrix(&self) -> Matrix4<f32> {
+        Translation3::from(self.translation).to_homogeneous()
+            * self.rotation.to_homogeneous()
+            * Matrix4::new_nonuniform_scaling(&self.scale)
+    }
+
+    /// `m` split into translation, rotation and per-axis scale; `None` when it shears, mirrors or
+    /// degenerates beyond what TRS can say.
+    pub fn from_matrix(m: &Matrix4<f32>) -> Option<NodeTransform> {
+        let a = m.fixed_view::<3, 3>(0, 0).into_owned();
+        let scale = Vector3::from_fn(|i, _| a.column(i).norm());
+        if !(scale.min() > 0.0 && scale.iter().all(|v| v.is_finite())) {
+            return None;
+        }
+        let rotation = polar_rotation(&(a * Matrix3::from_diagonal(&scale.map(|v| 1.0 / v))))?;
+        let back = rotation.to_rotation_matrix().matrix() * Matrix3::from_diagonal(&scale);
+        if (back - a).abs().max() > 1e-3 * scale.max() {
+            return None;
+        }
+        Some(NodeTransform { translation: m.fixed_view::<3, 1>(0, 3).into_owned(), rotation, scale })
+    }
+
+    /// Whether `self` and `other` are the same transform to within `tol` (relative to the larger
+    /// scale for the translation).
+    pub fn near(&self, other: &NodeTransform, tol: f32) -> bool {
+        let size = 1.0 + self.translation.abs().max().max(other.translation.abs().max());
+        (self.translation - other.translation).abs().max() <= tol * size
+            && self.rotation.angle_to(&other.rotation) <= tol
+            && (self.scale - other.scale).abs().max() <= tol * self.scale.abs().max()
+    }
 }
 
 /// What a [`Track`] animates.
@@ -425,11 +480,71 @@ pub fn read_document(
         ))));
     }
 
+    // Rest pose: the bind pose (module docs). `rebound[i]`: node i's rest world matrix is not its
+    // node transforms' (a joint moved to its bind pose, or a node below one).
+    let mesh_world = doc
+        .nodes()
+        .find(|nd| nd.mesh().is_some() && nd.skin().map(|s| s.index()) == Some(skin_index))
+        .map_or_else(Matrix4::identity, |nd| world[nd.index()]);
+    let mut rest_world = world.clone();
+    let mut rebound = vec![false; n];
+    for &i in &order {
+        let above = parent[i].map_or_else(Matrix4::identity, |p| rest_world[p]);
+        let moved_above = parent[i].is_some_and(|p| rebound[p]);
+        match slot[i] {
+            Some(k) => {
+                let bind = ibms[k]
+                    .try_inverse()
+                    .map(|inv| mesh_world * inv)
+                    .filter(|m| m.iter().all(|v| v.is_finite()))
+                    .ok_or_else(|| {
+                        fail(GltfProblem::BadTransform(format!(
+                            "the inverse bind matrix of joint `{}` cannot be inverted",
+                            names[i]
+                        )))
+                    })?;
+                if !same_placement(&world[i], &bind) {
+                    rest_world[i] = bind;
+                    rebound[i] = true;
+                }
+            }
+            None if moved_above => {
+                rest_world[i] = above * locals[i];
+                rebound[i] = true;
+            }
+            None => {}
+        }
+    }
+    let rest_local = |i: usize| -> Result<NodeTransform, GltfError> {
+        let node = doc.nodes().nth(i).expect("node");
+        if !rebound[i] && !parent[i].is_some_and(|p| rebound[p]) {
+            return Ok(NodeTransform::of(&node));
+        }
+        let above = parent[i].map_or_else(Matrix4::identity, |p| rest_world[p]);
+        above
+            .try_inverse()
+            .and_then(|inv| NodeTransform::from_matrix(&(inv * rest_world[i])))
+            .ok_or_else(|| {
+                fail(GltfProblem::BadTransform(format!(
+                    "the bind pose of joint `{}` is no translation, rotation and scale of its parent's",
+                    names[i]
+                )))
+            })
+    };
+    let moved = slot.iter().zip(&rebound).filter(|(s, r)| s.is_some() && **r).count();
+    if moved > 0 {
+        warnings.push(format!(
+            "the nodes' transforms are not the skin's bind pose: {moved} of {} joints stand elsewhere; \
+             the rest pose is the bind pose",
+            joints.len()
+        ));
+    }
+
     // Skinned rest vertices in file world coordinates.
     let joint_mats: Vec<Matrix4<f32>> = joints
         .iter()
         .zip(&ibms)
-        .map(|(&j, ibm)| world[j] * ibm)
+        .map(|(&j, ibm)| rest_world[j] * ibm)
         .collect();
     let mut raw: Vec<(Point3<f32>, Vec<(usize, f32)>)> = Vec::new();
     let mut deforms = vec![0usize; joints.len()];
@@ -561,45 +676,22 @@ pub fn read_document(
             }
             p = parent[a];
         }
-        let rest = to_char_iso(&world[node]).ok_or_else(|| {
+        let rest = to_char_iso(&rest_world[node]).ok_or_else(|| {
             fail(GltfProblem::BadTransform(format!(
                 "node {node} (`{}`) has a degenerate or mirrored rotation",
                 names[node]
             )))
         })?;
-        let (t, r, sc) = doc
-            .nodes()
-            .nth(node)
-            .expect("node")
-            .transform()
-            .decomposed();
         bones.push(Bone {
             name: names[node].clone(),
             node,
             parent: p.and_then(|a| bone_of[a]),
             rest,
-            local_rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                r[3], r[0], r[1], r[2],
-            )),
+            rest_local: rest_local(node)?,
+            file_local: NodeTransform::of(&doc.nodes().nth(node).expect("node")),
             deforms: deforms[slot[node].expect("joint")],
-            local_translation: Vector3::from(t),
-            local_scale: Vector3::from(sc),
-            parent_world: parent[node].map_or_else(Matrix4::identity, |q| world[q]),
+            parent_world: parent[node].map_or_else(Matrix4::identity, |q| rest_world[q]),
         });
-    }
-    // Bind pose check: joint world × inverse bind should be one common matrix for all deforming joints.
-    let deforming: Vec<usize> = (0..joints.len()).filter(|&k| deforms[k] > 0).collect();
-    if let Some(&k0) = deforming.first() {
-        let size = extent.max(1e-6);
-        let off = deforming
-            .iter()
-            .map(|&k| (joint_mats[k] - joint_mats[k0]).abs().max() * (1.0 + size))
-            .fold(0.0f32, f32::max);
-        if off > 1e-2 * (1.0 + size) {
-            warnings.push(
-                "the nodes' transforms are not the skin's bind pose; the rest pose is the nodes' transforms".into(),
-            );
-        }
     }
     let bone_index: Vec<usize> = (0..joints.len())
         .map(|k| bone_of[joints[k]].expect("joint"))
@@ -847,6 +939,15 @@ pub fn decode_base64(s: &str) -> Option<Vec<u8>> {
         }
     }
     Some(out)
+}
+
+/// Whether two world matrices place a node the same to float precision: their linear parts within
+/// 1e-4 of their scale, their translations within 1e-4 of their distance from the origin (plus one
+/// file unit).
+fn same_placement(a: &Matrix4<f32>, b: &Matrix4<f32>) -> bool {
+    let (la, lb) = (a.fixed_view::<3, 3>(0, 0), b.fixed_view::<3, 3>(0, 0));
+    let (ta, tb) = (a.fixed_view::<3, 1>(0, 3), b.fixed_view::<3, 1>(0, 3));
+    (la - lb).abs().max() <= 1e-4 * lb.abs().max() && (ta - tb).norm() <= 1e-4 * (1.0 + tb.norm())
 }
 
 /// The rotation nearest to `m` (its polar factor); `None` when `m` is degenerate or mirrors.

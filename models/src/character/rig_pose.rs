@@ -11,8 +11,8 @@
 //!   matrix in the file becomes `C⁻¹ · Δ · C · F_b` (`F_b` its world matrix at rest). Its new local
 //!   transform is its parent's world matrix (composed node by node, as a player or a scene does) inverted
 //!   times that. Every scale (node scales, the armature's units) stays where it was.
-//! - **Driven nodes.** Every bone that carries DoFs gets a rotation; bones held at rest keep their node
-//!   transform. The **body root's node** also gets a translation (root motion goes there, not on the
+//! - **Driven nodes.** Every bone that carries DoFs gets a rotation; bones held at rest keep their rest
+//!   transform (the import's: the skin's bind pose, see [`super::gltf`]). The **body root's node** also gets a translation (root motion goes there, not on the
 //!   armature root: the armature also holds the IK and pole helpers hanging off it, and its ×100 scale
 //!   and axis change would have to be folded out of the motion). Deforming helpers (an IK-driven foot
 //!   hanging off the armature root) follow their host bone in the tree, so they get a translation and a
@@ -29,6 +29,7 @@
 use nalgebra::{Isometry3, Matrix3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use super::Creature;
+pub use super::gltf::NodeTransform;
 use super::gltf::polar_rotation;
 use crate::kinematics::{CharacterPose, KinematicTree};
 
@@ -49,22 +50,6 @@ pub struct DrivenBone {
     pub link: usize,
     /// Whether its translation moves too (the body root, deforming helpers); otherwise only its rotation.
     pub translates: bool,
-}
-
-/// A node's local translation, rotation and scale (glTF's TRS, file frame and units).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NodeTransform {
-    pub translation: Vector3<f32>,
-    pub rotation: UnitQuaternion<f32>,
-    pub scale: Vector3<f32>,
-}
-
-impl NodeTransform {
-    fn matrix(&self) -> Matrix4<f32> {
-        Translation3::from(self.translation).to_homogeneous()
-            * self.rotation.to_homogeneous()
-            * Matrix4::new_nonuniform_scaling(&self.scale)
-    }
 }
 
 /// Working buffers of [`RigPose::write`], reused from pose to pose.
@@ -123,20 +108,16 @@ impl RigPose {
         if order.len() < n {
             return Err(not_it("its node hierarchy has a cycle".into()));
         }
-        let rest: Vec<NodeTransform> = nodes
-            .iter()
-            .map(|nd| {
-                let (t, r, s) = nd.transform().decomposed();
-                NodeTransform {
-                    translation: Vector3::from(t),
-                    rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(r[3], r[0], r[1], r[2])),
-                    scale: Vector3::from(s),
-                }
-            })
-            .collect();
+        // At rest: the bones' rest (bind) transforms as the import found them, the other nodes' own.
+        let mut rest: Vec<NodeTransform> = nodes.iter().map(NodeTransform::of).collect();
+        for b in &c.rig.bones {
+            if let Some(r) = rest.get_mut(b.node) {
+                *r = b.rest_local;
+            }
+        }
         let mut world = vec![Matrix4::identity(); n];
         for &i in &order {
-            let local = Matrix4::from(nodes[i].transform().matrix());
+            let local = rest[i].matrix();
             world[i] = parent[i].map_or(local, |p| world[p] * local);
             if !world[i].iter().all(|v| v.is_finite()) {
                 return Err(not_it(format!("node {i} has a non-finite transform")));

@@ -7,7 +7,8 @@
 //!   and units through [`crate::character::rig_pose`] (the conversion the Bevy plugin uses too): see its
 //!   docs for the inverse of the import and which nodes move. A rotation channel goes on every driven
 //!   bone, a translation channel too on those that translate (root motion on the body root's node,
-//!   deforming helpers); bones held at rest keep their node transform. Every channel has one LINEAR key
+//!   deforming helpers); bones held at rest keep their node transform, unless the import moved them to
+//!   the skin's bind pose, where a constant channel holds them. Every channel has one LINEAR key
 //!   per pose at `k / fps` s; rotations stay in one hemisphere from key to key.
 //! - **One buffer.** The file's buffers (a GLB's binary chunk, data URIs, `.bin` files beside a
 //!   `.gltf`) and its external or data-URI images are laid end to end in the GLB's one binary chunk, so
@@ -30,7 +31,7 @@ use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::character::Creature;
 use crate::character::gltf::{MAX_FILE_BYTES, decode_base64, open, percent_decode};
-use crate::character::rig_pose::{RigMismatch, RigPose, RigScratch};
+use crate::character::rig_pose::{NodeTransform, RigMismatch, RigPose, RigScratch};
 use crate::kinematics::CharacterPose;
 
 /// Name of the clip's animation when [`RigClipOptions::name`] gives none.
@@ -122,12 +123,34 @@ fn build(
         }
         b.channel(node, Property::Rotation, input, &quat_values(r));
     }
+    // Nodes whose rest is not the transform the file gives them (joints the import moved to the
+    // skin's bind pose): the clip holds them there, on each property it does not animate already.
+    let held = rig_pose.held().iter().map(|(i, _)| (*i, None));
+    for (i, d) in driven.iter().map(|d| (d.node, Some(d))).chain(held) {
+        let (Some(node), Some(file)) = (map[i], doc.nodes().nth(i)) else { continue };
+        let (rest, file) = (rig_pose.rest(i), NodeTransform::of(&file));
+        let frames = poses.len();
+        if !d.is_some_and(|d| d.translates) && !near(&rest.translation, &file.translation) {
+            b.channel(node, Property::Translation, input, &vec3_values(&vec![rest.translation; frames]));
+        }
+        if d.is_none() && rest.rotation.angle_to(&file.rotation) > 1e-6 {
+            b.channel(node, Property::Rotation, input, &quat_values(&vec![rest.rotation; frames]));
+        }
+        if !near(&rest.scale, &file.scale) {
+            b.channel(node, Property::Scale, input, &vec3_values(&vec![rest.scale; frames]));
+        }
+    }
     let (mut root, bin) = b.finish(opts.name.as_deref().unwrap_or(DEFAULT_CLIP_NAME));
     root.asset.generator = Some(concat!("ace_models ", env!("CARGO_PKG_VERSION")).into());
     Ok(RigClipOutput {
         bytes: glb(&root, &bin)?,
         animated_nodes: driven.len(),
     })
+}
+
+/// Whether two translations or scales are the same to float precision.
+fn near(a: &Vector3<f32>, b: &Vector3<f32>) -> bool {
+    (a - b).abs().max() <= 1e-6 * (1.0 + a.abs().max())
 }
 
 /// The parent of each of the file's nodes (checked for one parent each and no cycle by [`RigPose::new`]).
