@@ -21,6 +21,8 @@
 //!   (ball joints) get more IK iterations in these checks ([`ik_iterations`]).
 //! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
 //!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
+//!   A range that passes is halved once more when that lengthens the weakest leg's fore-and-aft step
+//!   by half ([`POSTURE_TRADE`]): just past 12 % a leg may step too short for an animal's stride.
 //! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
 //!   below the ground at some posture with its foot point on the ground keeps the foot point that much
 //!   above the ground in stance (e.g. a sphere foot whose point was found at a straight-legged neutral
@@ -43,6 +45,13 @@ use crate::morphology::Morphology;
 const IK_TOL: f32 = 1e-5;
 /// Largest IK error at which a calibration pose counts as reached (m).
 const REACHED: f32 = 3e-4;
+/// Smallest step radius, as a fraction of the leg's length, that the weakest leg must keep at the
+/// posture range's extremes before the range is halved.
+const MIN_STEP: f32 = 0.12;
+/// A range that passes is still halved once more when that lengthens the weakest leg's fore-and-aft
+/// step by this factor: the step region sets the stride (and so the cadence), the posture range only
+/// how far the body heaves and tilts.
+const POSTURE_TRADE: f32 = 1.5;
 /// Joint-space samples for a leg's reach.
 const REACH_SAMPLES: usize = 512;
 
@@ -177,6 +186,86 @@ pub struct StepRadii {
     pub tilt: [f32; 2],
 }
 
+/// One posture range tried by [`step_radii`]: each leg's step radius and sole there.
+struct Range {
+    /// The weakest leg's step radius relative to its length.
+    worst: f32,
+    radii: Vec<f32>,
+    soles: Vec<f32>,
+    height: [f32; 2],
+    tilt: [f32; 2],
+}
+
+/// The legs' soles and step radii over the posture range `shrink` × the configured one; sets each
+/// leg's sole and moves `nominal_q` onto them.
+#[allow(clippy::too_many_arguments)]
+fn try_range(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    legs: &mut [Leg],
+    nominal_q: &mut [f32],
+    h0: f32,
+    (height, tilt, shrink): ([f32; 2], [f32; 2], f32),
+    dip_tol: f32,
+    ignore: &[bool],
+    scratch: &mut ChainScratch,
+) -> Range {
+    let root0 = tilted_root(h0, 0.0, 0.0);
+    let hr = [h0 + (height[0] - h0) * shrink, h0 + (height[1] - h0) * shrink];
+    let tl = [tilt[0] * shrink, tilt[1] * shrink];
+    let poses = postures(hr, tl);
+    for leg in legs.iter_mut() {
+        leg.sole = sole(tree, proxies, leg, nominal_q, &poses, dip_tol, scratch);
+        let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
+        leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, scratch);
+    }
+    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
+    let radii: Vec<f32> = (0..legs.len())
+        .map(|i| 0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, None, scratch))
+        .collect();
+    let worst = legs.iter().zip(&radii).map(|(l, r)| r / l.length).fold(f32::INFINITY, f32::min);
+    Range { worst, radii, soles: legs.iter().map(|l| l.sole).collect(), height: hr, tilt: tl }
+}
+
+/// Puts the legs on range `r`: their soles (moving `nominal_q` onto them where they changed), step
+/// radii and fore-and-aft semi-axes, the latter from the same checks over the ellipse with the
+/// lateral semi-axis kept. Returns the weakest leg's fore-and-aft semi-axis relative to its length.
+#[allow(clippy::too_many_arguments)]
+fn settle(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    legs: &mut [Leg],
+    nominal_q: &mut [f32],
+    h0: f32,
+    r: &Range,
+    dip_tol: f32,
+    ignore: &[bool],
+    scratch: &mut ChainScratch,
+) -> f32 {
+    let root0 = tilted_root(h0, 0.0, 0.0);
+    for ((leg, &radius), &s) in legs.iter_mut().zip(&r.radii).zip(&r.soles) {
+        leg.r_max = radius;
+        leg.r_fore = radius;
+        if leg.sole != s {
+            leg.sole = s;
+            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
+            leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, scratch);
+        }
+    }
+    let poses = postures(r.height, r.tilt);
+    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
+    let fore: Vec<f32> = (0..legs.len())
+        .map(|i| {
+            let lateral = legs[i].r_max / 0.9;
+            0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, Some(lateral), scratch)
+        })
+        .collect();
+    for (leg, f) in legs.iter_mut().zip(fore) {
+        leg.r_fore = f.max(leg.r_max);
+    }
+    legs.iter().map(|l| l.r_fore / l.length).fold(f32::INFINITY, f32::min)
+}
+
 /// Finds each leg's sole and step radius, shrinking the posture range if needed (module docs); updates
 /// `nominal_q` for the soles. `h0` is the nominal height, `height` and `tilt` the configured range.
 #[allow(clippy::too_many_arguments)]
@@ -191,93 +280,34 @@ pub fn step_radii(
     dip_tol: f32,
     ignore: &[bool],
 ) -> Result<StepRadii, ControllerError> {
-    struct Best {
-        worst: f32,
-        radii: Vec<f32>,
-        soles: Vec<f32>,
-        height: [f32; 2],
-        tilt: [f32; 2],
-    }
     let mut scratch = ChainScratch::default();
-    let root0 = tilted_root(h0, 0.0, 0.0);
-    let mut best: Option<Best> = None;
-    for shrink in [1.0f32, 0.5, 0.25, 0.0] {
-        let hr = [h0 + (height[0] - h0) * shrink, h0 + (height[1] - h0) * shrink];
-        let tl = [tilt[0] * shrink, tilt[1] * shrink];
-        let poses = postures(hr, tl);
-        for leg in legs.iter_mut() {
-            leg.sole = sole(tree, proxies, leg, nominal_q, &poses, dip_tol, &mut scratch);
-            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
-            leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
+    const SHRINKS: [f32; 4] = [1.0, 0.5, 0.25, 0.0];
+    let mut best: Option<Range> = None;
+    let mut next = None;
+    for (k, shrink) in SHRINKS.into_iter().enumerate() {
+        let r = try_range(tree, proxies, legs, nominal_q, h0, (height, tilt, shrink), dip_tol, ignore, &mut scratch);
+        let passed = r.worst >= MIN_STEP;
+        if best.as_ref().is_none_or(|b| r.worst > b.worst) {
+            best = Some(r);
         }
-        let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
-        let radii: Vec<f32> = (0..legs.len())
-            .map(|i| {
-                0.9 * radius(
-                    tree,
-                    proxies,
-                    &scene,
-                    legs,
-                    i,
-                    nominal_q,
-                    &poses,
-                    dip_tol,
-                    None,
-                    &mut scratch,
-                )
-            })
-            .collect();
-        // The worst leg's radius relative to its length decides.
-        let worst = legs
-            .iter()
-            .zip(&radii)
-            .map(|(l, r)| r / l.length)
-            .fold(f32::INFINITY, f32::min);
-        if best.as_ref().is_none_or(|b| worst > b.worst) {
-            best = Some(Best {
-                worst,
-                radii,
-                soles: legs.iter().map(|l| l.sole).collect(),
-                height: hr,
-                tilt: tl,
-            });
-        }
-        if worst >= 0.12 {
+        if passed {
+            next = SHRINKS.get(k + 1).copied();
             break;
         }
     }
-    let best = best.expect("at least one posture range is tried");
-    for ((leg, &r), &s) in legs.iter_mut().zip(&best.radii).zip(&best.soles) {
-        leg.r_max = r;
-        leg.r_fore = r;
-        if leg.sole != s {
-            leg.sole = s;
-            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
-            leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, &mut scratch);
+    let mut best = best.expect("at least one posture range is tried");
+    let fore = settle(tree, proxies, legs, nominal_q, h0, &best, dip_tol, ignore, &mut scratch);
+    // A passing range is halved once more when that lengthens the weakest leg's stride enough
+    // (module docs); otherwise the legs go back exactly as they were.
+    if let Some(shrink) = next {
+        let (kept_q, kept_legs) = (nominal_q.to_vec(), legs.to_vec());
+        let r = try_range(tree, proxies, legs, nominal_q, h0, (height, tilt, shrink), dip_tol, ignore, &mut scratch);
+        if settle(tree, proxies, legs, nominal_q, h0, &r, dip_tol, ignore, &mut scratch) >= POSTURE_TRADE * fore {
+            best = r;
+        } else {
+            nominal_q.copy_from_slice(&kept_q);
+            legs.clone_from_slice(&kept_legs);
         }
-    }
-    // The fore-and-aft semi-axis: the same checks over the ellipse with the lateral one kept.
-    let poses = postures(best.height, best.tilt);
-    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
-    let fore: Vec<f32> = (0..legs.len())
-        .map(|i| {
-            let lateral = legs[i].r_max / 0.9;
-            0.9 * radius(
-                tree,
-                proxies,
-                &scene,
-                legs,
-                i,
-                nominal_q,
-                &poses,
-                dip_tol,
-                Some(lateral),
-                &mut scratch,
-            )
-        })
-        .collect();
-    for (leg, r) in legs.iter_mut().zip(fore) {
-        leg.r_fore = r.max(leg.r_max);
     }
     if best.worst < 0.03 {
         let leg = legs
