@@ -11,10 +11,14 @@
 //!   run's length in frames; its distance is the horizontal distance between the foot at the last
 //!   contact frame before and the first contact frame after.
 //! - **Stride**: from one touchdown (first contact frame after a swing) of a foot to its next. Its
-//!   frequency is `fps / frames`, its duty factor the fraction of its frames in contact, its speed the
-//!   distance between the two touchdown points over its duration (so a foot that steps on the spot has
-//!   speed ≈ 0, and a turning body is measured at its feet). The law's frequency is
-//!   [`stride_frequency`] at that speed and the character's hip height; the ratio is measured / law.
+//!   frequency is `fps / frames`, its duty factor the fraction of its frames in contact. Its foot's
+//!   speed is the distance between the two touchdown points over its duration (so a foot that steps on
+//!   the spot has speed ≈ 0, and a turning body is measured at its feet). Its speed is the mean foot
+//!   speed of the strides of every foot that are under way at its midpoint (its own among them): the
+//!   legs share one clock, so in a turn the inner feet take short strides at the outer feet's cadence,
+//!   and the gait's speed is that of all its feet, not of the slowest. On a straight walk both are the
+//!   body's speed. The law's frequency is [`stride_frequency`] at the stride's speed and the character's
+//!   hip height; the ratio is measured / law.
 //! - **Pop**: a swing of at most [`GaitConfig::POP_FRAMES`] frames, or shorter than
 //!   [`GaitConfig::POP_FRACTION`] of the reference median swing (the character dataset's) when given.
 //! - **Micro-step**: a swing that moves the foot less than [`GaitConfig::MICRO_STEP`] body lengths.
@@ -205,8 +209,10 @@ pub struct Stride {
     pub frames: usize,
     /// Fraction of them in contact.
     pub duty: f32,
-    /// Distance between the two touchdowns over the duration (m/s).
+    /// Mean foot speed of the strides of every foot under way at its midpoint (m/s; module docs).
     pub speed: f32,
+    /// Distance between its own two touchdowns over the duration (m/s).
+    pub foot_speed: f32,
     /// `fps / frames` (Hz).
     pub frequency: f32,
     /// The law's frequency at `speed` (Hz).
@@ -307,6 +313,8 @@ pub fn gait_quality(tracks: &FootTracks, episodes: &[Range<usize>], config: &Gai
     let fps = config.fps;
     let mut swings = Vec::new();
     let mut strides = Vec::new();
+    // The stride each swing ends, if any.
+    let mut swing_stride: Vec<Option<usize>> = Vec::new();
     for e in episodes {
         assert!(e.end <= n, "episode {e:?} reaches past the {n} frames");
         for k in 0..tracks.feet {
@@ -323,28 +331,30 @@ pub fn gait_quality(tracks: &FootTracks, episodes: &[Range<usize>], config: &Gai
                     // A swing from l + 1 to t − 1: t is a touchdown.
                     let from = tracks.at(l, k).1;
                     let frames = t - l - 1;
-                    let mut stride_speed = None;
+                    let mut stride = None;
                     if let Some((t0, p0)) = touchdown {
                         let len = t - t0;
                         let speed = (p[0] - p0[0]).hypot(p[1] - p0[1]) * fps / len as f32;
-                        stride_speed = Some(speed);
+                        stride = Some(strides.len());
                         strides.push(Stride {
                             foot: k,
                             start: t0,
                             frames: len,
                             duty: stance as f32 / len as f32,
                             speed,
+                            foot_speed: speed,
                             frequency: fps / len as f32,
-                            law: stride_frequency(speed, config.hip_height),
+                            law: 0.0,
                             swing_frames: frames,
                         });
                     }
+                    swing_stride.push(stride);
                     swings.push(Swing {
                         foot: k,
                         start: l + 1,
                         frames,
                         distance: (p[0] - from[0]).hypot(p[1] - from[1]),
-                        stride_speed,
+                        stride_speed: None,
                     });
                     touchdown = Some((t, p));
                     stance = 0;
@@ -353,6 +363,13 @@ pub fn gait_quality(tracks: &FootTracks, episodes: &[Range<usize>], config: &Gai
                 last_contact = Some(t);
             }
         }
+    }
+    gait_speeds(&mut strides, tracks.feet);
+    for st in &mut strides {
+        st.law = stride_frequency(st.speed, config.hip_height);
+    }
+    for (sw, k) in swings.iter_mut().zip(&swing_stride) {
+        sw.stride_speed = k.map(|k| strides[k].speed);
     }
     let pop_limit = config.reference_swing.map_or(0.0, |m| GaitConfig::POP_FRACTION * m);
     let is_pop = |s: &Swing| s.frames <= GaitConfig::POP_FRAMES || (s.frames as f32) < pop_limit;
@@ -398,6 +415,32 @@ pub fn gait_quality(tracks: &FootTracks, episodes: &[Range<usize>], config: &Gai
         strides,
         pop_frames,
         summary,
+    }
+}
+
+/// Sets each stride's speed to the mean foot speed of the strides of every foot under way at its
+/// midpoint (module docs); `strides` holds each foot's strides in time order within each episode.
+fn gait_speeds(strides: &mut [Stride], feet: usize) {
+    // Per foot, its strides' (start, end, foot speed) in time order.
+    let mut by_foot: Vec<Vec<(usize, usize, f32)>> = vec![Vec::new(); feet];
+    for s in strides.iter() {
+        by_foot[s.foot].push((s.start, s.start + s.frames, s.foot_speed));
+    }
+    by_foot.iter_mut().for_each(|v| v.sort_by_key(|&(a, _, _)| a));
+    for s in strides.iter_mut() {
+        let mid = s.start + s.frames / 2;
+        let (mut sum, mut count) = (0.0f32, 0usize);
+        for v in &by_foot {
+            let i = v.partition_point(|&(a, _, _)| a <= mid);
+            if let Some(&(_, end, speed)) = i.checked_sub(1).map(|i| &v[i]) {
+                if mid < end {
+                    sum += speed;
+                    count += 1;
+                }
+            }
+        }
+        // Its own stride is always under way at its midpoint.
+        s.speed = sum / count.max(1) as f32;
     }
 }
 
@@ -509,6 +552,29 @@ mod tests {
         assert_eq!(sum.bins[0].speed, [0.5, 0.75]);
         assert!((sum.bins[0].ratio - 3.0 / stride_frequency(0.6, 0.5)).abs() < 1e-5);
         assert_eq!(sum.median_ratio, Some(sum.bins[0].ratio));
+    }
+
+    #[test]
+    fn a_strides_speed_is_that_of_every_foot_under_way() {
+        // Two feet on one clock, as in a turn: the outer one strides 0.2 m per 10 frames (0.6 m/s),
+        // the inner one 0.05 m (0.15 m/s). Both strides are measured at the gait's 0.375 m/s.
+        let p = "^^......^^^^......^^^^......^^";
+        let (outer, inner) = (track(p, 0.05), track(p, 0.0125));
+        let mut tr = FootTracks { feet: 2, ..FootTracks::default() };
+        for t in 0..p.len() {
+            tr.contact.extend([outer.contact[t], inner.contact[t]]);
+            tr.xy.extend([outer.xy[t], inner.xy[t]]);
+        }
+        let r = gait_quality(&tr, &[0..p.len()], &config(None));
+        assert_eq!(r.strides.len(), 2);
+        let mut own: Vec<f32> = r.strides.iter().map(|s| s.foot_speed).collect();
+        own.sort_by(f32::total_cmp);
+        assert!((own[0] - 0.15).abs() < 1e-5 && (own[1] - 0.6).abs() < 1e-5, "{own:?}");
+        for s in &r.strides {
+            assert!((s.speed - 0.375).abs() < 1e-5, "{}", s.speed);
+            assert!((s.law - stride_frequency(0.375, 0.5)).abs() < 1e-6);
+        }
+        assert!(r.swings.iter().filter_map(|s| s.stride_speed).all(|v| (v - 0.375).abs() < 1e-5));
     }
 
     #[test]
