@@ -732,12 +732,14 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     let elapsed = app.world().get::<AnimationPlayer>(animated).unwrap().animation(node).map(|a| a.elapsed());
     assert!(elapsed.is_some_and(|e| e > 1.0), "the Walk clip played for {elapsed:?} s");
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
-    // And it moves the bones compared above: once the scene is no longer driven, they leave the
-    // Retargeter's pose (the comparisons above would fail had the clip written last).
-    app.world_mut().entity_mut(fox).remove::<(Retargeter, CreatureScene)>();
+    // And it moves the bones compared above: once the Retargeter is removed (its CreatureScene goes
+    // with it), they leave the Retargeter's pose (the comparisons above would fail had the clip
+    // written last).
+    app.world_mut().entity_mut(fox).remove::<Retargeter>();
     for _ in 0..5 {
         app.update();
     }
+    assert!(app.world().get::<CreatureScene>(fox).is_none(), "the scene is released with its Retargeter");
     let (_, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
     assert!(a > 0.05, "the Fox's clip turns the bones {a} rad from the Retargeter's pose");
 }

@@ -120,7 +120,7 @@ impl Plugin for AcePlugin {
         app.add_systems(
             PostUpdate,
             (
-                (scene::bind_scenes, scene::find_joints).chain().in_set(AceSystems::Spawn),
+                (scene::release_scenes, scene::bind_scenes, scene::find_joints).chain().in_set(AceSystems::Spawn),
                 scene::apply_scene_poses.in_set(AceSystems::Apply),
             ),
         );

@@ -33,9 +33,9 @@
 //!   systems (`AnimationSystems`), in [`crate::AceSystems::Apply`], the plugin writes the driven joints
 //!   from the pose and holds the skeleton's other nodes (the skin's other joints and their ancestors,
 //!   found by name) at rest. A playing `AnimationPlayer` of the scene is overridden there and still
-//!   shows on everything else (nodes outside the skeleton, morph weights). To let the model's own clip
-//!   show again, remove the Retargeter together with [`CreatureScene`]: with only the Retargeter gone,
-//!   the last pose stays applied.
+//!   shows on everything else (nodes outside the skeleton, morph weights). Removing the Retargeter
+//!   removes the [`CreatureScene`] too, and the model's own clip shows again; without a player the
+//!   last pose stays where it is.
 //!
 //! The scene is shown as authored: y up, facing the file's forward axis, in the file's units (scale
 //! the entity to resize it). A URDF character's links face +x instead.
@@ -104,6 +104,21 @@ pub(crate) fn bind_scenes(
         }
         let asset: Handle<CharacterAsset> = server.load(path.without_label().clone_owned());
         commands.entity(entity).insert(CreatureScene::new(asset));
+    }
+}
+
+/// Forgets the scene of every entity whose [`Retargeter`] was removed, so that nothing drives its
+/// joints any more (its own `AnimationPlayer`, if any, shows again). A [`RootOrigin`] stays: it may be
+/// the user's.
+pub(crate) fn release_scenes(
+    mut commands: Commands,
+    mut removed: RemovedComponents<Retargeter>,
+    scenes: Query<(), (With<CreatureScene>, Without<Retargeter>)>,
+) {
+    for entity in removed.read() {
+        if scenes.contains(entity) {
+            commands.entity(entity).remove::<CreatureScene>();
+        }
     }
 }
 
