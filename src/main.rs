@@ -21,7 +21,7 @@ struct Cli {
 /// Options of `train-prior` and `train`.
 #[derive(clap::Args)]
 struct TrainOpts {
-    /// A bundled character (spot, crab, stretch) or a URDF file.
+    /// A bundled character (spot, crab, stretch, hound), a URDF file or a rigged glTF creature (.glb, .gltf).
     #[arg(long)]
     character: String,
     /// Checkpoint directory [default: out/checkpoints/<character>].
@@ -77,7 +77,7 @@ enum Command {
     /// Generate a character motion dataset by rolling out its kinematic controllers under random
     /// commands (the data the motion prior learns from).
     Dataset {
-        /// A bundled character (spot, crab, stretch) or a URDF file.
+        /// A bundled character (spot, crab, stretch, hound), a URDF file or a rigged glTF creature (.glb, .gltf).
         #[arg(long)]
         character: String,
         /// Frames to generate [default: 200000, or the config's].
@@ -122,7 +122,7 @@ enum Command {
     Retarget {
         /// The human clip (BVH), or a folder of clips (every .bvh below it, recursively).
         clip: PathBuf,
-        /// A bundled character (spot, crab, stretch), a URDF file or a rigged glTF creature (.glb, .gltf).
+        /// A bundled character (spot, crab, stretch, hound), a URDF file or a rigged glTF creature (.glb, .gltf).
         #[arg(long)]
         character: String,
         /// Checkpoint directory [default: the bundled character's shipped one].
@@ -160,7 +160,7 @@ enum Command {
     /// ACE and the prior driven by random latents (with --baselines also NKN and ACE without either
     /// loss, the paper's Table 1), plus long-rollout stability. Writes Markdown, CSV, JSON and a chart.
     Eval {
-        /// A bundled character (spot, crab, stretch) or a URDF file.
+        /// A bundled character (spot, crab, stretch, hound), a URDF file or a rigged glTF creature (.glb, .gltf).
         #[arg(long)]
         character: String,
         /// Checkpoint directory [default: the bundled character's shipped one].

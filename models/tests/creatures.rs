@@ -207,6 +207,9 @@ fn rest_pose_forward_kinematics_is_the_skins_bind_pose() {
         let c = load(&path);
         let (names, world) = node_worlds(&path);
         let bind = bind_worlds(&path);
+        // Every joint of the skin is a bone, in the file's count.
+        assert_eq!(c.rig.bones.len(), bind.len(), "{file}");
+        assert!(bind.iter().all(|(n, _)| c.rig.bones.iter().any(|b| b.name == *n)), "{file}");
         // The Fox's nodes stand in its bind pose; the Quaternius files leave theirs in another pose
         // (the Spider's legs 0.8 m off mirror symmetry, where the bind pose is symmetric to 4 mm).
         let nodes_at_bind = bind.iter().all(|(name, b)| {

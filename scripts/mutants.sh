@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Mutation testing of the core modules whose correctness the tests must guard: cargo-mutants plants
+# one small bug at a time (a `<` for a `<=`, a function returning a default, a `+` for a `-`) and runs
+# the tests aimed at that file; a mutant the tests do not fail on is a gap in them.
+#
+#   bash scripts/mutants.sh [FILE...]      (default: every file listed below)
+#
+# Not part of CI: each mutant rebuilds and reruns tests, about half a minute to two minutes each on
+# 2 cores (the files below have 27 to 187 mutants each). cargo-mutants (pinned) is installed into
+# .local/cargo on first use. It mutates the committed HEAD in a worktree beside this checkout
+# (`../<checkout>-mutants`, so that the tests find ../shared as they do here; uncommitted changes are
+# not in it), never this checkout's files. Each file's results go to out/mutants/<file, slashes as
+# dashes>/mutants.out ({caught,missed,timeout,unviable}.txt, outcomes.json), and a table of them is
+# printed at the end.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+version="27.1.0"
+bin="$root/.local/cargo/bin/cargo-mutants"
+if ! "$bin" --version 2>/dev/null | grep -q "$version"; then
+  echo "mutants: installing cargo-mutants $version into .local/cargo (a few minutes)"
+  cargo install --locked --quiet --root "$root/.local/cargo" cargo-mutants --version "$version"
+fi
+export PATH="$root/.local/cargo/bin:$PATH"
+# One libtorch thread per test, as in scripts/test.sh.
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
+
+# Per file: the cargo-mutants options that build its crate (features) and the tests aimed at it (cargo
+# test arguments, then `--` and the test binaries' filter). Learning modules need the `learn` feature
+# (libtorch); the rest build without it, which is much faster.
+declare -A how=(
+  [models/src/features.rs]="--no-default-features -- --test metrics"
+  [models/src/metrics/ufr.rs]="--no-default-features -- --test metrics"
+  [models/src/metrics/distribution.rs]="--no-default-features -- --test metrics"
+  [models/src/foot_lock.rs]="--no-default-features -- --lib -- foot_lock"
+  [models/src/collision_guard.rs]="--no-default-features -- --lib -- collision_guard"
+  [models/src/learn/ace.rs]="--features learn -- --lib -- learn::ace"
+  [models/src/learn/train_ace.rs]="--features learn -- --lib -- learn::train_ace"
+  [models/src/learn/prior.rs]="--features learn -- --lib -- learn::prior"
+)
+order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
+       models/src/foot_lock.rs models/src/collision_guard.rs
+       models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs)
+files=("$@")
+[ ${#files[@]} -eq 0 ] && files=("${order[@]}")
+
+for f in "${files[@]}"; do
+  [ -n "${how[$f]:-}" ] || { echo "mutants: no tests are listed for $f (see ${BASH_SOURCE[0]})" >&2; exit 2; }
+done
+tree="$(dirname "$root")/$(basename "$root")-mutants"
+if [ -d "$tree" ]; then
+  git -C "$tree" checkout --quiet --detach "$(git rev-parse HEAD)"
+else
+  git worktree add --quiet --detach "$tree" HEAD
+fi
+ln -sfn "$root/.local" "$tree/.local"
+for f in "${files[@]}"; do
+  out="$root/out/mutants/${f//\//-}"
+  mkdir -p "$out"
+  read -r -a opts <<< "${how[$f]}"
+  echo "mutants: $f"
+  # Exit status 2 means missed mutants, 3 timeouts: the table below says which; go on to the next file.
+  (cd "$tree" && cargo mutants --in-place --package ace_models --file "$f" --output "$out" \
+    --timeout-multiplier 3 "${opts[@]}") || true
+done
+
+printf '\n| file | mutants | caught | missed | timeouts | unviable |\n|---|---:|---:|---:|---:|---:|\n'
+for f in "${files[@]}"; do
+  d="out/mutants/${f//\//-}/mutants.out"
+  count() { [ -f "$d/$1.txt" ] && grep -c . "$d/$1.txt" || echo 0; }
+  c=$(count caught); m=$(count missed); t=$(count timeout); u=$(count unviable)
+  printf '| %s | %d | %d | %d | %d | %d |\n' "$f" $((c + m + t + u)) "$c" "$m" "$t" "$u"
+done
