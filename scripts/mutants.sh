@@ -17,7 +17,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 version="27.1.0"
 bin="$root/.local/cargo/bin/cargo-mutants"
-if ! "$bin" --version 2>/dev/null | grep -q "$version"; then
+if ! "$bin" mutants --version 2>/dev/null | grep -q "$version"; then
   echo "mutants: installing cargo-mutants $version into .local/cargo (a few minutes)"
   cargo install --locked --quiet --root "$root/.local/cargo" cargo-mutants --version "$version"
 fi
