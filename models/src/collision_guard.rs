@@ -165,22 +165,85 @@ mod tests {
     use crate::metrics::ufr;
     use crate::morphology::load_character;
 
-    #[test]
-    fn an_arm_swung_through_the_body_stops_at_its_surface() {
+    /// Spot, and its arm's DoF `name` swept over its range and back in 120 frames from the standing pose,
+    /// with the DoFs of `fixed` held at the given fraction of their ranges.
+    fn sweep(name: &str, fixed: &[(&str, f32)]) -> (KinematicTree, Morphology, Vec<CharacterPose>) {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
         let (tree, morph) = load_character(&path).unwrap();
-        let sh1 = tree.dof_names().iter().position(|n| *n == "arm_sh1").unwrap();
-        let l = tree.limits(sh1).unwrap();
-        let (lo, hi) = (l.lower, l.upper);
-        // The arm's shoulder swept across its whole range and back: somewhere it passes the body.
-        let raw: Vec<CharacterPose> = (0..120)
+        let dof = |name: &str| tree.dof_names().iter().position(|n| *n == name).unwrap();
+        let d = dof(name);
+        let l = tree.limits(d).unwrap();
+        let mut standing = tree.standing_pose();
+        for &(n, f) in fixed {
+            let l = tree.limits(dof(n)).unwrap();
+            standing.q[dof(n)] = l.lower + f * (l.upper - l.lower);
+        }
+        let raw = (0..120)
             .map(|t| {
-                let mut p = tree.standing_pose();
+                let mut p = standing.clone();
                 let s = 0.5 - 0.5 * (t as f32 * std::f32::consts::TAU / 120.0).cos();
-                p.q[sh1] = lo + s * (hi - lo);
+                p.q[d] = l.lower + s * (l.upper - l.lower);
                 p
             })
             .collect();
+        (tree, morph, raw)
+    }
+
+    /// Every frame the guard changed stops at the surface it ran into: on the line from the last
+    /// output towards the raw pose, free, with a point 3/256 of that line further on colliding (the
+    /// bisection's resolution is 1/256), unless it is the line's end. Returns the frames changed.
+    fn assert_stopped_at_the_surface(tree: &KinematicTree, guard: &CollisionGuard, raw: &[CharacterPose], out: &[CharacterPose]) -> usize {
+        let mut scratch = PoseScratch::default();
+        let mut changed = 0;
+        for t in 1..raw.len() {
+            if raw[t] == out[t] {
+                continue;
+            }
+            changed += 1;
+            let (prev, (a, b)) = (&out[t - 1].q, (&raw[t].q, &out[t].q));
+            assert!(!guard.collides(tree, &out[t], &mut scratch), "frame {t} still collides");
+            // On the line: the same fraction of the way for every joint that moved.
+            let fractions: Vec<f32> = (0..a.len())
+                .filter(|&d| (a[d] - prev[d]).abs() > 1e-4)
+                .map(|d| (b[d] - prev[d]) / (a[d] - prev[d]))
+                .collect();
+            let f = fractions[0];
+            assert!(fractions.iter().all(|g| (g - f).abs() < 1e-3), "frame {t}: off the line {fractions:?}");
+            assert!((0.0..1.0).contains(&f), "frame {t}: {f} of the way");
+            let mut further = out[t].clone();
+            for d in 0..a.len() {
+                further.q[d] += 3.0 / 256.0 * (a[d] - prev[d]);
+            }
+            assert!(f + 3.0 / 256.0 >= 1.0 || guard.collides(tree, &further, &mut scratch), "frame {t}: stopped short at {f}");
+        }
+        changed
+    }
+
+    #[test]
+    fn an_arm_swung_into_the_ground_stops_at_its_surface() {
+        // The shoulder swept over its range with the elbow half bent drives the arm into the floor in
+        // front of the body (and through the body on the way).
+        let (tree, morph, raw) = sweep("arm_sh1", &[("arm_el0", 0.5)]);
+        let cfg = UfrConfig::for_character(&tree, &morph);
+        let before = ufr(&tree, &morph, &raw, 30.0, &cfg).summary().rates;
+        assert!(before.penetration > 0.1, "the sweep goes into the ground: {before:?}");
+        let guard = CollisionGuard::new(&tree, &morph);
+        let mut state = GuardState::default();
+        let mut out = raw.clone();
+        for p in &mut out {
+            guard.apply(&tree, &mut state, p);
+        }
+        let after = ufr(&tree, &morph, &out, 30.0, &cfg).summary().rates;
+        assert_eq!((after.penetration, after.self_collision), (0.0, 0.0));
+        assert!(assert_stopped_at_the_surface(&tree, &guard, &raw, &out) > 10);
+        // The body stays where it was: the arm, not the root, was moved.
+        assert!(raw.iter().zip(&out).all(|(a, b)| a.root == b.root));
+    }
+
+    #[test]
+    fn an_arm_swung_through_the_body_stops_at_its_surface() {
+        // The arm's shoulder swept across its whole range and back: somewhere it passes the body.
+        let (tree, morph, raw) = sweep("arm_sh1", &[]);
         let cfg = UfrConfig::for_character(&tree, &morph);
         let before = ufr(&tree, &morph, &raw, 30.0, &cfg).summary().rates.self_collision;
         assert!(before > 0.1, "the sweep collides: {before}");
@@ -205,6 +268,7 @@ mod tests {
             assert_eq!(a.q[..12], b.q[..12]);
         }
         assert_eq!(raw[0], out[0]);
+        assert!(assert_stopped_at_the_surface(&tree, &guard, &raw, &out) > 10);
     }
 
     #[test]
