@@ -67,7 +67,7 @@ done
 printf '\n| file | mutants | caught | missed | timeouts | unviable |\n|---|---:|---:|---:|---:|---:|\n'
 for f in "${files[@]}"; do
   d="out/mutants/${f//\//-}/mutants.out"
-  count() { [ -f "$d/$1.txt" ] && grep -c . "$d/$1.txt" || echo 0; }
+  count() { local n=0; [ -f "$d/$1.txt" ] && n=$(grep -c . "$d/$1.txt" || true); echo "${n:-0}"; }
   c=$(count caught); m=$(count missed); t=$(count timeout); u=$(count unviable)
   printf '| %s | %d | %d | %d | %d | %d |\n' "$f" $((c + m + t + u)) "$c" "$m" "$t" "$u"
 done
