@@ -196,74 +196,72 @@ struct Range {
     tilt: [f32; 2],
 }
 
-/// The legs' soles and step radii over the posture range `shrink` × the configured one; sets each
-/// leg's sole and moves `nominal_q` onto them.
-#[allow(clippy::too_many_arguments)]
-fn try_range(
-    tree: &KinematicTree,
-    proxies: &Proxies,
-    legs: &mut [Leg],
-    nominal_q: &mut [f32],
+/// What every posture range of [`step_radii`] is checked against: the character, its collision
+/// proxies, the nominal height `h0`, the foot's dip tolerance and the links the checks ignore.
+struct Stepping<'a> {
+    tree: &'a KinematicTree,
+    proxies: &'a Proxies,
     h0: f32,
-    (height, tilt, shrink): ([f32; 2], [f32; 2], f32),
     dip_tol: f32,
-    ignore: &[bool],
-    scratch: &mut ChainScratch,
-) -> Range {
-    let root0 = tilted_root(h0, 0.0, 0.0);
-    let hr = [h0 + (height[0] - h0) * shrink, h0 + (height[1] - h0) * shrink];
-    let tl = [tilt[0] * shrink, tilt[1] * shrink];
-    let poses = postures(hr, tl);
-    for leg in legs.iter_mut() {
-        leg.sole = sole(tree, proxies, leg, nominal_q, &poses, dip_tol, scratch);
-        let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
-        leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, scratch);
-    }
-    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
-    let radii: Vec<f32> = (0..legs.len())
-        .map(|i| 0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, None, scratch))
-        .collect();
-    let worst = legs.iter().zip(&radii).map(|(l, r)| r / l.length).fold(f32::INFINITY, f32::min);
-    Range { worst, radii, soles: legs.iter().map(|l| l.sole).collect(), height: hr, tilt: tl }
+    ignore: &'a [bool],
 }
 
-/// Puts the legs on range `r`: their soles (moving `nominal_q` onto them where they changed), step
-/// radii and fore-and-aft semi-axes, the latter from the same checks over the ellipse with the
-/// lateral semi-axis kept. Returns the weakest leg's fore-and-aft semi-axis relative to its length.
-#[allow(clippy::too_many_arguments)]
-fn settle(
-    tree: &KinematicTree,
-    proxies: &Proxies,
-    legs: &mut [Leg],
-    nominal_q: &mut [f32],
-    h0: f32,
-    r: &Range,
-    dip_tol: f32,
-    ignore: &[bool],
-    scratch: &mut ChainScratch,
-) -> f32 {
-    let root0 = tilted_root(h0, 0.0, 0.0);
-    for ((leg, &radius), &s) in legs.iter_mut().zip(&r.radii).zip(&r.soles) {
-        leg.r_max = radius;
-        leg.r_fore = radius;
-        if leg.sole != s {
-            leg.sole = s;
-            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
+impl Stepping<'_> {
+    /// The legs' soles and step radii over `shrink` × the configured posture range (`height`,
+    /// `tilt`); sets each leg's sole and moves `nominal_q` onto them.
+    fn try_range(
+        &self,
+        legs: &mut [Leg],
+        nominal_q: &mut [f32],
+        (height, tilt, shrink): ([f32; 2], [f32; 2], f32),
+        scratch: &mut ChainScratch,
+    ) -> Range {
+        let (tree, proxies, h0) = (self.tree, self.proxies, self.h0);
+        let root0 = tilted_root(h0, 0.0, 0.0);
+        let hr = [h0 + (height[0] - h0) * shrink, h0 + (height[1] - h0) * shrink];
+        let tl = [tilt[0] * shrink, tilt[1] * shrink];
+        let poses = postures(hr, tl);
+        for leg in legs.iter_mut() {
+            leg.sole = sole(tree, proxies, leg, nominal_q, &poses, self.dip_tol, scratch);
+            let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, leg.sole));
             leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, scratch);
         }
+        let scene = Scene::new(proxies, fk_root(tree, nominal_q), self.ignore);
+        let radii: Vec<f32> = (0..legs.len())
+            .map(|i| 0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, self.dip_tol, None, scratch))
+            .collect();
+        let worst = legs.iter().zip(&radii).map(|(l, r)| r / l.length).fold(f32::INFINITY, f32::min);
+        Range { worst, radii, soles: legs.iter().map(|l| l.sole).collect(), height: hr, tilt: tl }
     }
-    let poses = postures(r.height, r.tilt);
-    let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
-    let fore: Vec<f32> = (0..legs.len())
-        .map(|i| {
-            let lateral = legs[i].r_max / 0.9;
-            0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, dip_tol, Some(lateral), scratch)
-        })
-        .collect();
-    for (leg, f) in legs.iter_mut().zip(fore) {
-        leg.r_fore = f.max(leg.r_max);
+
+    /// Puts the legs on range `r`: their soles (moving `nominal_q` onto them where they changed), step
+    /// radii and fore-and-aft semi-axes, the latter from the same checks over the ellipse with the
+    /// lateral semi-axis kept. Returns the weakest leg's fore-and-aft semi-axis relative to its length.
+    fn settle(&self, legs: &mut [Leg], nominal_q: &mut [f32], r: &Range, scratch: &mut ChainScratch) -> f32 {
+        let (tree, proxies) = (self.tree, self.proxies);
+        let root0 = tilted_root(self.h0, 0.0, 0.0);
+        for ((leg, &radius), &s) in legs.iter_mut().zip(&r.radii).zip(&r.soles) {
+            leg.r_max = radius;
+            leg.r_fore = radius;
+            if leg.sole != s {
+                leg.sole = s;
+                let target = root0.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, s));
+                leg.chain.solve(tree, nominal_q, &target, IK_TOL, 100, scratch);
+            }
+        }
+        let poses = postures(r.height, r.tilt);
+        let scene = Scene::new(proxies, fk_root(tree, nominal_q), self.ignore);
+        let fore: Vec<f32> = (0..legs.len())
+            .map(|i| {
+                let lateral = legs[i].r_max / 0.9;
+                0.9 * radius(tree, proxies, &scene, legs, i, nominal_q, &poses, self.dip_tol, Some(lateral), scratch)
+            })
+            .collect();
+        for (leg, f) in legs.iter_mut().zip(fore) {
+            leg.r_fore = f.max(leg.r_max);
+        }
+        legs.iter().map(|l| l.r_fore / l.length).fold(f32::INFINITY, f32::min)
     }
-    legs.iter().map(|l| l.r_fore / l.length).fold(f32::INFINITY, f32::min)
 }
 
 /// Finds each leg's sole and step radius, shrinking the posture range if needed (module docs); updates
@@ -281,11 +279,12 @@ pub fn step_radii(
     ignore: &[bool],
 ) -> Result<StepRadii, ControllerError> {
     let mut scratch = ChainScratch::default();
+    let stepping = Stepping { tree, proxies, h0, dip_tol, ignore };
     const SHRINKS: [f32; 4] = [1.0, 0.5, 0.25, 0.0];
     let mut best: Option<Range> = None;
     let mut next = None;
     for (k, shrink) in SHRINKS.into_iter().enumerate() {
-        let r = try_range(tree, proxies, legs, nominal_q, h0, (height, tilt, shrink), dip_tol, ignore, &mut scratch);
+        let r = stepping.try_range(legs, nominal_q, (height, tilt, shrink), &mut scratch);
         let passed = r.worst >= MIN_STEP;
         if best.as_ref().is_none_or(|b| r.worst > b.worst) {
             best = Some(r);
@@ -296,13 +295,13 @@ pub fn step_radii(
         }
     }
     let mut best = best.expect("at least one posture range is tried");
-    let fore = settle(tree, proxies, legs, nominal_q, h0, &best, dip_tol, ignore, &mut scratch);
+    let fore = stepping.settle(legs, nominal_q, &best, &mut scratch);
     // A passing range is halved once more when that lengthens the weakest leg's stride enough
     // (module docs); otherwise the legs go back exactly as they were.
     if let Some(shrink) = next {
         let (kept_q, kept_legs) = (nominal_q.to_vec(), legs.to_vec());
-        let r = try_range(tree, proxies, legs, nominal_q, h0, (height, tilt, shrink), dip_tol, ignore, &mut scratch);
-        if settle(tree, proxies, legs, nominal_q, h0, &r, dip_tol, ignore, &mut scratch) >= POSTURE_TRADE * fore {
+        let r = stepping.try_range(legs, nominal_q, (height, tilt, shrink), &mut scratch);
+        if stepping.settle(legs, nominal_q, &r, &mut scratch) >= POSTURE_TRADE * fore {
             best = r;
         } else {
             nominal_q.copy_from_slice(&kept_q);
