@@ -27,16 +27,18 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 
 # Per file: the cargo-mutants options that build its crate (features) and the tests aimed at it (cargo
 # test arguments, then `--` and the test binaries' filter). Learning modules need the `learn` feature
-# (libtorch); the rest build without it, which is much faster.
+# (libtorch); the rest build without it, which is much faster. The learning modules' networks are
+# exercised by the training, retargeting and runtime tests of other modules, so all of the crate's unit
+# tests run for them (about 15 s).
 declare -A how=(
   [models/src/features.rs]="--no-default-features -- --test metrics"
   [models/src/metrics/ufr.rs]="--no-default-features -- --test metrics"
   [models/src/metrics/distribution.rs]="--no-default-features -- --test metrics"
   [models/src/foot_lock.rs]="--no-default-features -- --lib -- foot_lock"
   [models/src/collision_guard.rs]="--no-default-features -- --lib -- collision_guard"
-  [models/src/learn/ace.rs]="--features learn -- --lib -- learn::ace"
-  [models/src/learn/train_ace.rs]="--features learn -- --lib -- learn::train_ace"
-  [models/src/learn/prior.rs]="--features learn -- --lib -- learn::prior"
+  [models/src/learn/ace.rs]="--features learn -- --lib"
+  [models/src/learn/train_ace.rs]="--features learn -- --lib"
+  [models/src/learn/prior.rs]="--features learn -- --lib"
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs
