@@ -52,7 +52,6 @@ pub struct Generator {
     vs: nn::VarStore,
     net: Mlp,
     mask: Tensor,
-    state_dim: usize,
 }
 
 impl Generator {
@@ -74,7 +73,6 @@ impl Generator {
             mask: Tensor::from_slice(mask).view([1, -1]).to_device(device),
             vs,
             net,
-            state_dim,
         }
     }
 
@@ -82,16 +80,6 @@ impl Generator {
     /// `prev: [B, D]`.
     pub fn forward(&self, x_h: &Tensor, prev: &Tensor) -> Tensor {
         self.net.forward(&Tensor::cat(&[x_h, &(prev * &self.mask)], 1))
-    }
-
-    /// Width of x^r.
-    pub fn state_dim(&self) -> usize {
-        self.state_dim
-    }
-
-    /// Width of ẑ.
-    pub fn latent_dim(&self) -> usize {
-        self.net.output_dim()
     }
 
     /// The variables.
