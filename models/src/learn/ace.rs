@@ -351,6 +351,33 @@ mod tests {
     }
 
     #[test]
+    fn the_discriminator_sees_only_the_masked_in_state() {
+        // Stretch's wheel angles are left out of the mask (they grow without bound as it drives).
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/stretch.urdf");
+        let (tree, morph) = crate::morphology::load_character(&path).unwrap();
+        let mask = crate::learn::prior::state_mask(&tree, &morph);
+        let d = Discriminator::new(&tiny(), mask.len(), &mask, Device::Cpu);
+        tch::manual_seed(3);
+        let (p, c) = (Tensor::randn([3, mask.len() as i64], (Kind::Float, Device::Cpu)), Tensor::randn([3, mask.len() as i64], (Kind::Float, Device::Cpu)));
+        let base = d.forward(&p, &c);
+        assert_eq!(base.isfinite().all().int64_value(&[]), 1, "finite logits");
+        let off = mask.iter().position(|&m| m == 0.0).expect("the mask leaves the wheels out");
+        let on = mask.iter().position(|&m| m != 0.0).expect("the mask keeps entries");
+        // `t` with column `k` set to 7.5.
+        let bump = |t: &Tensor, k: usize| {
+            let t = t.copy();
+            let _ = t.narrow(1, k as i64, 1).fill_(7.5);
+            t
+        };
+        for (k, seen) in [(off, false), (on, true)] {
+            for logits in [d.forward(&bump(&p, k), &c), d.forward(&p, &bump(&c, k))] {
+                let moved = (&logits - &base).abs().max().double_value(&[]);
+                assert_eq!(moved > 1e-6, seen, "state entry {k} (mask {}): the logits moved by {moved}", mask[k]);
+            }
+        }
+    }
+
+    #[test]
     fn gradient_penalty_is_taken_on_the_real_samples() {
         let d = tiny_discriminator();
         let (rp, rc) = transitions(&[10, 200, 900, 1500]);
