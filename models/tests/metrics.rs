@@ -521,6 +521,46 @@ fn div_matches_a_hand_computation() {
     assert_eq!(diversity(&set[..1], &DivConfig::default()), 0.0);
 }
 
+#[test]
+fn div_uses_every_pair_exactly_when_few_and_distinct_frames_when_sampling() {
+    let none: [[f32; 2]; 0] = [];
+    assert_eq!(diversity(&none, &DivConfig::default()), 0.0);
+    assert_eq!(diversity(&[[0.0f32, 0.0], [3.0, 4.0]], &DivConfig::default()), 5.0, "two frames, one pair");
+    assert_eq!(diversity(&[[0.0f32, 0.0], [3.0, 4.0]], &DivConfig { pairs: 0, seed: 0 }), 0.0);
+    // Five frames on a line: 10 pairs, exactly as many as asked, so all are used once.
+    let line: Vec<[f32; 1]> = (0..5).map(|i| [i as f32]).collect();
+    let exact = (0..5).flat_map(|i| (i + 1..5).map(move |j| (j - i) as f32)).sum::<f32>() / 10.0;
+    assert!((diversity(&line, &DivConfig { pairs: 10, seed: 0 }) - exact).abs() < 1e-6);
+    // A regular tetrahedron: every pair of distinct corners is 1 apart, so sampled pairs of distinct
+    // frames average exactly 1 whichever are drawn (a frame paired with itself would pull it down).
+    let h = 0.5 * std::f32::consts::FRAC_1_SQRT_2;
+    let tetra = [[0.5, 0.0, -h], [-0.5, 0.0, -h], [0.0, 0.5, h], [0.0, -0.5, h]];
+    for seed in 0..20 {
+        let d = diversity(&tetra, &DivConfig { pairs: 5, seed });
+        assert!((d - 1.0).abs() < 1e-5, "seed {seed}: {d}");
+    }
+}
+
+#[test]
+fn a_gaussian_fit_of_more_rows_than_a_block_and_of_one_row() {
+    // 5,000 rows: more than one block of the covariance's accumulation, the last one partial.
+    let rows: Vec<[f32; 2]> = (0..5000).map(|i| { let t = i as f32 * 0.01; [t.sin(), (1.7 * t).cos() + 0.3 * t.sin()] }).collect();
+    let fit = GaussianFit::fit(&rows);
+    let n = rows.len() as f64;
+    let mean: Vec<f64> = (0..2).map(|k| rows.iter().map(|r| f64::from(r[k])).sum::<f64>() / n).collect();
+    for a in 0..2 {
+        assert!((fit.mean[a] - mean[a]).abs() < 1e-9);
+        for b in 0..2 {
+            let c = rows.iter().map(|r| (f64::from(r[a]) - mean[a]) * (f64::from(r[b]) - mean[b])).sum::<f64>() / (n - 1.0);
+            assert!((fit.cov[(a, b)] - c).abs() < 1e-9, "cov[{a},{b}] {} vs {c}", fit.cov[(a, b)]);
+        }
+    }
+    // One row: its mean, no spread.
+    let one = GaussianFit::fit(&[[2.0f32, -1.0]]);
+    assert_eq!((one.mean[0], one.mean[1]), (2.0, -1.0));
+    assert!(one.cov.iter().all(|&v| v == 0.0), "{}", one.cov);
+}
+
 // ---------------------------------------------------------------------------------------------------
 // Features Ψ
 
