@@ -29,7 +29,7 @@ use bevy::asset::LoadState;
 use bevy::gltf::{Gltf, GltfAssetLabel, GltfPlugin};
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy::world_serialization::{WorldAssetRoot, WorldSerializationPlugin};
+use bevy::world_serialization::{WorldAssetRoot, WorldInstance, WorldInstanceSpawner, WorldSerializationPlugin};
 
 mod common;
 use common::{root, update_until};
@@ -177,14 +177,19 @@ fn an_exported_rig_clip_plays_in_bevy_as_the_retargeted_poses() {
     let mut app = app(&dir);
     let server = app.world().resource::<AssetServer>().clone();
     let gltf: Handle<Gltf> = server.load("hound_walk.glb");
-    app.world_mut().spawn(WorldAssetRoot(server.load(GltfAssetLabel::Scene(0).from_asset("hound_walk.glb"))));
+    let scene = app.world_mut().spawn(WorldAssetRoot(server.load(GltfAssetLabel::Scene(0).from_asset("hound_walk.glb")))).id();
     let mut animated = None;
+    // Until the scene has spawned completely: on a loaded machine its player can exist a frame before
+    // the instance is done, and what the test sets on it then would be overwritten.
     update_until(&mut app, |w| {
         if let LoadState::Failed(e) = w.resource::<AssetServer>().load_state(&gltf) {
             panic!("Bevy's glTF loader refused the rig clip: {e}");
         }
+        let ready = w
+            .get::<WorldInstance>(scene)
+            .is_some_and(|i| w.get_resource::<WorldInstanceSpawner>().is_some_and(|s| s.instance_is_ready(**i)));
         animated = w.query_filtered::<Entity, With<AnimationPlayer>>().iter(w).next();
-        animated.is_some() && w.resource::<Assets<Gltf>>().get(&gltf).is_some()
+        ready && animated.is_some() && w.resource::<Assets<Gltf>>().get(&gltf).is_some()
     });
     let animated = animated.unwrap();
     assert_eq!(app.world_mut().query::<&AnimationPlayer>().iter(app.world()).count(), 1, "one animation player");
