@@ -667,6 +667,11 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
             let pose = &clip_poses(&c, k, 30.0)[0];
             let fk = c.tree.forward_kinematics(pose);
             let size = c.tree.aabb(&fk).half_extents().max() * 2.0;
+            // Rest offsets: the import's (the skin's bind pose), nodes outside the skin their own.
+            let mut rest: Vec<_> = nodes.iter().map(|n| Vector3::from(n.transform().decomposed().0)).collect();
+            for b in &c.rig.bones {
+                rest[b.node] = b.rest_local.translation;
+            }
             let mut checked = 0;
             for (l, link) in c.tree.links.iter().enumerate() {
                 let Some(n) = nodes.iter().position(|n| n.name() == Some(link.name.as_str())) else { continue };
@@ -676,11 +681,6 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
                 // Bones translate only as root motion: below a bone that the clip moves away from its
                 // rest offset (the T-Rex's clips stretch a few bones by millimetres, the Snake's slide
                 // its body sideways), compare positions relative to that bone.
-                // Rest offsets: the import's (the skin's bind pose), nodes outside the skin their own.
-                let mut rest: Vec<_> = nodes.iter().map(|n| Vector3::from(n.transform().decomposed().0)).collect();
-                for b in &c.rig.bones {
-                    rest[b.node] = b.rest_local.translation;
-                }
                 let mut up = Some(n);
                 let mut stretched = None;
                 while let Some(i) = up {

@@ -201,15 +201,6 @@ impl NodeTransform {
         }
         Some(NodeTransform { translation: m.fixed_view::<3, 1>(0, 3).into_owned(), rotation, scale })
     }
-
-    /// Whether `self` and `other` are the same transform to within `tol` (relative to the larger
-    /// scale for the translation).
-    pub fn near(&self, other: &NodeTransform, tol: f32) -> bool {
-        let size = 1.0 + self.translation.abs().max().max(other.translation.abs().max());
-        (self.translation - other.translation).abs().max() <= tol * size
-            && self.rotation.angle_to(&other.rotation) <= tol
-            && (self.scale - other.scale).abs().max() <= tol * self.scale.abs().max()
-    }
 }
 
 /// What a [`Track`] animates.
