@@ -131,7 +131,10 @@ pub fn run(b: &BatchArgs) -> Result<()> {
     let summary_path = a.out.join(SUMMARY);
     check.check(&summary_path)?;
     // Fails early on a checkpoint that cannot be read or does not fit the character.
-    Networks::load(&dir, a.backend)?.check_character(&tree, &morph)?;
+    let first = Networks::load(&dir, a.backend)?;
+    first.check_character(&tree, &morph)?;
+    crate::retarget::warn_on_other_character_file(first.record(), &urdf)?;
+    drop(first);
     let opts = import_options(a.mapping.as_deref())?;
 
     if b.jobs == Some(0) {

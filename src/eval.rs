@@ -129,11 +129,12 @@ pub const PAPER_SPOT: [(&str, f32, f32, Option<f32>, f32); 5] = [
 
 /// Runs `ace eval`.
 pub fn run(args: &EvalArgs) -> Result<()> {
-    let (_, tree, morph) = characters::load(&args.character)?;
+    let (character, tree, morph) = characters::load(&args.character)?;
     let dir = match &args.checkpoint {
         Some(d) => d.clone(),
         None => retarget::default_checkpoint(&args.character)?,
     };
+    retarget::warn_on_other_character_file(&ace::models::checkpoint::ace::read_record(&dir)?, &character)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
     // (The human clip folder is read too, but only for `.bvh` files, which eval never writes.)
     let mut outputs = Outputs::new();

@@ -15,7 +15,7 @@ use ace::models::human::{HumanClip, ImportOptions, Joint, JointMapping};
 use ace::models::human_set::{HumanRow, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::checkpoint::ace::AceRecord;
-use ace::models::checkpoint::{CharacterInfo, LearnError};
+use ace::models::checkpoint::{CharacterInfo, FileRecord, LearnError};
 use ace::models::learn::retarget::Retargeter as TchRetargeter;
 use ace::models::runtime::{RetargetedMotion, Retargeter};
 use ace::models::metrics::MetricsReport;
@@ -144,6 +144,22 @@ pub fn import_options(mapping: Option<&Path>) -> Result<ImportOptions> {
     Ok(ImportOptions { fps: Some(PROJECT_FPS), mapping })
 }
 
+/// The warning for a character file that is not the one `record`'s checkpoint was trained with (the
+/// same joints and size, other content: [`AceRecord::character_file_difference`]); `None` when it is,
+/// or when the checkpoint does not record its character file.
+pub fn character_file_warning(record: &AceRecord, character: &Path) -> Result<Option<String>> {
+    let bytes = std::fs::read(character).with_context(|| format!("{}: cannot read the character file", character.display()))?;
+    Ok(record.character_file_difference(&FileRecord::of(&character.display().to_string(), &bytes)))
+}
+
+/// Prints [`character_file_warning`] on stderr when there is one.
+pub fn warn_on_other_character_file(record: &AceRecord, character: &Path) -> Result<()> {
+    if let Some(w) = character_file_warning(record, character)? {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
 /// Runs `ace retarget`.
 pub fn run(a: &RetargetArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&a.character)?;
@@ -162,6 +178,8 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         outputs.check(&p)?;
     }
     let mut retargeter = Networks::load(&dir, a.backend)?;
+    retargeter.check_character(&tree, &morph)?;
+    warn_on_other_character_file(retargeter.record(), &urdf)?;
     if !a.cleanup {
         retargeter.set_cleanup(Cleanup::NONE);
     }

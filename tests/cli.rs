@@ -502,7 +502,20 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     assert_eq!(file["bytes"].as_u64().unwrap(), std::fs::metadata(&fox).unwrap().len());
 
     let glb = dir.join("walk.glb");
-    run(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &f, "--checkpoint", &s(&ck), "--out", &s(&glb)]);
+    let out = ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &f, "--checkpoint", &s(&ck), "--out", &s(&glb)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(!err.contains("is not the character file"), "the file trained with is not another: {err}");
+    // A copy of the fox (same name, another folder) with one byte of its texture changed has the same
+    // bones and size: it retargets, with a warning that it is not the file the checkpoint was trained
+    // with (`ace eval` says the same).
+    let edited = dir.join("edited/Fox.glb");
+    std::fs::create_dir_all(edited.parent().unwrap()).unwrap();
+    std::fs::write(&edited, with_a_texture_byte_flipped(&std::fs::read(&fox).unwrap())).unwrap();
+    let out = ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", &s(&edited), "--checkpoint", &s(&ck), "--out", &s(&dir.join("edited.glb"))]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: ") && err.contains("edited/Fox.glb is not the character file") && err.contains(file["fnv1a64"].as_str().unwrap()), "{err}");
     let frames = inspect_json(&root().join("assets/motions/walk.bvh"))["frames"].as_u64().unwrap() as usize;
     let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
     assert_eq!(csv.lines().count(), frames + 1);
@@ -552,6 +565,17 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
         assert!(!out.status.success() && err.contains(flag) && err.contains("URDF"), "{err}");
         assert!(!bad.exists());
     }
+}
+
+/// A glTF binary with one byte in the middle of its first image changed: the same scene, another file.
+fn with_a_texture_byte_flipped(glb: &[u8]) -> Vec<u8> {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let view = &json["bufferViews"][json["images"][0]["bufferView"].as_u64().unwrap() as usize];
+    let (offset, len) = (view["byteOffset"].as_u64().unwrap_or(0) as usize, view["byteLength"].as_u64().unwrap() as usize);
+    let mut out = glb.to_vec();
+    out[20 + json_len + 8 + offset + len / 2] ^= 0x10;
+    out
 }
 
 /// Node names of a glTF binary.

@@ -217,7 +217,9 @@ fn tick(app: &App, e: Entity) -> Option<i64> {
 fn link_gap(app: &App, e: Entity, pose: &CharacterPose) -> (f32, f32) {
     let character = app.world().get::<Character>(e).unwrap().asset.clone();
     let urdf = app.world().resource::<Assets<CharacterAsset>>().get(&character).unwrap().clone();
-    let placement = *app.world().get::<Transform>(e).unwrap();
+    // The character's world: where the entity stood when the first pose came (the entity itself
+    // moves with the root's ground travel).
+    let placement = app.world().get::<RootOrigin>(e).expect("a posed character has its RootOrigin").0;
     let expected = urdf.tree.forward_kinematics(pose);
     let links = &app.world().get::<CharacterLinks>(e).unwrap().0;
     let (mut d, mut a) = (0.0f32, 0.0f32);
@@ -267,6 +269,18 @@ fn a_retargeted_character_moves_as_ace_retarget_writes_it() {
     assert_eq!(seen, (0..90).collect::<Vec<i64>>());
     let moved = want.poses[89].root.translation.vector - want.poses[0].root.translation.vector;
     assert!(moved.norm() > 0.3, "the walk moves Spot ({} m)", moved.norm());
+    // Root motion is on the entity: it stands where it was placed times the root's ground travel, and
+    // the root link over it, facing its +x.
+    let origin = app.world().get::<RootOrigin>(spot).unwrap().0;
+    assert_eq!(origin, Transform::from_xyz(1.5, 0.0, 0.0));
+    let rest = load_character(&asset_path("characters/spot.urdf")).unwrap().0.standing_pose().root.rotation;
+    let last = tick(&app, spot).unwrap() as usize;
+    let entity = *app.world().get::<Transform>(spot).unwrap();
+    assert_close(&entity, &(origin * convert::transform(&want.poses[last].ground_travel(&rest))), "the entity");
+    assert!(entity.translation.distance(origin.translation) > 0.3, "the entity travels with the walk");
+    let root_link = app.world().get::<CharacterLinks>(spot).unwrap().0[0];
+    let local = app.world().get::<Transform>(root_link).unwrap();
+    assert!(local.translation.x.abs() < 1e-4 && local.translation.z.abs() < 1e-4, "the root link stands over the entity: {local:?}");
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
 }
 
@@ -460,8 +474,11 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     for dir in [main.join("characters"), main.join("motions"), custom.join("characters"), custom.join("checkpoints/spot")] {
         std::fs::create_dir_all(dir).unwrap();
     }
-    for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
-        std::fs::copy(asset_path("checkpoints/spot").join(f), custom.join("checkpoints/spot").join(f)).unwrap();
+    for c in ["spot", "hound"] {
+        std::fs::create_dir_all(custom.join("checkpoints").join(c)).unwrap();
+        for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
+            std::fs::copy(asset_path("checkpoints").join(c).join(f), custom.join("checkpoints").join(c).join(f)).unwrap();
+        }
     }
     std::fs::copy(asset_path("characters/spot.urdf"), custom.join("characters/spot.urdf")).unwrap();
     std::fs::copy(asset_path("motions/walk.bvh"), main.join("motions/walk.bvh")).unwrap();
@@ -523,6 +540,20 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     assert!(matches!(state, LoadState::Loaded), "the .gltf with its buffer beside it: {state:?}");
     let hound = app.world().resource::<Assets<CharacterAsset>>().get(&hound_gltf).unwrap();
     assert_eq!(hound.tree.dof(), load_creature(&asset_path("creatures/hound.glb")).unwrap().tree.dof());
+
+    // The hound's checkpoint was trained with `hound.glb`: a copy of it anywhere is that file; the
+    // `.gltf` has the same bones but other bytes, which the checkpoint tells (the plugin warns once).
+    std::fs::copy(asset_path("creatures/hound.glb"), custom.join("creatures/hound.glb")).unwrap();
+    let hound_checkpoint: Handle<CheckpointAsset> = server.load("custom://checkpoints/hound/ace.json");
+    let hound_glb: Handle<CharacterAsset> = server.load("custom://creatures/hound.glb");
+    update_until(&mut app, |w| {
+        [server.load_state(&hound_checkpoint), server.load_state(&hound_glb)].iter().all(|s| matches!(s, LoadState::Loaded))
+    });
+    let checkpoint = app.world().resource::<Assets<CheckpointAsset>>().get(&hound_checkpoint).unwrap();
+    let characters = app.world().resource::<Assets<CharacterAsset>>();
+    assert_eq!(checkpoint.character_file_difference(characters.get(&hound_glb).unwrap()), None);
+    let w = checkpoint.character_file_difference(characters.get(&hound_gltf).unwrap()).expect("the .gltf is another file");
+    assert!(w.contains("creatures/hound.gltf is not the character file") && w.contains("checkpoints/hound"), "{w}");
 }
 
 // ---- Rigged glTF creatures driven through their own glTF scene ----

@@ -146,6 +146,19 @@ pub struct CharacterPose {
     pub q: Vec<f32>,
 }
 
+impl CharacterPose {
+    /// The pose's ground travel: its root's horizontal position and its heading (the yaw of the root's
+    /// rotation away from `rest`, the root's rotation standing), a rigid motion `M` about the vertical.
+    /// The pose with its root premultiplied by `M⁻¹` stays over the origin, facing +x as at rest. Game
+    /// engines carry this part of a motion on the entity ("root motion") and the rest on the skeleton.
+    pub fn ground_travel(&self, rest: &UnitQuaternion<f32>) -> Isometry3<f32> {
+        let forward = (self.root.rotation * rest.inverse()) * Vector3::x();
+        let yaw = if forward.x.abs() + forward.y.abs() > 1e-6 { forward.y.atan2(forward.x) } else { 0.0 };
+        let t = self.root.translation.vector;
+        Isometry3::from_parts(Translation3::new(t.x, t.y, 0.0), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+    }
+}
+
 /// The kinematic tree of a character.
 #[derive(Clone, Debug)]
 pub struct KinematicTree {

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use ace_models::character::{RigPose, creature_from_document, gltf, is_gltf};
+use ace_models::checkpoint::FileRecord;
 use ace_models::human::{HumanClip, ImportOptions};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
@@ -34,6 +35,10 @@ pub struct CharacterAsset {
     /// For a glTF creature, how a pose becomes its bone nodes' transforms (see
     /// [`ace_models::character::rig_pose`]); `None` for a URDF.
     pub rig: Option<Arc<RigPose>>,
+    /// The file's size and checksum (named by its asset path; a `.gltf`'s own bytes, not its
+    /// buffers'), compared with the file a checkpoint was trained with
+    /// ([`crate::checkpoint::CheckpointAsset::character_file_difference`]).
+    pub file: FileRecord,
 }
 
 /// A human clip loaded from a BVH file, mapped to the canonical 17-joint skeleton.
@@ -103,6 +108,7 @@ impl AssetLoader for CharacterLoader {
             return load_creature(reader, ctx, profile.unwrap_or_default()).await;
         }
         let xml = read_text(reader, ctx).await?;
+        let file = FileRecord::of(&path, xml.as_bytes());
         let mut tree = KinematicTree::from_urdf_str(&xml).map_err(|e| import(e.to_string()))?;
         let morphology = match profile {
             Some(profile) => {
@@ -112,7 +118,7 @@ impl AssetLoader for CharacterLoader {
             }
             None => Morphology::analyze(&tree),
         };
-        Ok(CharacterAsset { tree: Arc::new(tree), morphology: Arc::new(morphology), rig: None })
+        Ok(CharacterAsset { tree: Arc::new(tree), morphology: Arc::new(morphology), rig: None, file })
     }
 
     fn extensions(&self) -> &[&str] {
@@ -149,6 +155,7 @@ async fn load_creature(
         tree: Arc::new(creature.tree),
         morphology: Arc::new(creature.morphology),
         rig: Some(Arc::new(rig)),
+        file: FileRecord::of(&path, &bytes),
     })
 }
 

@@ -13,8 +13,13 @@ use crate::convert;
 /// loaded, one child entity per link is spawned ([`CharacterLinks`]) and a neutral [`Pose`] is
 /// inserted unless one is already there.
 ///
-/// The entity's own [`Transform`] places the character's world (z-up ground plane at the origin)
-/// in the Bevy scene.
+/// **Root motion moves the entity.** The pose's ground travel (the root's horizontal position and
+/// heading, [`CharacterPose::ground_travel`]) is written to the entity's [`Transform`] as
+/// [`RootOrigin`] × travel, and the links below it carry the rest: the root link stands over the
+/// entity, facing its +x. [`RootOrigin`] places the character's world (z-up ground plane at the
+/// origin) in the Bevy scene; it is the entity's transform when the first pose is applied (insert it
+/// yourself to place that world elsewhere, or change it to move that world). A rigged creature driven
+/// through its own glTF scene moves the same way ([`crate::scene`]).
 #[derive(Component, Clone, Debug)]
 #[require(Transform)]
 pub struct Character {
@@ -34,6 +39,11 @@ impl Character {
 /// it into link [`Transform`]s before transform propagation.
 #[derive(Component, Clone, Debug, PartialEq, Deref, DerefMut)]
 pub struct Pose(pub CharacterPose);
+
+/// Where a character's world stands: the entity's [`Transform`] is this times the pose's ground
+/// travel (see [`Character`]).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Deref, DerefMut)]
+pub struct RootOrigin(pub Transform);
 
 /// Link entities of a spawned character, in the tree's topological link order.
 #[derive(Component, Clone, Debug)]
@@ -80,28 +90,43 @@ pub(crate) fn spawn_characters(
     }
 }
 
-/// Writes each link's [`Transform`] (relative to its parent link) from the character's [`Pose`].
+/// Writes each link's [`Transform`] (relative to its parent link; the root link's relative to the
+/// entity) and the entity's root motion from the character's [`Pose`].
+#[allow(clippy::type_complexity)]
 pub(crate) fn apply_poses(
-    characters: Query<(&Character, &Pose, &CharacterLinks), Or<(Changed<Pose>, Added<CharacterLinks>)>>,
-    mut transforms: Query<&mut Transform, With<CharacterLink>>,
+    mut commands: Commands,
+    mut characters: Query<
+        (Entity, &Character, &Pose, &CharacterLinks, Option<&RootOrigin>, &mut Transform),
+        Or<(Changed<Pose>, Added<CharacterLinks>, Changed<RootOrigin>)>,
+    >,
+    mut transforms: Query<&mut Transform, (With<CharacterLink>, Without<Character>)>,
     assets: Res<Assets<CharacterAsset>>,
     mut world_poses: Local<Vec<Isometry3<f32>>>,
 ) {
-    for (character, pose, links) in &characters {
+    for (entity, character, pose, links, origin, mut placement) in &mut characters {
         let Some(asset) = assets.get(&character.asset) else { continue };
         if pose.q.len() != asset.tree.dof() {
             warn_once!("a Pose with {} joint positions was given to a character with {} DoF", pose.q.len(), asset.tree.dof());
             continue;
         }
         asset.tree.forward_kinematics_into(pose, &mut world_poses);
+        let travel = pose.ground_travel(&asset.tree.standing_pose().root.rotation);
         for (index, link) in asset.tree.links.iter().enumerate() {
             let local = match link.parent {
                 Some(p) => world_poses[p].inv_mul(&world_poses[index]),
-                None => world_poses[index],
+                None => travel.inv_mul(&world_poses[index]),
             };
             if let Ok(mut t) = transforms.get_mut(links.0[index]) {
                 *t = convert::transform(&local);
             }
         }
+        let origin = match origin {
+            Some(o) => o.0,
+            None => {
+                commands.entity(entity).insert(RootOrigin(*placement));
+                *placement
+            }
+        };
+        *placement = origin * convert::transform(&travel);
     }
 }

@@ -19,14 +19,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use ace_models::checkpoint::ace::{ACE_FILE, GENERATOR_FILE};
+use ace_models::checkpoint::ace::{ACE_FILE, GENERATOR_FILE, other_character_file};
 use ace_models::checkpoint::prior::{CONFIG_FILE, WEIGHTS_FILE};
-use ace_models::checkpoint::{CharacterInfo, CheckpointFiles};
+use ace_models::checkpoint::{CharacterInfo, CheckpointFiles, FileRecord};
 use ace_models::runtime::Retargeter;
 use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
 use bevy::reflect::TypePath;
 
-use crate::assets::{AceAssetError, beside};
+use crate::assets::{AceAssetError, CharacterAsset, beside};
 
 /// The files of a trained checkpoint (prior and generator), checked to load and to belong together.
 /// The networks themselves live in the plugin's worker threads, one per checkpoint in use.
@@ -36,12 +36,23 @@ pub struct CheckpointAsset {
     pub files: Arc<CheckpointFiles>,
     /// The character the checkpoint was trained for.
     pub character: CharacterInfo,
+    /// The character file it was trained with (its path then, size and checksum), when training
+    /// recorded it.
+    pub character_file: Option<FileRecord>,
 }
 
 impl CheckpointAsset {
     /// The checkpoint directory (as the asset path names it).
     pub fn dir(&self) -> &Path {
         self.files.dir()
+    }
+
+    /// How `character`'s file differs from the one the checkpoint was trained with, when it does (see
+    /// [`ace_models::checkpoint::ace::AceRecord::character_file_difference`]). The plugin logs it as
+    /// a warning once per checkpoint and character; the checkpoint still runs.
+    pub fn character_file_difference(&self, character: &CharacterAsset) -> Option<String> {
+        other_character_file(self.character_file.as_ref()?, &character.file)
+            .map(|problem| format!("checkpoint {}: {problem}", self.dir().display()))
     }
 }
 
@@ -81,7 +92,8 @@ impl AssetLoader for CheckpointLoader {
         let retargeter = Retargeter::load_files(&files)
             .map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
         let character = retargeter.character().clone();
-        Ok(CheckpointAsset { files: Arc::new(files), character })
+        let character_file = retargeter.record().character_file();
+        Ok(CheckpointAsset { files: Arc::new(files), character, character_file })
     }
 
     fn extensions(&self) -> &[&str] {

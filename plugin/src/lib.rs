@@ -51,8 +51,8 @@ use bevy::transform::TransformSystems;
 pub mod prelude {
     pub use crate::assets::{BvhAsset, BvhSettings, CharacterAsset};
     #[cfg(feature = "scene")]
-    pub use crate::scene::{CreatureScene, RootOrigin};
-    pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose};
+    pub use crate::scene::CreatureScene;
+    pub use crate::character::{Character, CharacterLink, CharacterLinks, Pose, RootOrigin};
     #[cfg(feature = "runtime")]
     pub use crate::checkpoint::CheckpointAsset;
     pub use crate::human::{HumanClipPlayer, HumanJoint, HumanJoints, HumanPose};

@@ -22,7 +22,7 @@
 //! message; nothing panics. Changing the [`Retargeter`] component, or a reloaded checkpoint, starts
 //! over.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::Arc;
 
 use ace_models::human::clip::HumanFrame;
@@ -254,6 +254,7 @@ pub(crate) fn request_poses(
     mut checkpoint_events: MessageReader<AssetEvent<CheckpointAsset>>,
     mut removed: RemovedComponents<Retargeter>,
     mut errors: MessageWriter<RetargetError>,
+    mut warned: Local<HashSet<(AssetId<CheckpointAsset>, AssetId<CharacterAsset>)>>,
 ) {
     // A reloaded or removed checkpoint: its worker goes, its characters start over.
     let mut stale = Vec::new();
@@ -348,6 +349,12 @@ pub(crate) fn request_poses(
                         &mut status,
                     );
                     continue;
+                }
+                // Another version of the trained file (same joints and size) runs, with a warning once.
+                if let Some(problem) = checkpoint.character_file_difference(urdf) {
+                    if warned.insert((id, handle.id())) {
+                        warn!("{problem}");
+                    }
                 }
                 Job {
                     entity,

@@ -49,7 +49,7 @@ use bevy::prelude::*;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstance, WorldInstanceSpawner};
 
 use crate::assets::CharacterAsset;
-use crate::character::{Character, Pose};
+use crate::character::{Character, Pose, RootOrigin};
 use crate::retarget::{RetargetError, RetargetStatus, Retargeter};
 
 /// A glTF scene driven as a creature: its character asset and, once the scene has spawned, the
@@ -71,11 +71,6 @@ impl CreatureScene {
         Self { asset, joints: None, held: Vec::new() }
     }
 }
-
-/// Where a driven scene's world stands: the entity's [`Transform`] is this times the pose's ground
-/// travel (see the module docs).
-#[derive(Component, Clone, Copy, Debug, PartialEq, Deref, DerefMut)]
-pub struct RootOrigin(pub Transform);
 
 fn fail(entity: Entity, message: String, status: &mut RetargetStatus, errors: &mut MessageWriter<RetargetError>) {
     if !matches!(status, RetargetStatus::Failed(_)) {

@@ -26,7 +26,7 @@
 //! Precompute a [`RigPose`] once per creature and file ([`RigPose::new`]), then write poses with
 //! [`RigPose::write`].
 
-use nalgebra::{Isometry3, Matrix3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix4, Rotation3, UnitQuaternion, Vector3};
 
 use super::Creature;
 pub use super::gltf::NodeTransform;
@@ -251,14 +251,11 @@ impl RigPose {
         Ok(())
     }
 
-    /// The ground travel of `pose` (character frame): its root's horizontal position and its heading
-    /// (the yaw of the root's rotation away from rest), a rigid motion `M` about the vertical. The pose
-    /// `M⁻¹ · pose` ([`CharacterPose`]'s root premultiplied) stays over the origin, facing +x as at rest.
+    /// The ground travel of `pose` (character frame; [`CharacterPose::ground_travel`] from the
+    /// creature's rest root rotation). The pose `M⁻¹ · pose` ([`CharacterPose`]'s root premultiplied)
+    /// stays over the origin, facing +x as at rest.
     pub fn root_motion(&self, pose: &CharacterPose) -> Isometry3<f32> {
-        let forward = (pose.root.rotation * self.root_rest.inverse()) * Vector3::x();
-        let yaw = if forward.x.abs() + forward.y.abs() > 1e-6 { forward.y.atan2(forward.x) } else { 0.0 };
-        let t = pose.root.translation.vector;
-        Isometry3::from_parts(Translation3::new(t.x, t.y, 0.0), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+        pose.ground_travel(&self.root_rest)
     }
 
     /// A rigid motion of the character frame as the same motion of the file's frame and units

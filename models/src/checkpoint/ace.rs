@@ -333,7 +333,93 @@ impl AceRecord {
     }
 }
 
+impl AceRecord {
+    /// The character file training recorded (`provenance.character_file`: its path, size and
+    /// checksum); `None` for a checkpoint made before it was recorded or by hand.
+    pub fn character_file(&self) -> Option<FileRecord> {
+        serde_json::from_value(self.provenance.get("character_file")?.clone()).ok()
+    }
+
+    /// How `file`, the record of a character file ([`FileRecord::of`] its bytes, named by its path),
+    /// differs from the one the checkpoint was trained with ([`other_character_file`]); `None` when it
+    /// is that file or the checkpoint does not record one.
+    pub fn character_file_difference(&self, file: &FileRecord) -> Option<String> {
+        other_character_file(&self.character_file()?, file)
+    }
+}
+
+/// How `file` (a character file's record, named by its path) differs from `recorded`, the one a
+/// checkpoint was trained with, or `None` when it is that file: same size and checksum, whatever the
+/// path. The character check ([`CharacterInfo::difference`]) has passed by then: same joints, end
+/// effectors and size. An edited file that keeps those (other meshes, limits, masses or capsules) is
+/// refused by nothing, and is worth a warning: the networks learned the other file's geometry.
+pub fn other_character_file(recorded: &FileRecord, file: &FileRecord) -> Option<String> {
+    (!recorded.same_content(file)).then(|| {
+        format!(
+            "{} is not the character file the checkpoint was trained with (`{}`: {} bytes, checksum {}; this \
+             one: {} bytes, checksum {}). Its joints and size match, so the checkpoint runs, but the networks \
+             learned the other file's geometry: retrain if the edit changed the body",
+            file.file, recorded.file, recorded.bytes, recorded.fnv1a64, file.bytes, file.fnv1a64
+        )
+    })
+}
+
 /// Reads the `ace.json` in `dir`, checking kind and version before the rest.
 pub fn read_record(dir: &Path) -> Result<AceRecord, LearnError> {
     read_json(&CheckpointFiles::on_disk(dir), ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use super::*;
+
+    fn root() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    }
+
+    #[test]
+    fn a_checkpoint_tells_another_version_of_its_character_file_by_content() {
+        let record = read_record(&root().join("assets/checkpoints/crab")).unwrap();
+        let recorded = record.character_file().expect("the crab's checkpoint records its URDF");
+        let bundled = std::fs::read(root().join(&recorded.file)).unwrap();
+        // The file trained with, under any name: nothing to say.
+        assert_eq!(record.character_file_difference(&FileRecord::of("elsewhere/crab.urdf", &bundled)), None);
+        // A comment more: another file. The warning names it and both sizes and checksums.
+        let mut edited = bundled.clone();
+        edited.extend_from_slice(b"<!-- edited -->\n");
+        let now = FileRecord::of("my/crab.urdf", &edited);
+        let w = record.character_file_difference(&now).expect("an edited file is told");
+        for part in ["my/crab.urdf", &recorded.file, &recorded.fnv1a64, &now.fnv1a64, &format!("{} bytes", edited.len())] {
+            assert!(w.contains(part), "`{part}` missing from: {w}");
+        }
+        // The same size with one bit changed: the checksum tells.
+        let mut flipped = bundled.clone();
+        flipped[bundled.len() / 2] ^= 1;
+        assert!(record.character_file_difference(&FileRecord::of("crab.urdf", &flipped)).is_some());
+        // A checkpoint that recorded no character file has nothing to compare.
+        let mut old = record.clone();
+        old.provenance = serde_json::json!({ "command": "ace train" });
+        assert_eq!(old.character_file(), None);
+        assert_eq!(old.character_file_difference(&now), None);
+    }
+
+    #[test]
+    fn the_shipped_checkpoints_were_trained_on_the_bundled_files_as_they_are() {
+        let mut compared = Vec::new();
+        for name in ["spot", "crab", "stretch", "hound"] {
+            let record = read_record(&root().join("assets/checkpoints").join(name)).unwrap();
+            let Some(recorded) = record.character_file() else { continue };
+            let bytes = std::fs::read(root().join(&recorded.file))
+                .unwrap_or_else(|e| panic!("{name}: the recorded character file {}: {e}", recorded.file));
+            assert_eq!(
+                record.character_file_difference(&FileRecord::of(&recorded.file, &bytes)),
+                None,
+                "{name}: the bundled character file changed since its checkpoint was trained; retrain it"
+            );
+            compared.push(name);
+        }
+        assert!(compared.len() >= 3, "only {compared:?} record their character files");
+    }
 }

@@ -35,6 +35,11 @@ impl FileRecord {
         }
     }
 
+    /// Whether `other` records the same content (size and checksum), whatever the file names.
+    pub fn same_content(&self, other: &FileRecord) -> bool {
+        self.bytes == other.bytes && self.fnv1a64 == other.fnv1a64
+    }
+
     /// Fails with [`LearnError::CorruptFile`] naming `path` unless `bytes` match the record.
     pub fn verify(&self, path: &Path, bytes: &[u8], recorded_in: &str) -> Result<(), LearnError> {
         if *self == FileRecord::of(&self.file, bytes) {
