@@ -47,6 +47,8 @@ pub enum UrdfProblem {
     Parse(String),
     #[error("the robot has no links")]
     NoLinks,
+    #[error("the robot has {links} links, more than the {MAX_LINKS} supported")]
+    TooManyLinks { links: usize },
     #[error("link `{0}` is defined more than once")]
     DuplicateLink(String),
     #[error("joint `{0}` is defined more than once")]
@@ -458,11 +460,19 @@ pub fn convert_joint(j: &urdf_rs::Joint) -> Result<(JointSpec, Option<String>), 
     ))
 }
 
+/// The most links a URDF may have. Real robots have tens to a few hundred; every link (and its DoF)
+/// becomes a column of each dataset frame and a body of every collision check, so a file with
+/// 100,000 links would take gigabytes before any error could be given.
+pub const MAX_LINKS: usize = 1024;
+
 /// Builds the tree: checks names and topology, orders links depth-first from the root, assigns DoFs
 /// and resolves mimic joints.
 pub fn robot_to_tree(robot: &urdf_rs::Robot) -> Result<KinematicTree, UrdfProblem> {
     if robot.links.is_empty() {
         return Err(UrdfProblem::NoLinks);
+    }
+    if robot.links.len() > MAX_LINKS {
+        return Err(UrdfProblem::TooManyLinks { links: robot.links.len() });
     }
     let mut link_ix: HashMap<&str, usize> = HashMap::new();
     for (i, l) in robot.links.iter().enumerate() {

@@ -417,3 +417,33 @@ fn dataset_frames_are_bounded_before_allocation() {
         format!("invalid dataset configuration: `frames` = 1000000000000 is out of range: expected 1 to {MAX_FRAMES}")
     );
 }
+
+/// A serial chain of `links` links joined by revolute joints.
+fn chain_robot(links: usize) -> String {
+    let mut s = String::from("<robot name=\"chain\">\n");
+    for i in 0..links {
+        s.push_str(&format!("<link name=\"l{i}\"/>\n"));
+        if i > 0 {
+            s.push_str(&format!(
+                "<joint name=\"j{i}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{i}\"/><origin xyz=\"0 0 0.01\"/><axis xyz=\"0 1 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\n",
+                i - 1
+            ));
+        }
+    }
+    s.push_str("</robot>\n");
+    s
+}
+
+#[test]
+fn a_urdf_with_more_links_than_supported_is_refused_before_any_work() {
+    use ace_models::urdf::MAX_LINKS;
+    // At the limit the chain imports, with one DoF per joint.
+    let tree = parse_urdf(&chain_robot(MAX_LINKS), "long.urdf", None).unwrap();
+    assert_eq!((tree.links.len(), tree.dof()), (MAX_LINKS, MAX_LINKS - 1));
+    // One more, or 100,000 (which took 9.9 GB in `ace dataset` before the limit), is an error naming
+    // the file, the count and the limit.
+    for links in [MAX_LINKS + 1, 100_000] {
+        let e = parse_urdf(&chain_robot(links), "huge.urdf", None).unwrap_err().to_string();
+        assert_eq!(e, format!("huge.urdf: the robot has {links} links, more than the {MAX_LINKS} supported"));
+    }
+}
