@@ -1,6 +1,7 @@
 //! Checkpoint loading from memory. The input holds the four files of a checkpoint (`config.json`,
 //! `prior.safetensors`, `ace.json`, `generator.safetensors`): each of the first three as a 4-byte
-//! little-endian length and its bytes, the last as the rest.
+//! little-endian length and its bytes, the last as the rest. They load through the pure-Rust runtime
+//! (`ace_models::runtime`), the loader a game ships, so the target needs no libtorch.
 #![no_main]
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -22,8 +23,8 @@ fuzz_target!(|data: &[u8]| {
         };
         files.insert(name.to_string(), part.to_vec());
     }
-    let files = ace_models::learn::CheckpointFiles::in_memory(Path::new("fuzz-checkpoint"), files);
-    if let Err(e) = ace_models::learn::retarget::Retargeter::load_files(&files, ace_models::learn::Device::Cpu) {
+    let files = ace_models::checkpoint::CheckpointFiles::in_memory(Path::new("fuzz-checkpoint"), files);
+    if let Err(e) = ace_models::runtime::Retargeter::load_files(&files) {
         assert!(e.to_string().contains("fuzz-checkpoint"), "{e}");
     }
 });
