@@ -26,8 +26,8 @@ use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use thiserror::Error;
 
 use crate::geometry::{Geometry, Shape};
-use crate::mesh_file::read_mesh_bounds;
 use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link, Mimic};
+use crate::mesh_file::read_mesh_bounds;
 
 /// An error while importing a URDF: which file (or `<string>`), and what is wrong with it.
 #[derive(Debug, Clone, Error, PartialEq)]
