@@ -493,7 +493,7 @@ fn urdf_warnings_are_surfaced() {
             .contains("`world_anchor` is Floating; it is treated as fixed")),
         "{v}"
     );
-    let missing = "not found or not readable as STL/OBJ (they have no extent): missing_part.stl";
+    let missing = "not found or not readable as STL, OBJ or Collada (they have no extent): missing_part.stl";
     assert!(warnings.iter().any(|w| w.as_str().unwrap().contains(missing)), "{v}");
     let e = stderr(&o);
     assert!(

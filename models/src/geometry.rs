@@ -2,11 +2,10 @@
 //! analysis and collision checks use.
 //!
 //! Shapes are kept as URDF describes them (cylinders and capsules along their local z). Meshes are not
-//! loaded for rendering here; [`read_mesh_bounds`] only reads the vertex bounding box of an STL or OBJ
-//! file so that meshes have an extent too. A mesh whose file is missing or unreadable has
-//! `bounds: None` and then counts as having no extent (callers fall back to the link origin).
-
-use std::path::Path;
+//! loaded for rendering here; the URDF import reads the vertex bounding box of each mesh file (STL, OBJ
+//! or Collada, [`crate::mesh_file::read_mesh_bounds`]) so that meshes have an extent too. A mesh whose
+//! file is missing or unreadable has `bounds: None` and then counts as having no extent (callers fall
+//! back to the link origin).
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -80,7 +79,7 @@ pub enum Shape {
     Capsule { radius: f32, length: f32 },
     /// Mesh file as written in the URDF (`package://…`, relative or absolute), not loaded.
     /// `bounds` is the vertex bounding box in the file's own units before `scale`, when it was read
-    /// (see [`read_mesh_bounds`]).
+    /// (see [`crate::mesh_file::read_mesh_bounds`]).
     Mesh {
         filename: String,
         scale: Vector3<f32>,
@@ -171,50 +170,6 @@ pub fn geometries_aabb(geoms: &[Geometry], link_pose: &Isometry3<f32>) -> Option
     (!out.is_empty()).then_some(out)
 }
 
-/// Reads the vertex bounding box of a mesh file: binary or ASCII STL (`.stl`) or Wavefront OBJ
-/// (`.obj`). Other formats (e.g. `.dae`) and unreadable files give `None`.
-pub fn read_mesh_bounds(path: &Path) -> Option<Aabb> {
-    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
-    let bytes = std::fs::read(path).ok()?;
-    let mut b = Aabb::empty();
-    match ext.as_str() {
-        "stl" => {
-            let binary_len = (bytes.len() >= 84)
-                .then(|| 84 + 50 * u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize);
-            if binary_len == Some(bytes.len()) {
-                for tri in bytes[84..].chunks_exact(50) {
-                    for v in 0..3 {
-                        let f = |k: usize| {
-                            let o = 12 + 12 * v + 4 * k;
-                            f32::from_le_bytes([tri[o], tri[o + 1], tri[o + 2], tri[o + 3]])
-                        };
-                        b.include(&Point3::new(f(0), f(1), f(2)));
-                    }
-                }
-            } else {
-                parse_vertex_lines(&String::from_utf8_lossy(&bytes), "vertex", &mut b);
-            }
-        }
-        "obj" => parse_vertex_lines(&String::from_utf8_lossy(&bytes), "v", &mut b),
-        _ => return None,
-    }
-    (!b.is_empty() && b.min.coords.iter().chain(b.max.coords.iter()).all(|v| v.is_finite())).then_some(b)
-}
-
-/// Adds every `keyword x y z` line of a text mesh to `b`.
-fn parse_vertex_lines(text: &str, keyword: &str, b: &mut Aabb) {
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        if it.next() != Some(keyword) {
-            continue;
-        }
-        let v: Vec<f32> = it.take(3).filter_map(|s| s.parse().ok()).collect();
-        if v.len() == 3 {
-            b.include(&Point3::new(v[0], v[1], v[2]));
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,5 +225,18 @@ mod tests {
         };
         assert!(g.aabb(&Isometry3::identity()).is_none());
         assert!(geometries_aabb(&[g], &Isometry3::identity()).is_none());
+    }
+
+    /// The hand-written Collada pyramid (decimetres, base ±1, apex at 2) under a URDF scale of (2, 1, 0.5)
+    /// and a collision origin 0.3 m up: the link's collision extent is the scaled mesh's.
+    #[test]
+    fn collada_collision_mesh_has_its_extent() {
+        let urdf = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/urdf/pyramid.urdf");
+        let tree = crate::kinematics::KinematicTree::from_urdf_file(&urdf).unwrap();
+        assert!(tree.warnings.is_empty(), "{:?}", tree.warnings);
+        let base = tree.links.iter().find(|l| l.name == "base").unwrap();
+        let b = geometries_aabb(&base.collisions, &Isometry3::identity()).unwrap();
+        assert!((b.min - Point3::new(-0.2, -0.1, 0.3)).norm() < 1e-6, "{b:?}");
+        assert!((b.max - Point3::new(0.2, 0.1, 0.4)).norm() < 1e-6, "{b:?}");
     }
 }

@@ -29,6 +29,7 @@ pub mod geometry;
 pub mod human;
 pub mod human_set;
 pub mod kinematics;
+pub mod mesh_file;
 #[cfg(feature = "learn")]
 pub mod learn;
 pub mod metrics;

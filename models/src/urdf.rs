@@ -25,8 +25,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use thiserror::Error;
 
-use crate::geometry::{Geometry, Shape, read_mesh_bounds};
+use crate::geometry::{Geometry, Shape};
 use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link, Mimic};
+use crate::mesh_file::read_mesh_bounds;
 
 /// An error while importing a URDF: which file (or `<string>`), and what is wrong with it.
 #[derive(Debug, Clone, Error, PartialEq)]
@@ -648,7 +649,7 @@ fn load_mesh_bounds(tree: &mut KinematicTree, base_dir: &Path) {
         for g in link.visuals.iter_mut().chain(link.collisions.iter_mut()) {
             if let Shape::Mesh { filename, bounds, .. } = &mut g.shape {
                 *bounds = *cache.entry(filename.clone()).or_insert_with(|| {
-                    let b = resolve_mesh_path(filename, base_dir).and_then(|p| read_mesh_bounds(&p));
+                    let b = resolve_mesh_path(filename, base_dir).and_then(|p| read_mesh_bounds(&p).ok());
                     if b.is_none() {
                         missing.push(filename.clone());
                     }
@@ -659,7 +660,7 @@ fn load_mesh_bounds(tree: &mut KinematicTree, base_dir: &Path) {
     }
     if !missing.is_empty() {
         tree.warnings.push(format!(
-            "{} mesh file(s) not found or not readable as STL/OBJ (they have no extent): {}",
+            "{} mesh file(s) not found or not readable as STL, OBJ or Collada (they have no extent): {}",
             missing.len(),
             missing.join(", ")
         ));
@@ -703,7 +704,11 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("ace_urdf_pkg_{}", std::process::id()));
         let mesh = dir.join("my_pkg/meshes/a.stl");
         std::fs::create_dir_all(mesh.parent().unwrap()).unwrap();
-        std::fs::write(&mesh, "solid a\nvertex 0 0 0\nvertex 1 2 3\nendsolid").unwrap();
+        std::fs::write(
+            &mesh,
+            "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 2 3\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n",
+        )
+        .unwrap();
         let urdf_dir = dir.join("my_pkg/urdf");
         std::fs::create_dir_all(&urdf_dir).unwrap();
         assert_eq!(

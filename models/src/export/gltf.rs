@@ -6,13 +6,13 @@
 //!   visual of a link is a child node `<link>.visual<k>` placed at the visual's origin and carrying its
 //!   mesh. The optional human skeleton is a second scene root `human` with a node per canonical joint
 //!   (a sphere each) and a bone node per joint with a parent (a cylinder from the parent joint).
-//! - **meshes**: URDF primitives triangulated ([`super::tessellate`]); mesh files read
-//!   ([`super::mesh_file`]) with the URDF scale baked in; a mesh file that cannot be read is replaced
+//! - **meshes**: URDF primitives triangulated ([`super::tessellate`]); mesh files (STL, OBJ, Collada)
+//!   read ([`crate::mesh_file`]) with the URDF scale baked in; a mesh file that cannot be read is replaced
 //!   by its bounding box when that is known, and left out otherwise; a link none of whose visuals can
 //!   be shown gets its collision geometry instead (`<link>.collision<k>` nodes). All of these are
 //!   noted in [`GlbOutput::warnings`]. One material per colour: the URDF material colour of the
-//!   visual (read from the URDF file the tree came from), else the OBJ material colour, else a
-//!   neutral grey.
+//!   visual (read from the URDF file the tree came from), else the mesh file's material colour (OBJ
+//!   MTL, Collada effect), else a neutral grey.
 //! - **one animation**, one keyframe per pose at `k / fps` seconds, LINEAR: a translation and a
 //!   rotation channel for the root link, a rotation channel for links on revolute and continuous
 //!   joints, a translation channel for links on prismatic joints (mimic joints included); links on
@@ -33,13 +33,13 @@ use gltf_json as json;
 use json::Index;
 use json::animation::Property;
 
-use super::mesh_file::{MeshData, MeshError, MeshPart, read_mesh};
 use super::tessellate::{box_mesh, cylinder_mesh, shape_mesh, sphere_mesh};
 use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::human::{HumanFrame, Joint};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree, Link};
+use crate::mesh_file::{MeshData, MeshError, MeshPart, read_mesh};
 use crate::urdf::resolve_mesh_path;
 
 /// Colour of visuals without a colour of their own (linear RGBA).

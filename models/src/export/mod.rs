@@ -3,8 +3,8 @@
 //!
 //! - [`gltf`]: a character motion (and optionally the human skeleton beside it) as one `.glb` with a
 //!   node per link, meshes for the visual geometry and one animation;
-//! - [`mesh_file`]: STL and OBJ mesh files read as triangles for [`gltf`]; [`tessellate`]: the
-//!   triangle meshes of URDF primitives;
+//! - [`tessellate`]: the triangle meshes of URDF primitives (mesh files are read by
+//!   [`crate::mesh_file`]);
 //! - [`rig`]: a clip on a rigged glTF creature's own model, as a new animation on its skeleton;
 //! - [`trajectory`]: [`CommandTrajectory`], written as JSON or CSV;
 //! - [`writer`]: the typed glTF document ([`gltf_json`]) and GLB container both glTF exports write.
@@ -13,7 +13,6 @@
 //! that is renamed over it, so a failed export never leaves a half-written file.
 
 pub mod gltf;
-pub mod mesh_file;
 pub mod rig;
 pub mod tessellate;
 pub mod trajectory;

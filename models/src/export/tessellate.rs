@@ -6,8 +6,8 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 use nalgebra::Vector3;
 
-use super::mesh_file::MeshPart;
 use crate::geometry::Shape;
+use crate::mesh_file::MeshPart;
 
 /// The mesh of a primitive `shape` with `segments` segments around round shapes (at least 3);
 /// `None` for [`Shape::Mesh`], which is read from its file instead.

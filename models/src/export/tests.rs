@@ -676,6 +676,65 @@ fn mesh_files_scale_colours_and_stand_ins() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The hand-written Collada pyramid (`models/tests/data/urdf/meshes/pyramid.dae`: decimetres, base
+/// ±1, apex at 2, a green effect) under the URDF scale (2, 1, 0.5): its own six triangles are written, in
+/// metres and scaled, facing outwards, in the file's colour, and the GLB validates.
+#[test]
+fn collada_mesh_exports_its_triangles_scaled_and_coloured() {
+    let urdf = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/urdf/pyramid.urdf");
+    let tree = KinematicTree::from_urdf_file(&urdf).unwrap();
+    let poses = vec![tree.neutral_pose(Isometry3::identity()); 2];
+    let out = character_glb(&tree, &poses, FPS, &GltfOptions::default()).unwrap();
+    assert!(out.warnings.is_empty(), "{:?}", out.warnings);
+    assert_eq!(out.mesh_files, 1);
+    let rb = Readback::new(&out.bytes);
+    let mesh = rb
+        .doc
+        .nodes()
+        .find(|n| n.name() == Some("base.visual0"))
+        .and_then(|n| n.mesh())
+        .expect("the pyramid has a mesh");
+    let (pos, nrm, idx) = primitive(&rb, mesh.index());
+    // Six triangles (a stand-in box has twelve), with the apex and the base corners in metres, scaled.
+    assert_eq!(idx.len(), 18);
+    let near = |p: Vector3<f32>| pos.iter().any(|q| (q - p).norm() < 1e-6);
+    for p in [
+        Vector3::new(0.0, 0.0, 0.1),
+        Vector3::new(-0.2, -0.1, 0.0),
+        Vector3::new(0.2, -0.1, 0.0),
+        Vector3::new(0.2, 0.1, 0.0),
+        Vector3::new(-0.2, 0.1, 0.0),
+    ] {
+        assert!(near(p), "no vertex at {p}: {pos:?}");
+    }
+    let inside = Vector3::new(0.0, 0.0, 0.02);
+    let mut volume = 0.0;
+    for t in idx.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|i| pos[t[i] as usize]);
+        volume += a.dot(&b.cross(&c)) / 6.0;
+        let face = (b - a).cross(&(c - a)).normalize();
+        assert!(face.dot(&((a + b + c) / 3.0 - inside)) > 0.0, "a triangle faces inwards");
+        for i in t {
+            let n = nrm[*i as usize];
+            assert!((n - face).norm() < 1e-5, "normal {n} vs face {face}");
+        }
+    }
+    // Base 0.4 × 0.2 m, height 0.1 m.
+    assert!((volume - 0.4 * 0.2 * 0.1 / 3.0).abs() < 1e-6, "volume {volume}");
+    let material = mesh.primitives().next().unwrap().material();
+    let [r, g, b, a] = material.pbr_metallic_roughness().base_color_factor();
+    assert!(
+        (Vector3::new(r, g, b) - Vector3::new(0.1, 0.6, 0.3)).norm() < 1e-6 && a == 1.0,
+        "colour {:?}",
+        [r, g, b, a]
+    );
+    let dir = scratch("collada");
+    let path = dir.join("pyramid.glb");
+    write_atomic(&path, &out.bytes).unwrap();
+    khronos_validate(&path);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn bad_input_is_refused_with_the_file_named() {
     let (tree, _) = load_character(&project().join("assets/characters/crab.urdf")).unwrap();
