@@ -80,13 +80,13 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
     let fps = series.fps;
     let frame_at = |index: usize| format!("frame {index} ({:.2} s)", index as f32 / fps);
     let speed = Plot::new("root speed")
-        .height(100.0)
+        .height(90.0)
         .allow_scroll(false)
         .link_axis("timeline", [true, false])
         .link_cursor("timeline", [true, false])
         .legend(Legend::default().position(egui_plot::Corner::LeftTop))
-        .x_axis_label("s")
-        .y_axis_label("ground speed (body lengths/s)")
+        .x_axis_label("root ground speed (body lengths/s) over the clip (s)")
+        .y_axis_label("speed")
         .label_formatter(|pos| match pos {
             HoverPosition::NearDataPoint { index, .. } => Some(format!(
                 "{}\ncharacter {:.2}, human {:.2} body lengths/s",
@@ -103,13 +103,13 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
             clicked_time(plot)
         });
     let heights = Plot::new("end-effector heights")
-        .height(140.0)
+        .height(130.0)
         .allow_scroll(false)
         .link_axis("timeline", [true, false])
         .link_cursor("timeline", [true, false])
         .legend(Legend::default().position(egui_plot::Corner::LeftTop).text_style(egui::TextStyle::Small))
-        .x_axis_label("s; solid: character, dashed: human")
-        .y_axis_label("height (body lengths)")
+        .x_axis_label("end-effector heights above the ground (body lengths) over the clip (s); solid: character, dashed: human")
+        .y_axis_label("height")
         .label_formatter(|pos| match pos {
             HoverPosition::NearDataPoint { plot_name, index, .. } => {
                 let p = series.pairs.iter().find(|p| pair_name(p) == *plot_name)?;

@@ -97,8 +97,9 @@ pub fn panels(
 
     if let Some(scene) = scene {
         if let Ok(mut player) = players.get_mut(scene.player) {
+            // Bottom right, under the metrics: the panel on the left reaches down to the bottom.
             egui::Window::new("Timeline")
-                .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
+                .anchor(egui::Align2::RIGHT_BOTTOM, [-8.0, -8.0])
                 .default_width(760.0)
                 .resizable(false)
                 .title_bar(false)
@@ -372,7 +373,7 @@ fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) 
         player.seek(t);
     }
     let Some(result) = &preview.result else { return };
-    egui::CollapsingHeader::new("Following: root speed and end-effector heights, character against human").default_open(true).show(ui, |ui| {
+    egui::CollapsingHeader::new("Following: the character against the human, each in its own body lengths").default_open(true).show(ui, |ui| {
         if let Some(t) = plots::timeline(ui, &result.series, player.time) {
             player.seek(t.min(duration));
         }
