@@ -1,5 +1,6 @@
 //! The editor's egui panels: files and character on the left with the end-effector mapping, the
-//! loss weights and "Retrain briefly"; metrics and export on the right; the timeline at the bottom.
+//! loss weights and "Retrain briefly"; metrics and export on the right; the timeline with its plots
+//! at the bottom right.
 
 use std::path::{Path, PathBuf};
 
