@@ -16,11 +16,15 @@ mod camera;
 mod export;
 mod jobs;
 mod open;
+mod plots;
 mod preview;
 mod retrain;
+mod series;
 mod tour;
 mod ui;
 
+#[cfg(test)]
+mod plot_tests;
 #[cfg(test)]
 mod tests;
 

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions};
 use ace::models::human_set::PROJECT_FPS;
 use ace::models::learn::ace::AceRecord;
@@ -15,6 +16,7 @@ use bevy::prelude::*;
 use bevy_ace::prelude::*;
 
 use crate::jobs::Job;
+use crate::series::{Series, SeriesInputs};
 use crate::{Scene, Session};
 
 /// What the preview was computed from.
@@ -34,6 +36,8 @@ pub struct PreviewResult {
     pub record: AceRecord,
     /// The clip at the project frame rate (what was retargeted and what an export writes).
     pub clip: HumanClip,
+    /// The timeline's plots: root speeds and end-effector heights per frame.
+    pub series: Series,
     pub seconds: f32,
 }
 
@@ -70,11 +74,23 @@ pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
     let clip = HumanClip::from_bvh_file(&inputs.clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })
         .with_context(|| format!("opening {}", inputs.clip.display()))?;
     let retargeted = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
+    let record = retargeter.record();
+    let series = Series::new(&SeriesInputs {
+        tree: &tree,
+        morph: &morph,
+        poses: &retargeted.motion.poses,
+        human: &retargeted.human,
+        mapping: &record.correspondence.mapping.human,
+        character_body: record.body_lengths.character,
+        human_body: scorer.human_body(human_body_length(&clip)),
+        fps: PROJECT_FPS,
+    });
     Ok(PreviewResult {
         inputs: inputs.clone(),
         retargeted,
-        record: retargeter.record().clone(),
+        record: record.clone(),
         clip,
+        series,
         seconds: start.elapsed().as_secs_f32(),
     })
 }

@@ -69,6 +69,8 @@ pub struct Retrain {
     /// L_fea of the current clip before the run and after it (once the new preview is in).
     pub fea_before: Option<f32>,
     pub fea_after: Option<f32>,
+    /// Whether the loss plot is still to be scrolled into view (once per run, at its first step).
+    pub reveal_losses: bool,
     /// The checkpoint the last run wrote, until its preview arrives.
     awaiting: Option<PathBuf>,
     job: Option<Job<Message>>,
@@ -90,7 +92,7 @@ impl Retrain {
         let ft = FineTune {
             urdf: inputs.character.clone(),
             from: inputs.checkpoint.clone(),
-            to: to.clone(),
+            to,
             steps: settings.steps,
             w_adv: settings.w_adv,
             w_fea: settings.w_fea,
@@ -98,9 +100,16 @@ impl Retrain {
             end_effector_mapping: settings.manual_mapping(),
             humans: None,
         };
-        self.fea_before = result.retargeted.report.feature_loss;
+        self.run(ft, result.retargeted.report.feature_loss);
+    }
+
+    /// Runs the fine-tuning `ft` on its own thread; `fea_before` is L_fea of the clip shown.
+    pub(crate) fn run(&mut self, ft: FineTune, fea_before: Option<f32>) {
+        let to = ft.to.clone();
+        self.fea_before = fea_before;
         self.fea_after = None;
         self.history.clear();
+        self.reveal_losses = true;
         self.error = None;
         self.seconds = None;
         self.stage = "starting".into();

@@ -21,11 +21,11 @@ use crate::{Session, apply_session};
 #[path = "../../models/tests/common/mod.rs"]
 mod common;
 
-fn repo() -> PathBuf {
+pub(crate) fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
-fn walk() -> PathBuf {
+pub(crate) fn walk() -> PathBuf {
     repo().join("assets/motions/walk.bvh")
 }
 
@@ -45,7 +45,7 @@ fn hound_walk() -> &'static PreviewResult {
     })
 }
 
-fn scratch(name: &str) -> PathBuf {
+pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir = repo().join("target/editor-tests").join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();

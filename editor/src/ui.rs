@@ -1,5 +1,6 @@
 //! The editor's egui panels: files and character on the left with the end-effector mapping, the
-//! loss weights and "Retrain briefly"; metrics and export on the right; the timeline at the bottom.
+//! loss weights and "Retrain briefly"; metrics and export on the right; the timeline with its plots
+//! at the bottom right.
 
 use std::path::{Path, PathBuf};
 
@@ -15,6 +16,7 @@ use bevy_egui::{EguiContexts, egui};
 
 use crate::export::export;
 use crate::open::{describe, kind, open_character};
+use crate::plots;
 use crate::preview::Preview;
 use crate::retrain::Retrain;
 use crate::{Scene, Session};
@@ -96,8 +98,9 @@ pub fn panels(
 
     if let Some(scene) = scene {
         if let Ok(mut player) = players.get_mut(scene.player) {
+            // Bottom right, under the metrics: the panel on the left reaches down to the bottom.
             egui::Window::new("Timeline")
-                .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
+                .anchor(egui::Align2::RIGHT_BOTTOM, [-8.0, -8.0])
                 .default_width(760.0)
                 .resizable(false)
                 .title_bar(false)
@@ -273,42 +276,11 @@ fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retra
         let after = retrain.fea_after.map_or("…".to_string(), |a| format!("{a:.3}"));
         ui.label(format!("L_fea on this clip: {before:.3} before, {after} after"));
     }
-    loss_plot(ui, &retrain.history);
-}
-
-/// L_fea and L_adv per step, each scaled to its own range.
-fn loss_plot(ui: &mut egui::Ui, history: &[ace::models::learn::train_ace::AceProgress]) {
-    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 90.0), egui::Sense::hover());
-    let painter = ui.painter_at(rect);
-    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
-    if history.len() < 2 {
-        return;
-    }
-    let series: [(&str, fn(&ace::models::learn::train_ace::AceProgress) -> f64, egui::Color32); 2] = [
-        ("L_fea", |p| p.fea, egui::Color32::from_rgb(235, 150, 40)),
-        ("L_adv", |p| p.adv, egui::Color32::from_rgb(90, 160, 240)),
-    ];
-    for (k, (name, value, color)) in series.iter().enumerate() {
-        let v: Vec<f64> = history.iter().map(value).collect();
-        let (lo, hi) = v.iter().fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
-        let span = (hi - lo).max(1e-9);
-        let points: Vec<egui::Pos2> = v
-            .iter()
-            .enumerate()
-            .map(|(i, &x)| {
-                let px = rect.left() + rect.width() * i as f32 / (v.len() - 1) as f32;
-                let py = rect.bottom() - 4.0 - (rect.height() - 8.0) * ((x - lo) / span) as f32;
-                egui::pos2(px, py)
-            })
-            .collect();
-        painter.add(egui::Shape::line(points, egui::Stroke::new(1.5, *color)));
-        painter.text(
-            rect.left_top() + egui::vec2(6.0, 4.0 + 14.0 * k as f32),
-            egui::Align2::LEFT_TOP,
-            format!("{name} {:.3}", v.last().unwrap()),
-            egui::FontId::proportional(12.0),
-            *color,
-        );
+    if let Some(plot) = plots::losses(ui, &retrain.history) {
+        // The plot sits below the mapping and the weights: bring it into view as the run starts.
+        if std::mem::take(&mut retrain.reveal_losses) {
+            plot.scroll_to_me(Some(egui::Align::BOTTOM));
+        }
     }
 }
 
@@ -401,4 +373,10 @@ fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) 
         let t = ((pos.x - rect.left()) / rect.width()).clamp(0.0, 1.0) * duration;
         player.seek(t);
     }
+    let Some(result) = &preview.result else { return };
+    egui::CollapsingHeader::new("Following: the character against the human, each in its own body lengths").default_open(true).show(ui, |ui| {
+        if let Some(t) = plots::timeline(ui, &result.series, player.time) {
+            player.seek(t.min(duration));
+        }
+    });
 }

@@ -1,0 +1,180 @@
+//! The data behind the editor's plots: the timeline's following series of the bundled walk clip on
+//! Spot, and the losses of a real (brief) retraining as the loss plot takes them.
+
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+use ace::fine_tune::FineTune;
+use ace::models::features::human_body_length;
+use ace::models::human::{EndEffector, Joint};
+use ace::models::morphology::load_character;
+use bevy::ecs::system::RunSystemOnce;
+use bevy::prelude::*;
+
+use crate::plots::loss_series;
+use crate::preview::{self, Preview, PreviewInputs, PreviewResult};
+use crate::retrain::{self, Retrain};
+use crate::series::ground_speeds;
+use crate::tests::{repo, scratch, walk};
+use crate::Session;
+
+/// Spot's walk preview, computed once (as the editor does, on the shipped checkpoint).
+fn spot_walk() -> &'static PreviewResult {
+    static RESULT: OnceLock<PreviewResult> = OnceLock::new();
+    RESULT.get_or_init(|| {
+        let checkpoint = repo().join("assets/checkpoints/spot");
+        preview::compute(&PreviewInputs { character: repo().join("assets/characters/spot.urdf"), checkpoint, clip: walk() })
+            .unwrap()
+    })
+}
+
+fn ace_json(checkpoint: &str) -> serde_json::Value {
+    let text = std::fs::read_to_string(repo().join("assets/checkpoints").join(checkpoint).join("ace.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn assert_close(got: &[f32], want: &[f32], tolerance: f32, what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}: lengths");
+    for (t, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() <= tolerance, "{what}, frame {t}: {g} against {w}");
+    }
+}
+
+/// The timeline plots one point per frame of the clip; the pairs are the checkpoint's mapping, in its
+/// order; the human's speed and heights are those of the clip's pelvis and end-effector joints, the
+/// character's those of the poses shown, each in its own body lengths.
+#[test]
+fn the_following_plots_of_the_walk_on_spot_are_the_clip_and_the_poses() {
+    let result = spot_walk();
+    let series = &result.series;
+    let frames = result.clip.frames.len();
+    assert!(frames > 100, "{frames} frames");
+    assert_eq!(result.retargeted.motion.poses.len(), frames);
+    assert_eq!(series.character_speed.len(), frames);
+    assert_eq!(series.human_speed.len(), frames);
+
+    // The pairs: the checkpoint's mapping as ace.json records it.
+    let json = ace_json("spot");
+    let links: Vec<String> = serde_json::from_value(json["correspondence"]["character_links"].clone()).unwrap();
+    let mapping: Vec<Option<EndEffector>> = serde_json::from_value(json["correspondence"]["mapping"]["human"].clone()).unwrap();
+    let want: Vec<(String, EndEffector)> =
+        links.iter().zip(&mapping).filter_map(|(l, h)| h.map(|h| (l.clone(), h))).collect();
+    let got: Vec<(String, EndEffector)> = series.pairs.iter().map(|p| (p.character.clone(), p.human)).collect();
+    assert_eq!(got, want);
+    assert_eq!(got.len(), 5, "Spot's four feet and its gripper");
+    for p in &series.pairs {
+        assert_eq!((p.character_height.len(), p.human_height.len()), (frames, frames), "{}", p.character);
+    }
+
+    // The human, from the clip's joints (m) over its body length.
+    let body = human_body_length(&result.clip);
+    assert!(json["body_lengths"]["human_override"].is_null(), "Spot measures each clip's human");
+    let pelvis: Vec<[f32; 2]> = result
+        .clip
+        .frames
+        .iter()
+        .map(|f| {
+            let p = f.positions[Joint::Pelvis.index()];
+            [p.x, p.y]
+        })
+        .collect();
+    let speed: Vec<f32> = ground_speeds(&pelvis, result.clip.fps).iter().map(|v| v / body).collect();
+    assert_close(&series.human_speed, &speed, 1e-4, "human speed");
+    // A walk: the human is on the move most of the time (so the comparisons above can fail).
+    let mean = speed.iter().sum::<f32>() / frames as f32;
+    assert!(mean > 0.3, "the human walks {mean} body lengths/s on average");
+    for p in &series.pairs {
+        let heights: Vec<f32> = result.clip.frames.iter().map(|f| f.positions[p.human.joint().index()].z / body).collect();
+        assert_close(&p.human_height, &heights, 1e-5, &format!("human {} height", p.human.name()));
+    }
+
+    // The character, from the poses' root and the feet's forward kinematics, in Spot's body lengths.
+    let character_body = json["body_lengths"]["character"].as_f64().unwrap() as f32;
+    let roots: Vec<[f32; 2]> = result.retargeted.motion.poses.iter().map(|p| [p.root.translation.vector.x, p.root.translation.vector.y]).collect();
+    let speed: Vec<f32> = ground_speeds(&roots, 30.0).iter().map(|v| v / character_body).collect();
+    assert_close(&series.character_speed, &speed, 1e-4, "character speed");
+    assert!(series.character_speed != series.human_speed);
+    // Heights above the ground, not below the root: Spot's feet touch the ground while it walks.
+    let (tree, morph) = load_character(&result.inputs.character).unwrap();
+    for (k, p) in series.pairs.iter().enumerate() {
+        let link = morph.end_effectors()[k];
+        assert_eq!(tree.links[link].name, p.character);
+        if k < 4 {
+            let lowest = p.character_height.iter().copied().fold(f32::INFINITY, f32::min) * character_body;
+            assert!(lowest.abs() < 0.03, "{} comes down to {lowest} m", p.character);
+        }
+    }
+}
+
+/// The loss plot shows every loss a real retraining reports, step by step, with the values the training
+/// logged in the new checkpoint's `ace_losses.csv`. (A brief fine-tune of the shipped crab, whose
+/// dataset regenerates, on the shared human clips it was trained on.)
+#[test]
+fn the_loss_plot_carries_the_retrains_logged_losses() {
+    let humans = repo().join("../shared/data/human");
+    if !humans.is_dir() {
+        if std::env::var("ACE_ALLOW_MISSING_DATA").is_ok_and(|v| v == "1") {
+            eprintln!("skipping: shared human data not found at {}", humans.display());
+            return;
+        }
+        panic!("shared human data not found at {} (set ACE_ALLOW_MISSING_DATA=1 to skip tests that need it)", humans.display());
+    }
+    let dir = scratch("retrain");
+    let to = dir.join("crab");
+    let steps = 3;
+    let mut retrain = Retrain::default();
+    retrain.run(
+        FineTune {
+            urdf: repo().join("assets/characters/crab.urdf"),
+            from: repo().join("assets/checkpoints/crab"),
+            to: to.clone(),
+            steps,
+            w_adv: 1.0,
+            w_fea: 20.0,
+            feature_weights: Default::default(),
+            end_effector_mapping: None,
+            humans: None,
+        },
+        None,
+    );
+    let mut world = World::new();
+    world.insert_resource(retrain);
+    world.init_resource::<Preview>();
+    world.insert_resource(Session {
+        character: repo().join("assets/characters/crab.urdf"),
+        scene_placement: None,
+        checkpoint: Some(repo().join("assets/checkpoints/crab")),
+        clip: walk(),
+    });
+    let start = Instant::now();
+    while world.resource::<Retrain>().running() {
+        assert!(start.elapsed() < Duration::from_secs(900), "the retraining did not end in 15 minutes");
+        world.run_system_once(retrain::poll).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let retrain = world.resource::<Retrain>();
+    assert_eq!(retrain.error, None);
+    assert_eq!(world.resource::<Session>().checkpoint.as_ref(), Some(&to), "the session moves to the new checkpoint");
+    assert_eq!(retrain.history.len(), steps);
+
+    // The log: `step,d_loss,d_bce,gp,g_loss,adv,fea,…`, the original run's rows first (steps from 0).
+    let text = std::fs::read_to_string(to.join("ace_losses.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let logged = &rows[rows.len() - steps..];
+    let series = loss_series(&retrain.history);
+    let names: Vec<&str> = series.iter().map(|s| s.0).collect();
+    assert_eq!(names, ["L_fea", "L_adv", "G: w_adv·L_adv + w_fea·L_fea", "D"]);
+    for ((name, points), csv) in series.iter().zip(["fea", "adv", "g_loss", "d_loss"]) {
+        let want: Vec<[f64; 2]> = logged.iter().map(|r| [r[column("step")] + 1.0, r[column(csv)]]).collect();
+        assert_eq!(points, &want, "{name} against the log's {csv}");
+    }
+    // Four different series (so that a mix-up cannot pass).
+    for (i, a) in series.iter().enumerate() {
+        for b in &series[i + 1..] {
+            assert!(a.1 != b.1, "{} and {} are the same", a.0, b.0);
+        }
+    }
+}
