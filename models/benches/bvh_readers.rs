@@ -11,29 +11,16 @@
 //! (`HumanClip::from_bvh_str`), what a user of the project gets; `bvh_anim` is its parser, which the
 //! import would call instead of ours.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
 use ace_models::human::bvh::Bvh;
 use ace_models::human::{HumanClip, ImportOptions};
 
-fn shared_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
-}
-
-fn bvh_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
-    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            bvh_files(&p, out);
-        } else if p.extension().is_some_and(|e| e == "bvh") {
-            out.push(p);
-        }
-    }
-}
+#[path = "common/mod.rs"]
+mod common;
+use common::{bvh_files, shared_data};
 
 /// The bundled walk clip, the base of most malformed cases.
 fn walk() -> String {

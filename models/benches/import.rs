@@ -13,22 +13,9 @@ use ace_models::human::{HumanClip, ImportOptions};
 use ace_models::kinematics::{CharacterPose, KinematicTree};
 use ace_models::nalgebra::Isometry3;
 
-fn shared_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
-}
-
-fn bvh_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
-    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            bvh_files(&p, out);
-        } else if p.extension().is_some_and(|e| e == "bvh") {
-            out.push(p);
-        }
-    }
-}
+#[path = "common/mod.rs"]
+mod common;
+use common::{bvh_files, shared_data};
 
 /// A small deterministic generator, so runs compare.
 struct Lcg(u64);
