@@ -134,10 +134,10 @@ fn outcome(reader: &str, index: usize) -> String {
         Some(l) if out.status.success() => l.to_string(),
         _ => {
             let stderr = String::from_utf8_lossy(&out.stderr);
-            let why = if stderr.contains("overflow") {
-                "stack overflow".to_string()
-            } else if stderr.contains("memory allocation") || stderr.contains("capacity overflow") {
+            let why = if stderr.contains("memory allocation") || stderr.contains("capacity overflow") {
                 "allocation failure".to_string()
+            } else if stderr.contains("overflowed its stack") {
+                "stack overflow".to_string()
             } else if stderr.contains("panicked") {
                 format!("panic: {}", stderr.lines().find(|l| !l.contains("panicked")).unwrap_or("").trim())
             } else {
