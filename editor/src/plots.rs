@@ -79,12 +79,7 @@ fn timed(values: &[f32], fps: f32) -> PlotPoints<'static> {
 pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
     let fps = series.fps;
     let frame_at = |index: usize| format!("frame {index} ({:.2} s)", index as f32 / fps);
-    let speed = Plot::new("root speed")
-        .height(90.0)
-        .allow_scroll(false)
-        .link_axis("timeline", [true, false])
-        .link_cursor("timeline", [true, false])
-        .legend(Legend::default().position(egui_plot::Corner::LeftTop))
+    let speed = timeline_plot("root speed", 90.0, Legend::default().position(egui_plot::Corner::LeftTop))
         .x_axis_label("root ground speed (body lengths/s) over the clip (s)")
         .y_axis_label("speed")
         .label_formatter(|pos| match pos {
@@ -102,12 +97,8 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
             plot.vline(now(time));
             clicked_time(plot)
         });
-    let heights = Plot::new("end-effector heights")
-        .height(130.0)
-        .allow_scroll(false)
-        .link_axis("timeline", [true, false])
-        .link_cursor("timeline", [true, false])
-        .legend(Legend::default().position(egui_plot::Corner::LeftTop).text_style(egui::TextStyle::Small))
+    let small_legend = Legend::default().position(egui_plot::Corner::LeftTop).text_style(egui::TextStyle::Small);
+    let heights = timeline_plot("end-effector heights", 130.0, small_legend)
         .x_axis_label("end-effector heights above the ground (body lengths) over the clip (s); solid: character, dashed: human")
         .y_axis_label("height")
         .label_formatter(|pos| match pos {
@@ -133,6 +124,17 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
             clicked_time(plot)
         });
     speed.inner.or(heights.inner)
+}
+
+/// A plot of the timeline: its time axis and cursor linked with the other timeline plots, the wheel
+/// left to the panel.
+fn timeline_plot<'a>(id: &str, height: f32, legend: Legend) -> Plot<'a> {
+    Plot::new(id)
+        .height(height)
+        .allow_scroll(false)
+        .link_axis("timeline", [true, false])
+        .link_cursor("timeline", [true, false])
+        .legend(legend)
 }
 
 /// A pair's name in the legend: the character's end effector and the human's it follows.
