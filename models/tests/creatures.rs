@@ -383,6 +383,108 @@ fn a_small_hand_made_rig_imports() {
     }
 }
 
+/// Of several skins the creature is built from the one that deforms the most vertices, whichever
+/// comes first in the file, and a warning names it.
+#[test]
+fn of_several_skins_the_one_that_deforms_the_most_vertices_is_used() {
+    let d = tmp("skins");
+    // A second skin of the first two bones; `small_nodes` mesh nodes use it, `big_nodes` more use the
+    // first (four-bone) skin beside the original one.
+    let rig_with = |name: &str, small_nodes: usize, big_nodes: usize| {
+        rig(&d, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+            v["accessors"].as_array_mut().unwrap().push(
+                serde_json::json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "MAT4"}),
+            );
+            v["skins"].as_array_mut().unwrap().push(serde_json::json!({"name": "small", "joints": [1, 2], "inverseBindMatrices": 4}));
+            v["skins"][0]["name"] = "big".into();
+            for (k, skin) in std::iter::repeat_n(1, small_nodes).chain(std::iter::repeat_n(0, big_nodes)).enumerate() {
+                let i = v["nodes"].as_array().unwrap().len();
+                v["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": format!("copy{k}"), "mesh": 0, "skin": skin}));
+                v["scenes"][0]["nodes"].as_array_mut().unwrap().push(i.into());
+            }
+        })
+    };
+    // 6 vertices deformed by `small` against 3 by `big`, which comes first.
+    let c = load(&rig_with("small.gltf", 2, 0));
+    let used: Vec<_> = c.rig.skins.iter().map(|s| (s.name.as_str(), s.vertices, s.used)).collect();
+    assert_eq!(used, [("big", 3, false), ("small", 6, true)]);
+    assert!(c.tree.link_index("bone1").is_some() && c.tree.link_index("bone2").is_none(), "the tree is the small skin's");
+    assert!(c.rig.warnings.iter().any(|w| w.contains("2 skins") && w.contains("`small`")), "{:?}", c.rig.warnings);
+    // 9 against 6: the first skin wins again.
+    let c = load(&rig_with("big.gltf", 2, 2));
+    let used: Vec<_> = c.rig.skins.iter().map(|s| (s.name.as_str(), s.vertices, s.used)).collect();
+    assert_eq!(used, [("big", 9, true), ("small", 6, false)]);
+    assert!(c.tree.link_index("bone3").is_some());
+    // One skin: no warning about skins.
+    let c = load(&rig(&d, "one.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |_| {}));
+    assert!(c.rig.warnings.iter().all(|w| !w.contains("skins")), "{:?}", c.rig.warnings);
+}
+
+/// A `<name>.profile.toml` beside a creature overrides each choice of the import: scale, feet, head,
+/// the bones that move, bones held at rest, a bone's axes and a joint's limits. A bone it names that
+/// the file lacks is an error naming the profile.
+#[test]
+fn a_profile_beside_a_creature_overrides_its_body_plan() {
+    let Some(dir) = creatures() else { return };
+    let d = tmp("profile");
+    let fox = d.join("Fox.glb");
+    std::fs::copy(dir.join("Fox/Fox.glb"), &fox).unwrap();
+    let profile = d.join("Fox.profile.toml");
+    let plain = load(&fox);
+    let names = |c: &Creature, links: &[usize]| -> Vec<String> { links.iter().map(|&l| c.tree.links[l].name.clone()).collect() };
+    // What the analysis chose, and which the profile below changes.
+    assert_eq!(plain.scale, 0.01);
+    assert_eq!(names(&plain, &plain.morphology.head.into_iter().collect::<Vec<_>>()), ["b_Head_05"]);
+    for dof in ["b_Tail03_014:yaw", "b_Tail01_012:pitch", "b_Neck_04:yaw"] {
+        assert!(plain.tree.dof_index(dof).is_some(), "{dof}");
+    }
+    std::fs::write(
+        &profile,
+        r#"
+scale = 0.005
+feet = ["b_LeftFoot01_017", "b_RightFoot01_021", "b_LeftForeArm_010", "b_RightForeArm_07"]
+head = "b_Neck_04"
+at_rest = ["b_Tail03_014"]
+[dofs]
+b_Tail01_012 = ["yaw"]
+[limits]
+"b_Neck_04:yaw" = [-0.2, 0.3]
+"#,
+    )
+    .unwrap();
+    let c = load(&fox);
+    assert_eq!(c.scale, 0.005);
+    let span = |c: &Creature| {
+        let fk = c.tree.forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+        let at = |n: &str| fk[c.tree.link_index(n).unwrap()].translation.vector;
+        (at("b_Head_05") - at("b_Tail03_014")).norm()
+    };
+    let ratio = span(&c) / span(&plain);
+    assert!((ratio - 0.5).abs() < 1e-4, "half the metres per unit, half the size: {ratio}");
+    let mut feet = names(&c, &c.morphology.feet);
+    feet.sort();
+    assert_eq!(feet, ["b_LeftFoot01_017", "b_LeftForeArm_010", "b_RightFoot01_021", "b_RightForeArm_07"]);
+    assert_eq!(names(&c, &c.morphology.head.into_iter().collect::<Vec<_>>()), ["b_Neck_04"]);
+    assert!(c.tree.dof_index("b_Tail03_014:yaw").is_none() && c.tree.dof_index("b_Tail03_014:pitch").is_none());
+    assert!(c.plan.at_rest.iter().any(|b| b == "b_Tail03_014"), "{:?}", c.plan.at_rest);
+    assert!(c.tree.dof_index("b_Tail01_012:yaw").is_some() && c.tree.dof_index("b_Tail01_012:pitch").is_none());
+    let l = c.tree.limits(c.tree.dof_index("b_Neck_04:yaw").unwrap()).unwrap();
+    assert_eq!((l.lower, l.upper), (-0.2, 0.3));
+
+    // `animated` replaces the analysis: exactly these bones move, a spine bone it left at rest too.
+    std::fs::write(&profile, "animated = [\"b_Head_05\", \"b_Spine01_02\"]\n").unwrap();
+    let c = load(&fox);
+    let mut moving: Vec<&str> = c.tree.dof_names().iter().map(|n| n.split(':').next().unwrap()).collect();
+    moving.dedup();
+    moving.sort();
+    assert_eq!(moving, ["b_Head_05", "b_Spine01_02"]);
+
+    std::fs::write(&profile, "feet = [\"b_Paw_99\"]\n").unwrap();
+    let e = load_creature(&fox).unwrap_err().to_string();
+    assert!(e.contains("Fox.profile.toml") && e.contains("b_Paw_99"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 #[test]
 fn bad_rigs_get_errors_that_name_the_file_and_the_problem() {
     let d = tmp("bad");
