@@ -516,6 +516,23 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("warning: ") && err.contains("edited/Fox.glb is not the character file") && err.contains(file["fnv1a64"].as_str().unwrap()), "{err}");
+    // `ace eval` on a creature: a complete table of finite values, and the same warning for the copy.
+    let eval_dir = dir.join("eval");
+    let out = ace(&["--threads", "1", "eval", "--character", &s(&edited), "--checkpoint", &s(&ck), "--humans", "assets/motions", "--seconds", "2", "--out", &s(&eval_dir)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("edited/Fox.glb is not the character file"), "{err}");
+    let csv = std::fs::read_to_string(eval_dir.join("eval.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
+        assert!(row.starts_with(&format!("Fox,{system},")), "{csv}");
+        let cells: Vec<&str> = row.split(',').collect();
+        for (k, c) in cells[3..8].iter().enumerate() {
+            let humanless = c.is_empty() && system == "Dataset" && (k == 2 || k == 3);
+            assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
+        }
+    }
     let frames = inspect_json(&root().join("assets/motions/walk.bvh"))["frames"].as_u64().unwrap() as usize;
     let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
     assert_eq!(csv.lines().count(), frames + 1);
