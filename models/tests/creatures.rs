@@ -722,9 +722,7 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
     use gltf::animation::util::ReadOutputs;
     use nalgebra::{Quaternion, UnitQuaternion};
     let Some(dir) = creatures() else { return };
-    // The T-Rex is left out: its body root's pose in the clips differs from the file's by 2–6 % of its
-    // size, not yet understood (see the project notes).
-    for (file, _) in SHARED.iter().filter(|(f, _)| !f.contains("TRex")) {
+    for (file, _) in SHARED {
         let path = dir.join(file);
         let plain = load(&path);
         let c = load_creature_with(&path, &exact_profile(&plain)).unwrap();
@@ -781,15 +779,17 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
                     continue; // helpers follow their host bone, not the file's IK
                 }
                 // Bones translate only as root motion: below a bone that the clip moves away from its
-                // rest offset (the T-Rex's clips stretch a few bones by millimetres, the Snake's slide
-                // its body sideways), compare positions relative to that bone.
+                // rest offset (the T-Rex's clips hold its hips and front legs 2–5 mm off the skin's bind
+                // pose, the Snake's slide its body sideways), compare positions relative to that bone.
                 let mut up = Some(n);
                 let mut stretched = None;
                 while let Some(i) = up {
                     if nodes[i].name() == Some(c.plan.body_root.as_str()) {
                         break;
                     }
-                    if stretched.is_none() && (Vector3::from(trs[i].0) - rest[i]).norm() * c.scale > 1e-4 * size {
+                    // The offset is in the parent's units: the T-Rex's armature scales them ×300.
+                    let units = parent[i].map_or(1.0, |p| world(p).fixed_view::<3, 1>(0, 0).norm());
+                    if stretched.is_none() && (Vector3::from(trs[i].0) - rest[i]).norm() * units * c.scale > 1e-4 * size {
                         stretched = Some(i);
                     }
                     up = parent[i];
