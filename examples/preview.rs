@@ -2,27 +2,51 @@
 //! checkpoint, side by side on a ground grid.
 //!
 //! ```text
-//! cargo run --example preview -- [clip]          (default: walk)
+//! cargo run --example preview -- [clip] [--screenshot FILE.png [--at SECONDS]]   (default: walk)
 //! ```
-//! Space pauses, ←/→ scrub by a second, ↑/↓ change the speed.
+//! Space pauses, ←/→ scrub by a second, ↑/↓ change the speed. `--screenshot` saves the window once the
+//! clip has played `--at` seconds (default 4), then exits: a check of the characters in a window.
+
+use std::path::PathBuf;
 
 use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_ace::ace_models::human::Joint;
 use bevy_ace::prelude::*;
 
 #[derive(Resource)]
 struct Player(Entity);
 
+/// Where and when to save the window (`--screenshot`, `--at`).
+#[derive(Resource)]
+struct ScreenshotAt(Option<(PathBuf, f32)>);
+
 fn main() -> AppExit {
-    let clip = std::env::args().nth(1).unwrap_or_else(|| "walk".into());
+    let (mut clip, mut screenshot, mut at) = ("walk".to_string(), None, 4.0);
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match (a.as_str(), a.starts_with("--").then(|| args.next()).flatten()) {
+            ("--screenshot", Some(v)) => screenshot = Some(PathBuf::from(v)),
+            ("--at", Some(v)) if v.parse::<f32>().is_ok_and(|t| t >= 0.0) => at = v.parse().unwrap_or(at),
+            (name, None) if !name.starts_with("--") => clip = name.to_string(),
+            _ => {
+                eprintln!("usage: preview [CLIP] [--screenshot FILE.png [--at SECONDS]]");
+                return AppExit::error();
+            }
+        }
+    }
     App::new()
         .add_plugins(DefaultPlugins.set(AssetPlugin {
             file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
             ..default()
         }))
         .add_plugins(AcePlugin)
+        .insert_resource(ScreenshotAt(screenshot.map(|p| (p, at))))
         .add_systems(Startup, move |commands: Commands, server: Res<AssetServer>| setup(commands, server, &clip))
-        .add_systems(Update, (controls, draw_grid_and_bones, report_errors))
+        .add_systems(Update, (controls, report_errors, take_screenshot))
+        // After transform propagation, so that the bones are drawn where this frame's poses put the
+        // joints (before it, they trail them by a frame: visibly so at a software renderer's frame rate).
+        .add_systems(PostUpdate, draw_grid_and_bones.after(TransformSystems::Propagate))
         .run()
 }
 
@@ -74,6 +98,30 @@ fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints:
                 gizmos.line(a.translation(), b.translation(), Color::srgb(0.3, 0.6, 1.0));
             }
         }
+    }
+}
+
+/// With `--screenshot`: saves the window once the clip has played the asked time, then exits.
+fn take_screenshot(
+    mut commands: Commands,
+    mut to: ResMut<ScreenshotAt>,
+    player: Res<Player>,
+    players: Query<&HumanClipPlayer>,
+    mut countdown: Local<Option<u32>>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    if let Some(n) = countdown.as_mut() {
+        *n -= 1;
+        if *n == 0 {
+            exit.write(AppExit::Success);
+        }
+        return;
+    }
+    let Some((path, at)) = to.0.clone() else { return };
+    if players.get(player.0).is_ok_and(|p| p.time >= at) {
+        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path));
+        to.0 = None;
+        *countdown = Some(30);
     }
 }
 

@@ -546,7 +546,7 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     std::fs::copy(asset_path("creatures/hound.glb"), custom.join("creatures/hound.glb")).unwrap();
     let hound_checkpoint: Handle<CheckpointAsset> = server.load("custom://checkpoints/hound/ace.json");
     let hound_glb: Handle<CharacterAsset> = server.load("custom://creatures/hound.glb");
-    update_until(&mut app, |w| {
+    update_until(&mut app, |_| {
         [server.load_state(&hound_checkpoint), server.load_state(&hound_glb)].iter().all(|s| matches!(s, LoadState::Loaded))
     });
     let checkpoint = app.world().resource::<Assets<CheckpointAsset>>().get(&hound_checkpoint).unwrap();
