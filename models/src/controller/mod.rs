@@ -621,7 +621,7 @@ impl<'a> Controller<'a> {
             *x += (t - *x) * b;
         }
         if !rig.spine.is_empty() {
-            self.spine.apply(&rig.spine, wz, self.clock, gait.kind, k, self.dt, &mut self.q);
+            self.spine.apply(&rig.spine, wz, rig.spine_turn_rate, self.clock, gait.kind, k, self.dt, &mut self.q);
             self.move_centres();
         }
         let params = StepParams {

@@ -166,6 +166,8 @@ pub struct Rig {
     pub wheels: Vec<Wheel>,
     /// Spine DoFs a legged creature bends ([`super::spine`]; empty for a URDF).
     pub spine: Vec<SpineJoint>,
+    /// The yaw rate at which the spine bends fully into a turn ([`spine::full_turn_rate`], rad/s).
+    pub spine_turn_rate: f32,
     /// A legless creature's crawl ([`BaseMode::Crawling`]).
     pub crawl: Option<Undulation>,
     /// Reach groups: one per manipulator, then the misc group if any DoF is left.
@@ -326,7 +328,7 @@ impl Rig {
             claimed[d] = true;
         }
         // A legged creature's spine bends as a body; a legless one's axis crawls.
-        let spine = if mode == BaseMode::Legged { spine::joints(tree, morph, &nominal_q) } else { Vec::new() };
+        let spine = if mode == BaseMode::Legged { spine::joints(tree, morph, &legs, &nominal_q) } else { Vec::new() };
         if mode == BaseMode::Legged {
             for &d in &morph.spine {
                 claimed[d] = true;
@@ -353,7 +355,9 @@ impl Rig {
         let in_reach: Vec<bool> = (0..tree.links.len())
             .map(|l| reach.iter().any(|g| g.links.contains(&l)))
             .collect();
-        let swept = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, height_range, |l| !in_reach[l]);
+        let mut swept = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, height_range, |l| !in_reach[l]);
+        // And the body wherever the spine bends it.
+        swept.extend(spine::swept(tree, &proxies, &spine, &nominal_q, |l| !in_reach[l] && !on_leg[l]));
         for g in &mut reach {
             g.tolerate(&proxies, &nominal_links, &swept, cfg.reach.margin);
         }
@@ -368,6 +372,7 @@ impl Rig {
             legs,
             wheels,
             spine,
+            spine_turn_rate: spine::TURN_RATE,
             crawl,
             reach,
             gaits: Vec::new(),
@@ -386,6 +391,7 @@ impl Rig {
         if let Some(c) = &rig.crawl {
             rig.max_speed = c.max_speed;
         }
+        rig.spine_turn_rate = spine::full_turn_rate(rig.max_speed, rig.cadence_speeds, rig.foot_radius);
         Ok(rig)
     }
 

@@ -7,8 +7,10 @@
 //! to the left, or up. A bend `u` is a fraction of the joint's range on that side of its rest value, so
 //! every joint stays within its limits; joints in series bend alike, which curves the body evenly. The
 //! bend is the sum of (constants below):
-//! - **into the turn**: [`TURN_BEND`] × the followed yaw rate / [`TURN_RATE`] (clamped): a body turning
-//!   left curves left, its front and rear ends toward the centre of the turn;
+//! - **into the turn**: [`TURN_BEND`] × the followed yaw rate / the full-bend rate (clamped): a body
+//!   turning left curves left, its front and rear ends toward the centre of the turn. The full-bend
+//!   rate is [`TURN_RATE`], or the fastest the legs can turn on the spot if slower ([`full_turn_rate`]),
+//!   so that a character whose legs turn slowly still bends its whole range;
 //! - **with the stride**: a lateral sway of [`SWAY`] in the walks and trots and a flexion of [`FLEX`] in
 //!   the bound and gallop (a flexing back), once per stride at the gait clock's phase, both growing
 //!   with speed as the body's bob does and fading when the legs stop;
@@ -22,8 +24,9 @@
 use nalgebra::Point3;
 
 use super::calibrate::fk_root;
+use super::collide::Proxies;
 use super::gait::GaitKind;
-use super::rig::{finite_limits, subtree};
+use super::rig::{Leg, Obstacle, finite_limits, subtree};
 use crate::kinematics::KinematicTree;
 use crate::morphology::Morphology;
 
@@ -37,6 +40,25 @@ pub const SWAY: f32 = 0.15;
 pub const FLEX: f32 = 0.35;
 /// Largest random posture offset, lateral and vertical (fraction of the range).
 pub const POSTURE: [f32; 2] = [0.15, 0.3];
+/// The yaw rate at which the spine bends fully into a turn (rad/s): [`TURN_RATE`], or the fastest the
+/// legs turn on the spot if slower — the commands' limit `|ω|·foot_radius ≤ side` (the sideways speed
+/// of the cadence ellipse, else the top speed).
+pub fn full_turn_rate(max_speed: f32, cadence_speeds: Option<[f32; 2]>, foot_radius: f32) -> f32 {
+    let side = cadence_speeds.map_or(max_speed, |[_, side]| side.min(max_speed));
+    if foot_radius > 1e-6 && side.is_finite() {
+        (side / foot_radius).clamp(1e-3, TURN_RATE)
+    } else {
+        TURN_RATE
+    }
+}
+
+/// Farthest a bent spine moves a hip sideways, as a fraction of its leg's step radius across the body.
+pub const HIP_SHIFT: f32 = 1.5;
+/// Farthest a bent spine moves a hip up or down, as a fraction of its leg's length.
+pub const HIP_LIFT: f32 = 0.08;
+
+/// The largest lateral and vertical bends the spine makes (fractions of the range).
+pub const MAX_BEND: [f32; 2] = [TURN_BEND + SWAY + POSTURE[0], FLEX + POSTURE[1]];
 /// Time constant with which the stride's sway and flexion follow the gait and speed (s), as the bob.
 const STRIDE_TIME_CONSTANT: f32 = 0.3;
 
@@ -64,12 +86,15 @@ pub struct SpineJoint {
     pub lower: f32,
     /// Limits.
     pub upper: f32,
+    /// The fraction of its range a full bend takes (1, less where the joint carries legs:
+    /// [`fit_legs`]).
+    pub gain: f32,
 }
 
 impl SpineJoint {
     /// The joint value for bend `u` (a fraction in `[-1, 1]` of the range on the bend's side).
     pub fn value(&self, u: f32) -> f32 {
-        let v = self.sign * u.clamp(-1.0, 1.0);
+        let v = self.sign * self.gain * u.clamp(-1.0, 1.0);
         let q = if v >= 0.0 {
             self.rest + v * (self.upper - self.rest)
         } else {
@@ -80,6 +105,11 @@ impl SpineJoint {
 
     /// The bend `u` of joint value `q` (inverse of [`SpineJoint::value`] within the limits).
     pub fn bend_of(&self, q: f32) -> f32 {
+        self.fraction_of(q) / self.gain.max(1e-9)
+    }
+
+    /// The fraction of the range on its side that joint value `q` takes (signed as the bend).
+    pub fn fraction_of(&self, q: f32) -> f32 {
         let d = q - self.rest;
         let side = if d * self.sign >= 0.0 {
             if self.sign > 0.0 { self.upper - self.rest } else { self.rest - self.lower }
@@ -129,14 +159,97 @@ pub fn classify(tree: &KinematicTree, dofs: &[usize], nominal_q: &[f32]) -> Vec<
             rest: nominal_q[d].clamp(lower, upper),
             lower,
             upper,
+            gain: 1.0,
         });
     }
     out
 }
 
-/// The spine's DoFs of a legged character: [`Morphology::spine`] classed at the nominal stance.
-pub fn joints(tree: &KinematicTree, morph: &Morphology, nominal_q: &[f32]) -> Vec<SpineJoint> {
-    classify(tree, &morph.spine, nominal_q)
+/// The spine's DoFs of a legged character: [`Morphology::spine`] classed at the nominal stance, their
+/// bends limited for the legs they carry ([`fit_legs`]).
+pub fn joints(tree: &KinematicTree, morph: &Morphology, legs: &[Leg], nominal_q: &[f32]) -> Vec<SpineJoint> {
+    let mut joints = classify(tree, &morph.spine, nominal_q);
+    fit_legs(tree, &mut joints, legs, nominal_q);
+    joints
+}
+
+/// Lowers the gain of the joints that carry legs so that, bent to [`MAX_BEND`] together, they move no
+/// hip more than [`HIP_SHIFT`] of its step region's radius sideways or [`HIP_LIFT`] of its leg's length
+/// up or down: the step regions follow the hips, but a stance foot stays where it is while the body
+/// bends above it, and the legs were calibrated for the body's own height range.
+pub fn fit_legs(tree: &KinematicTree, joints: &mut [SpineJoint], legs: &[Leg], nominal_q: &[f32]) {
+    let hips: Vec<(usize, &Leg)> = legs
+        .iter()
+        .filter(|l| l.on_spine)
+        .filter_map(|l| l.chain.first_moving().map(|f| (l.chain.links[f], l)))
+        .collect();
+    for (bend, k) in [(Bend::Lateral, 0), (Bend::Vertical, 1)] {
+        let carrying: Vec<usize> = (0..joints.len())
+            .filter(|&i| joints[i].bend == bend)
+            .filter(|&i| {
+                let l = tree.dof_link(joints[i].dof);
+                hips.iter().any(|&(h, _)| tree.is_descendant(h, l))
+            })
+            .collect();
+        if carrying.is_empty() {
+            continue;
+        }
+        let mut worst = 0.0f32;
+        for side in [1.0, -1.0] {
+            let mut q = nominal_q.to_vec();
+            for &i in &carrying {
+                q[joints[i].dof] = joints[i].value(side * MAX_BEND[k]);
+            }
+            let poses = fk_root(tree, &q);
+            for &(h, leg) in &hips {
+                let d = poses[h].translation.vector - leg.hip;
+                let ratio = match bend {
+                    Bend::Lateral => d.xy().norm() / (HIP_SHIFT * leg.r_max).max(1e-6),
+                    Bend::Vertical => d.z.abs() / (HIP_LIFT * leg.length).max(1e-6),
+                };
+                worst = worst.max(ratio);
+            }
+        }
+        if worst > 1.0 {
+            for &i in &carrying {
+                joints[i].gain = 1.0 / worst;
+            }
+        }
+    }
+}
+
+/// Boxes of the links the spine carries for which `keep` holds, with the spine bent to its extremes
+/// ([`MAX_BEND`], lateral and vertical and both), in the frame of the root: obstacles that reaching
+/// limbs keep clear of wherever the body bends.
+pub fn swept(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    joints: &[SpineJoint],
+    nominal_q: &[f32],
+    keep: impl Fn(usize) -> bool,
+) -> Vec<Obstacle> {
+    let mut carried = vec![false; tree.links.len()];
+    for j in joints {
+        for l in subtree(tree, tree.dof_link(j.dof)) {
+            carried[l] = keep(l);
+        }
+    }
+    let mut out = Vec::new();
+    for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        let mut q = nominal_q.to_vec();
+        for j in joints {
+            let u = match j.bend {
+                Bend::Lateral => a * MAX_BEND[0],
+                Bend::Vertical => b * MAX_BEND[1],
+            };
+            q[j.dof] = j.value(u);
+        }
+        let poses = fk_root(tree, &q);
+        for (l, pose) in poses.iter().enumerate().filter(|&(l, _)| carried[l]) {
+            out.extend(proxies.world(l, pose).map(|obb| Obstacle { link: l, obb }));
+        }
+    }
+    out
 }
 
 /// The spine's motion state over an episode.
@@ -180,9 +293,21 @@ impl SpineState {
         }
     }
 
-    /// Bends `joints` in `q` for this frame: yaw rate `wz` (rad/s), the gait clock's phase `clock`, the
-    /// gait `kind` and `pace` in `[0, 1]` (how much the body bobs: 0 when the legs do not step).
-    pub fn apply(&mut self, joints: &[SpineJoint], wz: f32, clock: f32, kind: GaitKind, pace: f32, dt: f32, q: &mut [f32]) {
+    /// Bends `joints` in `q` for this frame: yaw rate `wz` (rad/s) of which `turn_rate` bends fully
+    /// ([`full_turn_rate`]), the gait clock's phase `clock`, the gait `kind` and `pace` in `[0, 1]` (how
+    /// much the body bobs: 0 when the legs do not step).
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply(
+        &mut self,
+        joints: &[SpineJoint],
+        wz: f32,
+        turn_rate: f32,
+        clock: f32,
+        kind: GaitKind,
+        pace: f32,
+        dt: f32,
+        q: &mut [f32],
+    ) {
         let target = match kind {
             GaitKind::Bound | GaitKind::Gallop => [0.0, FLEX * pace],
             _ => [SWAY * pace, 0.0],
@@ -192,7 +317,7 @@ impl SpineState {
             *x += (t - *x) * a;
         }
         let wave = (std::f32::consts::TAU * clock).sin();
-        let lateral = TURN_BEND * (wz / TURN_RATE).clamp(-1.0, 1.0) + self.stride[0] * wave + self.posture[0];
+        let lateral = TURN_BEND * (wz / turn_rate).clamp(-1.0, 1.0) + self.stride[0] * wave + self.posture[0];
         let vertical = self.stride[1] * wave + self.posture[1];
         for j in joints {
             let u = match j.bend {
