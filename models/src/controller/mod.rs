@@ -249,6 +249,7 @@ pub struct Controller<'a> {
     centres: Vec<Vector2<f32>>,
     poses: Vec<Isometry3<f32>>,
     crawl: undulation::CrawlState,
+    lift: undulation::LiftTarget,
     /// A crawling root's pose in the heading frame.
     crawl_root: Isometry3<f32>,
 }
@@ -325,6 +326,7 @@ impl<'a> Controller<'a> {
             centres: rig.legs.iter().map(|l| l.nominal).collect(),
             poses: Vec::new(),
             crawl: undulation::CrawlState::default(),
+            lift: undulation::LiftTarget::default(),
             crawl_root: rig.standing.root,
         }
     }
@@ -365,6 +367,7 @@ impl<'a> Controller<'a> {
         }
         if let Some(c) = &rig.crawl {
             self.crawl = undulation::CrawlState::default();
+            self.lift = undulation::LiftTarget::default();
             self.crawl_root = c.root_in_heading(self.tree, &self.q, rig.standing.root.translation.vector.z);
         }
         self.solve_legs();
@@ -479,6 +482,8 @@ impl<'a> Controller<'a> {
         self.position += legs::rot(self.yaw + 0.5 * c.wz * dt) * v * dt;
         self.yaw += c.wz * dt;
         if let Some(u) = &self.rig.crawl {
+            let p = &self.cfg.posture;
+            self.lift.step(&mut self.crawl.lift, u.max_lift, dt, p.hold_seconds, p.time_constant, rng);
             self.crawl.step(u, c.vx, c.wz, dt, &mut self.q);
             self.crawl_root = u.root_in_heading(self.tree, &self.q, self.rig.standing.root.translation.vector.z);
         }

@@ -340,7 +340,7 @@ impl Rig {
             None
         };
         if let Some(c) = &crawl {
-            for d in c.segments.iter().map(|j| j.dof).chain(c.held.iter().copied()) {
+            for d in c.segments.iter().chain(&c.lifts).map(|j| j.dof).chain(c.held.iter().copied()) {
                 claimed[d] = true;
             }
         }

@@ -3,8 +3,8 @@
 //!
 //! Each spine DoF is classed at the nominal pose by its axis in the root frame: about the vertical it
 //! bends the body **laterally**, about the lateral axis **vertically** (flexion and extension); a roll
-//! stays at rest. Its sign is chosen so that a positive bend moves the bones beyond it (their centroid)
-//! to the left, or up. A bend `u` is a fraction of the joint's range on that side of its rest value, so
+//! stays at rest. Its sign is chosen so that a positive bend moves the bones beyond it (the centroid of
+//! their origins and shapes) to the left, or up. A bend `u` is a fraction of the joint's range on that side of its rest value, so
 //! every joint stays within its limits; joints in series bend alike, which curves the body evenly. The
 //! bend is the sum of (constants below):
 //! - **into the turn**: [`TURN_BEND`] × the followed yaw rate / the full-bend rate (clamped): a body
@@ -134,12 +134,17 @@ pub fn classify(tree: &KinematicTree, dofs: &[usize], nominal_q: &[f32]) -> Vec<
         let frame = poses[parent] * j.origin;
         let axis = frame.rotation * j.axis.into_inner();
         let at = Point3::from(frame.translation.vector);
-        let beyond = subtree(tree, l);
-        let centroid = beyond
-            .iter()
-            .map(|&x| poses[x].translation.vector)
-            .sum::<nalgebra::Vector3<f32>>()
-            / beyond.len().max(1) as f32;
+        // The bones beyond: their origins and the centres of their shapes (a tail's last bone has
+        // only its own shape beyond its joint).
+        let points: Vec<nalgebra::Vector3<f32>> = subtree(tree, l)
+            .into_iter()
+            .flat_map(|x| {
+                let pose = poses[x];
+                std::iter::once(pose.translation.vector)
+                    .chain(tree.links[x].collisions.iter().map(move |g| (pose * g.origin).translation.vector))
+            })
+            .collect();
+        let centroid = points.iter().sum::<nalgebra::Vector3<f32>>() / points.len().max(1) as f32;
         let motion = axis.cross(&(Point3::from(centroid) - at));
         let (bend, effect) = if axis.z.abs() >= axis.x.abs().max(axis.y.abs()) {
             (Bend::Lateral, motion.y)
