@@ -1,6 +1,7 @@
 //! Kinematic controllers that generate a character's motion dataset (paper §4, §7.1): random base
-//! commands, stepping gaits for any number of legs, reaching for manipulators and other free DoFs, and
-//! rolling wheels — all derived from the morphology analysis, with no per-robot code.
+//! commands, stepping gaits for any number of legs, reaching for manipulators and other free DoFs,
+//! rolling wheels, a creature's spine bending with its turns and strides ([`spine`]) and a legless
+//! creature's crawl ([`undulation`]) — all derived from the morphology analysis, with no per-robot code.
 //!
 //! - [`Rig`] analyses the character once (leg chains, nominal stance, step radius, wheels, reach groups,
 //!   speed scale, gaits).

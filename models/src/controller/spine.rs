@@ -4,9 +4,9 @@
 //! Each spine DoF is classed at the nominal pose by its axis in the root frame: about the vertical it
 //! bends the body **laterally**, about the lateral axis **vertically** (flexion and extension); a roll
 //! stays at rest. Its sign is chosen so that a positive bend moves the bones beyond it (the centroid of
-//! their origins and shapes) to the left, or up. A bend `u` is a fraction of the joint's range on that side of its rest value, so
-//! every joint stays within its limits; joints in series bend alike, which curves the body evenly. The
-//! bend is the sum of (constants below):
+//! their origins and shapes) to the left, or up. A bend `u` is a fraction of the joint's range on that
+//! side of its rest value, so every joint stays within its limits; joints in series bend alike, which
+//! curves the body evenly. The bend is the sum of (constants below):
 //! - **into the turn**: [`TURN_BEND`] × the followed yaw rate / the full-bend rate (clamped): a body
 //!   turning left curves left, its front and rear ends toward the centre of the turn. The full-bend
 //!   rate is [`TURN_RATE`], or the fastest the legs can turn on the spot if slower ([`full_turn_rate`]),
@@ -19,7 +19,9 @@
 //!   bent.
 //!
 //! A bent spine moves the hips that hang from it: their legs step around where the hips now are
-//! ([`super::legs::LegState::step`]'s centre), not where they stood at rest.
+//! ([`super::legs::LegState::step`]'s centre), not where they stood at rest, and the joints that carry
+//! legs bend only so far that the hips stay within reach of planted feet ([`fit_legs`]). Reaching limbs
+//! keep clear of the body wherever the spine bends it ([`swept`]).
 
 use nalgebra::Point3;
 
@@ -30,7 +32,7 @@ use super::rig::{Leg, Obstacle, finite_limits, subtree};
 use crate::kinematics::KinematicTree;
 use crate::morphology::Morphology;
 
-/// Lateral bend (fraction of the range) at a yaw rate of [`TURN_RATE`] or more.
+/// Lateral bend (fraction of the range) at the full-bend yaw rate ([`full_turn_rate`]) or more.
 pub const TURN_BEND: f32 = 0.6;
 /// Yaw rate at which the bend into a turn is full (rad/s): the commands' largest (±1 rad/s).
 pub const TURN_RATE: f32 = 1.0;
