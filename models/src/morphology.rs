@@ -83,8 +83,9 @@ pub struct Morphology {
     /// rather than leave to leg IK or to reaching.
     pub spine: Vec<usize>,
     /// Rigged glTF creatures only (empty for a URDF): the bones along the body's axis, from the head
-    /// through the body root to the tip of the tail, each as its DoFs (bones without DoFs left out). A
-    /// legless creature crawls by bending them ([`crate::controller::undulation`]).
+    /// (or the body root, without a head) through the body root to the tip of the longest tail, each as
+    /// its DoFs (none for a bone at rest). A legless creature crawls by bending them
+    /// ([`crate::controller::undulation`]), or is refused saying what it lacks.
     pub body_axis: Vec<Vec<usize>>,
 }
 

@@ -817,11 +817,12 @@ pub fn build(
         .iter()
         .filter(|&&i| limbs[i].from == root)
         .max_by(|&&a, &&b| reach(&limbs[a].path).total_cmp(&reach(&limbs[b].path)));
-    morph.body_axis = head_path
+    // Without a head, the axis starts at the body root.
+    let front = if head_path.is_empty() { vec![root] } else { head_path.clone() };
+    morph.body_axis = front
         .iter()
         .chain(tail.map_or(&[][..], |&i| &limbs[i].path[..]))
         .map(|&b| dofs_of(b))
-        .filter(|d| !d.is_empty())
         .collect();
     morph.feet.sort_unstable();
     morph.manipulators.sort_unstable();
