@@ -475,7 +475,13 @@ fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
     }
     let fox = inspect_json(&dir.join("Fox/Fox.glb"));
     assert_eq!(fox["animations"].as_array().unwrap().len(), 3);
-    assert!(names(&fox["joints_at_rest"]).contains(&"b_Spine01_02".to_string()), "{}", fox["joints_at_rest"]);
+    // The spine above the front legs bends with the body; the Wolf's ears stay at rest.
+    assert!(names(&fox["dof_names"]).contains(&"b_Spine01_02:yaw".to_string()), "{}", fox["dof_names"]);
+    assert!(!names(&fox["joints_at_rest"]).contains(&"b_Spine01_02".to_string()), "{}", fox["joints_at_rest"]);
+    let wolf = inspect_json(&dir.join("Quaternius_Wolf/Wolf.gltf"));
+    assert!(names(&wolf["joints_at_rest"]).contains(&"Ear1.L".to_string()), "{}", wolf["joints_at_rest"]);
+    // The Snake's head is the front of its body, not its tongue.
+    assert_eq!(inspect_json(&dir.join("Quaternius_Snake/Snake.glb"))["head"], "Head");
     // A glTF without a skin is refused with the file and the problem named.
     let bare = tmp("creature-bad").join("bare.gltf");
     std::fs::create_dir_all(bare.parent().unwrap()).unwrap();

@@ -77,6 +77,16 @@ pub struct Morphology {
     /// Use [`Morphology::ee_point`] rather than the link origin wherever end-effector positions matter
     /// (state vectors, IK targets, contact checks).
     pub tip_offsets: BTreeMap<usize, Vector3<f32>>,
+    /// Rigged glTF creatures only (empty for a URDF): the DoFs of the spine bones
+    /// ([`crate::character::body_plan`]'s spine role: the trunk from the body root to the head, the neck,
+    /// and the bones above the feet), which the controllers bend as a body ([`crate::controller::spine`])
+    /// rather than leave to leg IK or to reaching.
+    pub spine: Vec<usize>,
+    /// Rigged glTF creatures only (empty for a URDF): the bones along the body's axis, from the head
+    /// (or the body root, without a head) through the body root to the tip of the longest tail, each as
+    /// its DoFs (none for a bone at rest). A legless creature crawls by bending them
+    /// ([`crate::controller::undulation`]), or is refused saying what it lacks.
+    pub body_axis: Vec<Vec<usize>>,
 }
 
 /// [`Morphology`] with link names instead of indices.

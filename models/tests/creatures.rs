@@ -634,6 +634,13 @@ fn a_rig_without_feet_imports_with_a_warning() {
         "{:?}",
         c.tree.warnings
     );
+    // A stick standing on end has no body to undulate: its dataset is refused, saying what is missing.
+    let cfg = ace_models::dataset::DatasetConfig { frames: 10, ..Default::default() };
+    let Err(e) = ace_models::dataset::generate(&c.tree, &c.morphology, &cfg, &mut |_| {}) else {
+        panic!("a legless stick gets a dataset");
+    };
+    let msg = e.to_string();
+    assert!(msg.contains("cannot crawl") && msg.contains("bend sideways") && msg.contains("at least 4"), "{msg}");
     let _ = Point3::<f32>::origin();
 }
 

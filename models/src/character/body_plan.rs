@@ -13,17 +13,24 @@
 //!   within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
 //!   The foot point is that vertex, and the foot's collision shape the sphere resting on it.
 //! - **Head**: of the limbs whose tip is near the mid-plane (`|y| < 10 % W` from the body root) and
-//!   that deform at least 30 % as many vertices as the largest such limb (a head, not a tongue), the
-//!   one whose tip is farthest forward.
+//!   that deform at least 30 % as many vertices as the largest such limb, the longest one whose tip
+//!   lies ahead of the body root: the front of the body's axis, not a jaw or a tongue (short limbs off
+//!   the skull, which may reach farther forward). With none ahead, the one whose tip is farthest
+//!   forward.
 //! - **Arms** (and wings): limbs of two or more bones whose tip is off the mid-plane with a mirror
 //!   image among the other limbs (within `0.15 S`), whose length is at least `S/10` and which do not
 //!   branch from the head's path close to the head (ears). Their end effector is the far end of the
 //!   tip's capsule. They become manipulators.
 //! - **Tails**: other limbs of two or more bones, without a mirror image, whose tip is behind the body
 //!   root.
-//! - Everything else (ears, jaws, tongues, fingers, toes) stays **at rest**, and so do the spine bones
-//!   above the feet: the controllers' leg IK runs from the root, so a spine joint shared by legs would be
-//!   moved by each of them.
+//! - **Spine**: the bones from the body root to the head that are neither, the other branching bones,
+//!   and the bones above the feet (between the body root and the bones the legs hang from). Leg IK
+//!   holds those, and the controllers bend them as a body ([`crate::controller::spine`]).
+//! - Everything else (ears, jaws, tongues, fingers, toes) stays **at rest**.
+//!
+//! The morphology lists the spine's DoFs ([`Morphology::spine`]) and the body's axis from the head
+//! through the body root to the longest tail ([`Morphology::body_axis`]), along which a legless
+//! creature crawls ([`crate::controller::undulation`]).
 //!
 //! # Joints
 //! Moving bones get up to three revolute DoFs (see [`super::gltf`]). Leg bones use the leg's axes: the
@@ -423,8 +430,11 @@ pub fn build(
     // Head.
     let root_x = pos(root).x;
     let dominant = |b: usize| owned[b].len();
-    // The head: the most forward of the mid-plane limbs that are a substantial part of the body (at
-    // least 30 % of the vertices of the largest such limb: a head, not a tongue).
+    // The head: of the mid-plane limbs that are a substantial part of the body (at least 30 % of the
+    // vertices of the largest such limb: a head, not a thin tongue), the longest one reaching ahead of
+    // the body root — the front of the body's axis; a jaw or a tongue hanging off the skull is short
+    // next to the body that carries the head (the Snake's skull bone, rigged as a sibling of its body,
+    // holds a tongue that reaches farther forward than its head). With none ahead, the most forward.
     let flesh = |l: &Limb| l.path.iter().chain(&l.digits).map(|&b| dominant(b)).sum::<usize>();
     let mid: Vec<usize> = (0..limbs.len())
         .filter(|i| !foot_limbs.contains(i) && midline(&limbs[*i]))
@@ -434,15 +444,28 @@ pub fn build(
         .map(|&i| flesh(&limbs[i]))
         .max()
         .unwrap_or(0);
-    let head_limb = mid
+    let substantial: Vec<usize> = mid
         .iter()
         .copied()
         .filter(|&i| flesh(&limbs[i]) * 10 >= most * 3)
-        .max_by(|&a, &b| {
+        .collect();
+    let ahead: Vec<usize> = substantial
+        .iter()
+        .copied()
+        .filter(|&i| pos(tip_of(&limbs[i])).x > pos(root).x)
+        .collect();
+    let head_limb = if ahead.is_empty() {
+        substantial.iter().copied().max_by(|&a, &b| {
             pos(tip_of(&limbs[a]))
                 .x
                 .total_cmp(&pos(tip_of(&limbs[b])).x)
-        });
+        })
+    } else {
+        ahead
+            .iter()
+            .copied()
+            .max_by(|&a, &b| reach(&limbs[a].path).total_cmp(&reach(&limbs[b].path)))
+    };
     let mut head = head_limb.map(|i| tip_of(&limbs[i]));
     if let Some(h) = &ov.head {
         head = if h.is_empty() {
@@ -533,11 +556,18 @@ pub fn build(
         plan.tails.push(rig.bones[tip_of(&limbs[i])].name.clone());
     }
     for &b in &spine {
-        if b != root && !above_feet[b] {
+        if b != root {
             role.entry(b).or_insert(Role::Spine);
         }
     }
-    role.retain(|&b, _| !above_feet[b] && b != root);
+    // The bones above the feet (between the body root and the bones the legs hang from) are spine: the
+    // controllers bend them as a body, and hold them in leg IK.
+    for &b in &body {
+        if above_feet[b] && b != root {
+            role.insert(b, Role::Spine);
+        }
+    }
+    role.remove(&root);
     if let Some(names) = &ov.animated {
         let keep: Vec<usize> = names.iter().map(|n| by_name(n)).collect::<Result<_, _>>()?;
         role.retain(|b, _| keep.contains(b));
@@ -769,6 +799,31 @@ pub fn build(
             );
         }
     }
+    // The spine's DoFs, and the body's axis from the head through the body root to the longest tail.
+    let dofs_of = |b: usize| -> Vec<usize> {
+        plan.joints
+            .iter()
+            .find(|j| j.bone == b)
+            .map(|j| j.dofs.iter().flatten().copied().collect())
+            .unwrap_or_default()
+    };
+    morph.spine = role
+        .iter()
+        .filter(|&(_, &r)| r == Role::Spine)
+        .flat_map(|(&b, _)| dofs_of(b))
+        .collect();
+    morph.spine.sort_unstable();
+    let tail = tails
+        .iter()
+        .filter(|&&i| limbs[i].from == root)
+        .max_by(|&&a, &&b| reach(&limbs[a].path).total_cmp(&reach(&limbs[b].path)));
+    // Without a head, the axis starts at the body root.
+    let front = if head_path.is_empty() { vec![root] } else { head_path.clone() };
+    morph.body_axis = front
+        .iter()
+        .chain(tail.map_or(&[][..], |&i| &limbs[i].path[..]))
+        .map(|&b| dofs_of(b))
+        .collect();
     morph.feet.sort_unstable();
     morph.manipulators.sort_unstable();
     tree.warnings.dedup();

@@ -182,10 +182,22 @@ pub fn min_jerk(s: f32) -> f32 {
 }
 
 impl LegState {
-    /// Advances one frame of `dt`: decides lift-off and touchdown and sets `self.foot`. `offset` is
-    /// the leg's lift-off phase in the current gait; `force` lifts a stance foot now (IK could not hold
-    /// it). Returns true when the leg lifted off early: forced, or drifted beyond its step radius.
-    pub fn step(&mut self, leg: &Leg, offset: f32, base: &BaseMotion, p: &StepParams, dt: f32, force: bool) -> bool {
+    /// Advances one frame of `dt`: decides lift-off and touchdown and sets `self.foot`. `centre` is the
+    /// centre of the leg's step region (heading frame): its nominal foothold, or where a bent spine
+    /// has moved it. `offset` is the leg's lift-off phase in the current gait; `force` lifts a stance
+    /// foot now (IK could not hold it). Returns true when the leg lifted off early: forced, or drifted
+    /// beyond its step radius.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &mut self,
+        leg: &Leg,
+        centre: Vector2<f32>,
+        offset: f32,
+        base: &BaseMotion,
+        p: &StepParams,
+        dt: f32,
+        force: bool,
+    ) -> bool {
         let stance_time = p.duty / p.frequency;
         let window = 1.0 - p.duty;
         let phase = (p.clock - offset).rem_euclid(1.0);
@@ -193,7 +205,7 @@ impl LegState {
         if let LegPhase::Stance { time } = &mut self.phase {
             *time += dt;
             // Where the foot is in its step region (1 on the boundary).
-            let drift = leg.reach_fraction(base.to_local(&self.foot) - leg.nominal);
+            let drift = leg.reach_fraction(base.to_local(&self.foot) - centre);
             // Due: early in the leg's swing window, or anywhere in it once the stance has lasted its
             // full time (after a gait change moved the window), or out of turn when a foot that has
             // stood its time is far out (the gait is just starting or speeding up).
@@ -233,7 +245,7 @@ impl LegState {
             let remaining = (*frames - (*frame).min(*frames)) as f32 * dt;
             let target = match landing {
                 Some(l) => *l,
-                None => foothold(leg, base, remaining, stance_time),
+                None => foothold(leg, centre, base, remaining, stance_time),
             };
             let height = leg.swing_height * p.lift;
             let edge = edge(p.clearance, height);
@@ -267,15 +279,16 @@ pub fn edge(clearance: f32, height: f32) -> f32 {
 }
 
 /// World (x, y) where the leg should touch down, `remaining` seconds from now, for stance time
-/// `stance_time`: centred on the motion predicted over that stance.
-pub fn foothold(leg: &Leg, base: &BaseMotion, remaining: f32, stance_time: f32) -> Vector2<f32> {
+/// `stance_time`: centred on the motion predicted over that stance, about the step region's `centre`
+/// (heading frame).
+pub fn foothold(leg: &Leg, centre: Vector2<f32>, base: &BaseMotion, remaining: f32, stance_time: f32) -> Vector2<f32> {
     let half = 0.5 * stance_time;
     let (v, wz) = base.mean_velocity(remaining, stance_time);
-    let mut local = rot(wz * half) * leg.nominal + v * half;
-    let d = local - leg.nominal;
+    let mut local = rot(wz * half) * centre + v * half;
+    let d = local - centre;
     let k = leg.reach_fraction(d);
     if k > FOOTHOLD_USE {
-        local = leg.nominal + d * (FOOTHOLD_USE / k);
+        local = centre + d * (FOOTHOLD_USE / k);
     }
     base.predict(local, remaining)
 }
@@ -305,6 +318,7 @@ mod tests {
             r_fore: 0.6,
             swing_height: 0.1,
             sole: 0.0,
+            on_spine: false,
         }
     }
 
@@ -333,11 +347,11 @@ mod tests {
         };
         let mut state = LegState::standing(Point3::new(0.5, 0.2, 0.0));
         let start = state.foot;
-        state.step(&leg, 0.0, &base, &p, dt, true);
+        state.step(&leg, leg.nominal, 0.0, &base, &p, dt, true);
         let (mut worst, mut prev) = (0.0f32, state.foot);
         while !state.in_stance() {
             base.position += base.v * dt;
-            state.step(&leg, 0.0, &base, &p, dt, false);
+            state.step(&leg, leg.nominal, 0.0, &base, &p, dt, false);
             if state.foot.z.max(prev.z) < clearance {
                 worst = worst.max((state.foot.xy() - prev.xy()).norm());
             }

@@ -1,6 +1,7 @@
 //! Kinematic controllers that generate a character's motion dataset (paper §4, §7.1): random base
-//! commands, stepping gaits for any number of legs, reaching for manipulators and other free DoFs, and
-//! rolling wheels — all derived from the morphology analysis, with no per-robot code.
+//! commands, stepping gaits for any number of legs, reaching for manipulators and other free DoFs,
+//! rolling wheels, a creature's spine bending with its turns and strides ([`spine`]) and a legless
+//! creature's crawl ([`undulation`]) — all derived from the morphology analysis, with no per-robot code.
 //!
 //! - [`Rig`] analyses the character once (leg chains, nominal stance, step radius, wheels, reach groups,
 //!   speed scale, gaits).
@@ -45,6 +46,8 @@ pub mod gait;
 pub mod legs;
 pub mod reach;
 pub mod rig;
+pub mod spine;
+pub mod undulation;
 pub mod wheels;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2};
@@ -192,6 +195,9 @@ pub enum ControllerError {
         /// What is wrong.
         problem: String,
     },
+    /// A legless creature that cannot crawl: what is missing.
+    #[error("cannot crawl: {0}")]
+    Crawl(String),
 }
 
 /// Counters that tell how clean an episode was.
@@ -238,6 +244,15 @@ pub struct Controller<'a> {
     reach: Vec<ReachState>,
     scratch: ChainScratch,
     stats: ControllerStats,
+    spine: spine::SpineState,
+    /// Each leg's step-region centre (heading frame): its nominal foothold, moved with its hip where a
+    /// bent spine carries the hip.
+    centres: Vec<Vector2<f32>>,
+    poses: Vec<Isometry3<f32>>,
+    crawl: undulation::CrawlState,
+    lift: undulation::LiftTarget,
+    /// A crawling root's pose in the heading frame.
+    crawl_root: Isometry3<f32>,
 }
 
 /// Solves `leg` for `target` (root frame) in `q`. A redundant leg (more than three DoFs, e.g. ball
@@ -308,6 +323,12 @@ impl<'a> Controller<'a> {
             reach: Vec::new(),
             scratch: ChainScratch::default(),
             stats: ControllerStats::default(),
+            spine: spine::SpineState::default(),
+            centres: rig.legs.iter().map(|l| l.nominal).collect(),
+            poses: Vec::new(),
+            crawl: undulation::CrawlState::default(),
+            lift: undulation::LiftTarget::default(),
+            crawl_root: rig.standing.root,
         }
     }
 
@@ -341,6 +362,15 @@ impl<'a> Controller<'a> {
             })
             .collect();
         self.next_posture(rng);
+        self.centres = rig.legs.iter().map(|l| l.nominal).collect();
+        if !rig.spine.is_empty() {
+            self.spine.reset(self.cfg.posture.hold_seconds, rng);
+        }
+        if let Some(c) = &rig.crawl {
+            self.crawl = undulation::CrawlState::default();
+            self.lift = undulation::LiftTarget::default();
+            self.crawl_root = c.root_in_heading(self.tree, &self.q, rig.standing.root.translation.vector.z);
+        }
         self.solve_legs();
     }
 
@@ -351,6 +381,13 @@ impl<'a> Controller<'a> {
 
     /// Root pose this frame.
     pub fn root(&self) -> Isometry3<f32> {
+        if self.rig.mode == BaseMode::Crawling {
+            let heading = Isometry3::from_parts(
+                Translation3::new(self.position.x, self.position.y, 0.0),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, self.yaw),
+            );
+            return heading * self.crawl_root;
+        }
         let [h, pitch, roll] = self.posture;
         let (dh, dp) = self.bob_offsets();
         let r = &self.rig;
@@ -378,22 +415,30 @@ impl<'a> Controller<'a> {
         }
     }
 
-    /// The command target this frame (heading frame; zero for a fixed base).
+    /// The command target this frame (heading frame; zero for a fixed base, forward and turning only
+    /// for a crawling one).
     pub fn command(&self) -> Command {
-        if self.rig.mode == BaseMode::Fixed {
-            Command::default()
-        } else {
-            self.commands.target()
+        match self.rig.mode {
+            BaseMode::Fixed => Command::default(),
+            BaseMode::Crawling => self.crawlable(self.commands.target()),
+            _ => self.commands.target(),
         }
     }
 
     /// The filtered command the base follows this frame.
     pub fn followed(&self) -> Command {
-        if self.rig.mode == BaseMode::Fixed {
-            Command::default()
-        } else {
-            self.commands.current()
+        match self.rig.mode {
+            BaseMode::Fixed => Command::default(),
+            BaseMode::Crawling => self.crawlable(self.commands.current()),
+            _ => self.commands.current(),
         }
+    }
+
+    /// What a crawling body follows of command `c`: forward no faster than its wave carries it, never
+    /// backwards or sideways.
+    fn crawlable(&self, c: Command) -> Command {
+        let top = self.rig.crawl.as_ref().map_or(0.0, |u| u.max_speed);
+        Command { vx: c.vx.clamp(0.0, top), vy: 0.0, wz: c.wz }
     }
 
     /// Whether each foot is in stance, in [`crate::morphology::Morphology::feet`] order.
@@ -425,17 +470,30 @@ impl<'a> Controller<'a> {
     pub fn step<R: rand::Rng + ?Sized>(&mut self, rng: &mut R) {
         let dt = self.dt;
         self.stats.frames += 1;
-        let c = if self.rig.mode == BaseMode::Fixed {
-            Command::default()
-        } else {
-            self.commands.step(dt, rng)
+        let c = match self.rig.mode {
+            BaseMode::Fixed => Command::default(),
+            BaseMode::Crawling => {
+                let c = self.commands.step(dt, rng);
+                self.crawlable(c)
+            }
+            _ => self.commands.step(dt, rng),
         };
         // Base: integrate the followed twist (midpoint heading).
         let v = Vector2::new(c.vx, c.vy);
         self.position += legs::rot(self.yaw + 0.5 * c.wz * dt) * v * dt;
         self.yaw += c.wz * dt;
+        if let Some(u) = &self.rig.crawl {
+            let p = &self.cfg.posture;
+            self.lift.step(&mut self.crawl.lift, u.max_lift, dt, p.hold_seconds, p.time_constant, rng);
+            self.crawl.step(u, c.vx, c.wz, dt, &mut self.q);
+            self.crawl_root = u.root_in_heading(self.tree, &self.q, self.rig.standing.root.translation.vector.z);
+        }
         if self.rig.mode == BaseMode::Legged {
             self.step_posture(rng);
+            if !self.rig.spine.is_empty() {
+                let p = &self.cfg.posture;
+                self.spine.step_posture(dt, p.hold_seconds, p.time_constant, rng);
+            }
             let t = self.commands.target();
             self.step_legs(v, c.wz, Vector2::new(t.vx, t.vy), t.wz);
         }
@@ -517,7 +575,8 @@ impl<'a> Controller<'a> {
             .legs
             .iter()
             .zip(&rig.legs)
-            .map(|(s, l)| l.reach_fraction(base.to_local(&s.foot) - l.nominal))
+            .zip(&self.centres)
+            .map(|((s, l), c)| l.reach_fraction(base.to_local(&s.foot) - c))
             .fold(0.0, f32::max);
         let swinging = self.legs.iter().any(|l| !l.in_stance());
         self.stepping = if self.stepping {
@@ -567,6 +626,10 @@ impl<'a> Controller<'a> {
         for (x, t) in self.bob.iter_mut().zip(target) {
             *x += (t - *x) * b;
         }
+        if !rig.spine.is_empty() {
+            self.spine.apply(&rig.spine, wz, rig.spine_turn_rate, self.clock, gait.kind, k, self.dt, &mut self.q);
+            self.move_centres();
+        }
         let params = StepParams {
             stepping: self.stepping,
             clock: self.clock,
@@ -578,11 +641,25 @@ impl<'a> Controller<'a> {
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
             let force = std::mem::take(&mut self.force_lift[i]);
-            if state.step(leg, gait.offsets[i], &base, &params, self.dt, force) {
+            if state.step(leg, self.centres[i], gait.offsets[i], &base, &params, self.dt, force) {
                 self.stats.early_liftoffs += 1;
             }
         }
         self.solve_legs();
+    }
+
+    /// Moves the step-region centres of the legs whose hips the spine carries by as much as their hips
+    /// moved from the nominal stance (heading frame, taken as the root's).
+    fn move_centres(&mut self) {
+        for (c, leg) in self.centres.iter_mut().zip(&self.rig.legs) {
+            if !leg.on_spine {
+                continue;
+            }
+            let Some(first) = leg.chain.first_moving() else { continue };
+            leg.chain.poses_into(self.tree, &self.q, &mut self.poses);
+            let hip = self.poses[first].translation.vector;
+            *c = leg.nominal + (hip.xy() - leg.hip.xy());
+        }
     }
 
     /// IK for every leg to its foot target; stance feet IK cannot hold lift off next frame.

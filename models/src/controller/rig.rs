@@ -21,7 +21,9 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use super::chain::Chain;
 use super::collide::{Obb, Proxies};
 use super::gait::{Gait, build_gaits};
-use super::{ControllerConfig, ControllerError, calibrate, reach, wheels};
+use super::spine::SpineJoint;
+use super::undulation::Undulation;
+use super::{ControllerConfig, ControllerError, calibrate, reach, spine, wheels};
 use crate::dynamic_similarity::{froude, hip_height_at, speed_at_froude, speed_for_stride, stride_frequency, stride_length};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
 use crate::morphology::Morphology;
@@ -33,6 +35,8 @@ pub enum BaseMode {
     Legged,
     /// On wheels: planar holonomic motion, wheels roll.
     Wheeled,
+    /// A legless creature: crawls by undulating its body ([`super::undulation`]).
+    Crawling,
     /// Neither legs nor wheels: the base stays put, only reaching moves.
     Fixed,
 }
@@ -64,6 +68,9 @@ pub struct Leg {
     /// dip below the ground at the nominal stance with the foot point on it (a foot point found at a
     /// straight-legged neutral pose, say), then just enough to keep the geometry on the ground.
     pub sole: f32,
+    /// Whether spine DoFs ([`Morphology::spine`]) lie between the root and the hip: bending the spine
+    /// moves the hip (the chain's IK holds those DoFs).
+    pub on_spine: bool,
 }
 
 impl Leg {
@@ -157,6 +164,12 @@ pub struct Rig {
     pub legs: Vec<Leg>,
     /// Wheels.
     pub wheels: Vec<Wheel>,
+    /// Spine DoFs a legged creature bends ([`super::spine`]; empty for a URDF).
+    pub spine: Vec<SpineJoint>,
+    /// The yaw rate at which the spine bends fully into a turn ([`spine::full_turn_rate`], rad/s).
+    pub spine_turn_rate: f32,
+    /// A legless creature's crawl ([`BaseMode::Crawling`]).
+    pub crawl: Option<Undulation>,
     /// Reach groups: one per manipulator, then the misc group if any DoF is left.
     pub reach: Vec<ReachGroup>,
     /// Gaits, sorted by the speed from which they are used.
@@ -225,6 +238,8 @@ impl Rig {
             BaseMode::Legged
         } else if !morph.wheels.is_empty() {
             BaseMode::Wheeled
+        } else if !morph.body_axis.is_empty() {
+            BaseMode::Crawling
         } else {
             BaseMode::Fixed
         };
@@ -312,6 +327,23 @@ impl Rig {
         for d in legs.iter().flat_map(|l| l.chain.active_dofs()) {
             claimed[d] = true;
         }
+        // A legged creature's spine bends as a body; a legless one's axis crawls.
+        let spine = if mode == BaseMode::Legged { spine::joints(tree, morph, &legs, &nominal_q) } else { Vec::new() };
+        if mode == BaseMode::Legged {
+            for &d in &morph.spine {
+                claimed[d] = true;
+            }
+        }
+        let crawl = if mode == BaseMode::Crawling {
+            Some(Undulation::new(tree, morph, &nominal_q).map_err(ControllerError::Crawl)?)
+        } else {
+            None
+        };
+        if let Some(c) = &crawl {
+            for d in c.segments.iter().chain(&c.lifts).map(|j| j.dof).chain(c.held.iter().copied()) {
+                claimed[d] = true;
+            }
+        }
         let wheels = wheels::find(tree, morph, &standing);
         for w in &wheels {
             claimed[w.dof] = true;
@@ -323,7 +355,9 @@ impl Rig {
         let in_reach: Vec<bool> = (0..tree.links.len())
             .map(|l| reach.iter().any(|g| g.links.contains(&l)))
             .collect();
-        let swept = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, height_range, |l| !in_reach[l]);
+        let mut swept = calibrate::obstacles(tree, &proxies, &legs, &nominal_q, h0, height_range, |l| !in_reach[l]);
+        // And the body wherever the spine bends it.
+        swept.extend(spine::swept(tree, &proxies, &spine, &nominal_q, |l| !in_reach[l] && !on_leg[l]));
         for g in &mut reach {
             g.tolerate(&proxies, &nominal_links, &swept, cfg.reach.margin);
         }
@@ -337,6 +371,9 @@ impl Rig {
             max_tilt,
             legs,
             wheels,
+            spine,
+            spine_turn_rate: spine::TURN_RATE,
+            crawl,
             reach,
             gaits: Vec::new(),
             leg_length: 0.0,
@@ -351,6 +388,10 @@ impl Rig {
             nominal_links,
         };
         rig.set_speeds(tree, morph, cfg, fps);
+        if let Some(c) = &rig.crawl {
+            rig.max_speed = c.max_speed;
+        }
+        rig.spine_turn_rate = spine::full_turn_rate(rig.max_speed, rig.cadence_speeds, rig.foot_radius);
         Ok(rig)
     }
 
