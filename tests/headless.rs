@@ -493,6 +493,8 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     json["buffers"][0]["uri"] = "hound.bin".into();
     std::fs::write(custom.join("creatures/hound.gltf"), serde_json::to_vec(&json).unwrap()).unwrap();
     std::fs::write(custom.join("creatures/hound.bin"), &glb[bin_at + 8..bin_at + 8 + bin_len]).unwrap();
+    // The hound's profile (its spine held at rest, as its checkpoint was trained) goes beside it too.
+    std::fs::copy(asset_path("creatures/hound.profile.toml"), custom.join("creatures/hound.profile.toml")).unwrap();
 
     let mut app = App::new();
     app.register_asset_source("custom", AssetSourceBuilder::platform_default(custom.to_str().unwrap(), None))
