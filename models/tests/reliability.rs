@@ -84,6 +84,49 @@ fn an_absurd_frame_time_is_an_error() {
     }
 }
 
+/// The walk clip with `frames` motion lines (its own, repeated) at `Frame Time: {frame_time}`.
+fn walk_of(frames: usize, frame_time: &str) -> String {
+    let text = walk();
+    let (head, motion) = text.split_once("MOTION\n").unwrap();
+    let lines: Vec<&str> = motion.lines().skip(2).filter(|l| !l.trim().is_empty()).collect();
+    let body: Vec<&str> = (0..frames).map(|k| lines[k % lines.len()]).collect();
+    format!("{head}MOTION\nFrames: {frames}\nFrame Time: {frame_time}\n{}\n", body.join("\n"))
+}
+
+#[test]
+fn a_long_frame_time_is_not_resampled_into_more_frames_than_memory_holds() {
+    use ace_models::human::bvh::MAX_CLIP_SECONDS;
+    use ace_models::human::import::MAX_RESAMPLED_FRAMES;
+    // 2,000 frames of 10 s each: 20,000 s, 600,000 frames at the project's 30 fps. Refused by the
+    // reader, naming the header (line 134), before any frame is computed.
+    let start = std::time::Instant::now();
+    let opts = ImportOptions { fps: Some(30.0), mapping: None };
+    let e = HumanClip::from_bvh_str(&walk_of(2_000, "10"), "long.bvh", &opts).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "long.bvh, line 134: `Frames: 2000` at `Frame Time: 10` is 20000 s of motion; clips of at most \
+             {MAX_CLIP_SECONDS} s (2 hours) are read: split the clip"
+        )
+    );
+    // Within the reader's two hours, a target frame rate that would make more frames than the limit is
+    // refused too: 700 frames of 10 s (6,990 s) at 100 fps.
+    let opts = ImportOptions { fps: Some(100.0), mapping: None };
+    let e = HumanClip::from_bvh_str(&walk_of(700, "10"), "long.bvh", &opts).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "long.bvh: `Frames: 700` at `Frame Time: 10` (6990 s) resampled to 100 fps would be 699001 frames; \
+             at most {MAX_RESAMPLED_FRAMES} are made: split the clip"
+        )
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(1), "{:?}", start.elapsed());
+    // The same 700 frames at 30 fps (209,700 frames) are within both limits.
+    let opts = ImportOptions { fps: Some(30.0), mapping: None };
+    let clip = HumanClip::from_bvh_str(&walk_of(700, "10"), "long.bvh", &opts).unwrap();
+    assert_eq!(clip.frames.len(), 209_701);
+}
+
 /// A chain of `depth` joints below a root, one frame.
 fn deep_chain(depth: usize) -> String {
     let mut s = String::from("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n");
