@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ace::models::dataset::{DatasetConfig, check_config, generate};
+use ace::models::dataset::{DatasetConfig, check_budget, check_config, generate};
 use anyhow::{Context, Result};
 
 use crate::output::Outputs;
@@ -40,7 +40,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         cfg.seed = s;
     }
     // Bounds and outputs are checked before any work.
-    check_config(&cfg).with_context(|| match &args.config {
+    check_config(&cfg).and_then(|()| check_budget(&cfg, &tree, &morph)).with_context(|| match &args.config {
         Some(p) => format!("{} (with the command-line options)", p.display()),
         None => "the command-line options".to_string(),
     })?;
