@@ -11,9 +11,8 @@ use std::path::PathBuf;
 
 use ace::models::features::{FeatureWeights, character_body_length};
 use ace::models::human::EndEffector;
-use ace::models::learn::ace::AceCheckpoint;
+use ace::models::learn::ace::{ACE_FILE, AceCheckpoint, read_record};
 use ace::models::learn::checkpoint::PriorCheckpoint;
-use ace::models::learn::default_device;
 use ace::models::learn::train_ace::{AceInputs, AceProgress, start_fine_tune, train_ace};
 use ace::models::morphology::load_character;
 use anyhow::{Context, Result, bail};
@@ -64,7 +63,11 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     }
     report(Stage::Preparing("loading the checkpoint"));
     let (tree, morph) = load_character(&ft.urdf)?;
-    let device = default_device();
+    // Training runs on the device the checkpoint's configuration names, as `ace train` does.
+    let ace_json = ft.from.join(ACE_FILE);
+    let device = read_record(&ft.from)?.config.device;
+    device.check_available().map_err(|e| anyhow::anyhow!("{}: {e}", ace_json.display()))?;
+    let device = device.device();
     let prior = PriorCheckpoint::load_for(&ft.from, device, &tree, &morph)?;
     let stored = AceCheckpoint::load(&ft.from, prior.prior.latent_dim(), &prior.mask, device, true)?;
     let mut cfg = stored.record.config.clone();

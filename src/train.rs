@@ -157,7 +157,10 @@ pub fn prior_dataset_config(prior: &PriorCheckpoint) -> Result<DatasetConfig> {
 pub fn prior(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper, PriorConfig::check)?;
+    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper, |c: &PriorConfig| {
+        c.check()?;
+        c.device.check_available()
+    })?;
     check_outputs(
         &dir,
         &["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
@@ -193,13 +196,17 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
 pub fn ace(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, AceConfig::check)?;
+    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, |c: &AceConfig| {
+        c.check()?;
+        c.device.check_available()
+    })?;
     check_outputs(
         &dir,
         &["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", REFERENCE_FILE],
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
-    let device = ace::models::learn::default_device();
+    // Training runs where the prior is loaded: on the configuration's device.
+    let device = cfg.device.device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
     let data_cfg = prior_dataset_config(&prior).map_err(|e| anyhow::anyhow!("{e}; pass --dataset"))?;

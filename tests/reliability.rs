@@ -264,10 +264,17 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "300",
             "--config",
             &s(&cfg),
+        // A device libtorch does not have: refused where the config is read, before the dataset is
+        // generated (libtorch would abort the process on it).
+        (
+            "device = \"cuda:99\"\n",
+            "`device` = \"cuda:99\" is not available: libtorch sees ",
+        ),
             "--checkpoint",
             &s(&ck),
         ]);
-        assert!(!o.status.success());
+        let start = Instant::now();
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         let e = stderr(&o);
         assert!(
             e.contains(&format!("error: {}: invalid configuration: {expected}", cfg.display())),
@@ -285,6 +292,25 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
         &s(&cfg),
         "--out",
         &s(&dir.join("d.safetensors")),
+        assert!(start.elapsed() < Duration::from_secs(10), "{text}: worked before checking");
+    }
+    // `ace train` honours `device` too, and checks it before loading anything: on a machine without
+    // CUDA, `"cuda"` (device 0) is refused naming the file and the field.
+    if ace::models::learn::cuda_devices() == 0 {
+        let cfg = dir.join("ace.toml");
+        std::fs::write(&cfg, "device = \"cuda\"\n").unwrap();
+        let o = ace(&["train", "--character", "stretch", "--config", &s(&cfg), "--checkpoint", &s(&ck)]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!(
+                "error: {}: invalid configuration: `device` = \"cuda:0\" is not available: libtorch sees no CUDA \
+                 device on this machine; use \"cpu\" or \"auto\"",
+                cfg.display()
+            )),
+            "{e}"
+        );
+        assert!(!ck.exists(), "nothing written");
     ]);
     let e = stderr(&o);
     assert!(

@@ -165,6 +165,7 @@ pub fn train_ace(
     progress: &mut dyn FnMut(&AceProgress),
 ) -> Result<AceCheckpoint, LearnError> {
     cfg.check()?;
+    cfg.device.check_available()?;
     let prior = inputs.prior;
     let device = prior.prior.device();
     check_inputs(inputs, run_dir)?;
