@@ -24,7 +24,7 @@ pub struct DatasetArgs {
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let (path, tree, morph) = characters::load(&args.character)?;
     let mut outputs = Outputs::new();
-    outputs.input(&path, "the character's URDF");
+    outputs.input_character(&path);
     let mut cfg = match &args.config {
         Some(p) => {
             outputs.input(p, "the dataset configuration");
@@ -46,7 +46,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     })?;
     outputs.check(&args.out)?;
     if let Some(dir) = &args.report {
-        outputs.check(dir)?;
+        outputs.check_dir(dir)?;
     }
     println!(
         "character {} ({}): {} DoF, {} feet, {} manipulators, {} wheels",

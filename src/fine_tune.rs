@@ -26,7 +26,7 @@ pub const DEFAULT_STEPS: usize = 300;
 /// What to fine-tune and how.
 #[derive(Clone, Debug)]
 pub struct FineTune {
-    /// The character's URDF.
+    /// The character file (a URDF or a rigged glTF creature).
     pub urdf: PathBuf,
     /// The trained checkpoint directory to start from (left unchanged).
     pub from: PathBuf,

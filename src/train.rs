@@ -83,9 +83,11 @@ fn read_config<T: DeserializeOwned + Default>(
     Ok(cfg)
 }
 
-/// Fails when a file this stage writes into `dir` is one of its inputs (`--config`, `--dataset`).
-fn check_outputs(dir: &Path, files: &[&str], inputs: &[(Option<&Path>, &str)]) -> Result<()> {
+/// Fails when a file this stage writes into `dir` is one of its inputs (the character and the files
+/// read with it, `--config`, `--dataset`).
+fn check_outputs(dir: &Path, files: &[&str], character: &Path, inputs: &[(Option<&Path>, &str)]) -> Result<()> {
     let mut outputs = Outputs::new();
+    outputs.input_character(character);
     for (p, what) in inputs {
         if let Some(p) = p {
             outputs.input(p, what);
@@ -164,6 +166,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
     check_outputs(
         &dir,
         &["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
+        &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
     let mut data_cfg = DatasetConfig::default();
@@ -203,6 +206,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     check_outputs(
         &dir,
         &["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", REFERENCE_FILE],
+        &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
     // Training runs where the prior is loaded: on the configuration's device.

@@ -200,7 +200,7 @@ fn demo_clips_of_the_same_file_name_do_not_collide() {
 
 #[test]
 fn numeric_options_are_bounded_before_any_work() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (
             &["--threads", "100000", "inspect", "assets/motions/walk.bvh"],
             "invalid value '100000' for '--threads <THREADS>': 100000 is not in 1..=1024",
@@ -229,6 +229,16 @@ fn numeric_options_are_bounded_before_any_work() {
             &["eval", "--character", "spot", "--max-clips", "0"],
             "invalid value '0' for '--max-clips <MAX_CLIPS>': expected a whole number of at least 1",
         ),
+        // Checked by the parser, before the folder is listed or a checkpoint loaded (each worker loads
+        // its own networks: 10,000 of them would not fit).
+        (
+            &["retarget", "assets/motions", "--character", "stretch", "--out", "x-out", "--jobs", "0"],
+            "invalid value '0' for '--jobs <JOBS>': expected a number of clips at once from 1 to 256",
+        ),
+        (
+            &["retarget", "assets/motions", "--character", "stretch", "--out", "x-out", "--jobs", "10000"],
+            "invalid value '10000' for '--jobs <JOBS>': expected a number of clips at once from 1 to 256",
+        ),
     ];
     for (args, expected) in cases {
         let start = Instant::now();
@@ -241,6 +251,7 @@ fn numeric_options_are_bounded_before_any_work() {
         );
     }
     assert!(!root().join("x.safetensors").exists());
+    assert!(!root().join("x-out").exists());
 }
 
 #[test]
@@ -253,9 +264,16 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "`batch_size` = 1000000000 is out of range: expected 1 to 65536",
         ),
         ("steps = 0\n", "`steps` = 0 is out of range: expected 1 to 100000000"),
+        // A device libtorch does not have: refused where the config is read, before the dataset is
+        // generated (libtorch would abort the process on it).
+        (
+            "device = \"cuda:99\"\n",
+            "`device` = \"cuda:99\" is not available: libtorch sees ",
+        ),
     ] {
         let cfg = dir.join("prior.toml");
         std::fs::write(&cfg, text).unwrap();
+        let start = Instant::now();
         let o = ace(&[
             "train-prior",
             "--character",
@@ -264,16 +282,9 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "300",
             "--config",
             &s(&cfg),
-        // A device libtorch does not have: refused where the config is read, before the dataset is
-        // generated (libtorch would abort the process on it).
-        (
-            "device = \"cuda:99\"\n",
-            "`device` = \"cuda:99\" is not available: libtorch sees ",
-        ),
             "--checkpoint",
             &s(&ck),
         ]);
-        let start = Instant::now();
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         let e = stderr(&o);
         assert!(
@@ -281,17 +292,6 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "{e}"
         );
         assert!(!ck.exists(), "nothing written");
-    }
-    let cfg = dir.join("data.toml");
-    std::fs::write(&cfg, "frames = 1000000000000\n").unwrap();
-    let o = ace(&[
-        "dataset",
-        "--character",
-        "stretch",
-        "--config",
-        &s(&cfg),
-        "--out",
-        &s(&dir.join("d.safetensors")),
         assert!(start.elapsed() < Duration::from_secs(10), "{text}: worked before checking");
     }
     // `ace train` honours `device` too, and checks it before loading anything: on a machine without
@@ -311,6 +311,17 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "{e}"
         );
         assert!(!ck.exists(), "nothing written");
+    }
+    let cfg = dir.join("data.toml");
+    std::fs::write(&cfg, "frames = 1000000000000\n").unwrap();
+    let o = ace(&[
+        "dataset",
+        "--character",
+        "stretch",
+        "--config",
+        &s(&cfg),
+        "--out",
+        &s(&dir.join("d.safetensors")),
     ]);
     let e = stderr(&o);
     assert!(
@@ -637,4 +648,160 @@ fn scale_lengths(text: &str, k: f64) -> String {
     }
     out.push_str(rest);
     out
+}
+
+/// Every file name in `dir` (not below it), sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut n: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    n.sort();
+    n
+}
+
+/// Runs `ace` and checks that it failed with status 1 within 10 s (before any work), its error
+/// being `expected` exactly; returns nothing, the caller checks what is left on disk.
+fn refused_up_front(args: &[&str], expected: &str) {
+    let start = Instant::now();
+    let o = ace(args);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.lines().any(|l| l == format!("error: {expected}")), "{args:?}:\n{e}\nexpected: error: {expected}");
+    assert!(start.elapsed() < Duration::from_secs(10), "{args:?} worked before checking");
+}
+
+#[test]
+fn two_outputs_of_one_path_are_refused_before_any_work() {
+    let dir = scratch("collisions");
+    let walk = root().join("assets/motions/walk.bvh");
+    // `--out x.json`: the glTF binary and the trajectory would be one file.
+    let out = dir.join("x.json");
+    refused_up_front(
+        &["retarget", &s(&walk), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the glTF binary and the trajectory (JSON) would be written there; give --out a name ending in .glb",
+            out.display()
+        ),
+    );
+    // A folder where `walk.bvh` and `walk.BVH` both make `walk.glb` (and the rest).
+    let clips = dir.join("clips");
+    std::fs::create_dir_all(&clips).unwrap();
+    std::fs::copy(&walk, clips.join("walk.bvh")).unwrap();
+    std::fs::copy(root().join("assets/motions/wave.bvh"), clips.join("walk.BVH")).unwrap();
+    let out = dir.join("out");
+    refused_up_front(
+        &["retarget", &s(&clips), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the glTF binary of walk.BVH and the glTF binary of walk.bvh would be written there; rename one \
+             of the clips",
+            out.join("walk.glb").display()
+        ),
+    );
+    // … and where the trajectory of `walk.metrics.bvh` is the metrics file of `walk.bvh`.
+    std::fs::remove_file(clips.join("walk.BVH")).unwrap();
+    std::fs::copy(root().join("assets/motions/wave.bvh"), clips.join("walk.metrics.bvh")).unwrap();
+    refused_up_front(
+        &["retarget", &s(&clips), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the metrics of walk.bvh and the trajectory (JSON) of walk.metrics.bvh would be written there; \
+             rename one of the clips",
+            out.join("walk.metrics.json").display()
+        ),
+    );
+    // The demo gathers its outputs the same way.
+    let (a, b) = (clips.join("walk.bvh"), clips.join("walk.metrics.bvh"));
+    refused_up_front(
+        &["demo", "--characters", "stretch", "--clip", &s(&a), "--clip", &s(&b), "--out", &s(&out)],
+        &format!(
+            "{}: both the metrics of {} on stretch and the trajectory (JSON) of {} on stretch would be written \
+             there; rename one of the clips",
+            out.join("stretch/walk.metrics.json").display(),
+            a.display(),
+            b.display()
+        ),
+    );
+    // Nothing was written: the clips are as they were and no output folder or file appeared.
+    assert_eq!(names(&dir), ["clips"]);
+    assert_eq!(names(&clips), ["walk.bvh", "walk.metrics.bvh"]);
+}
+
+/// `hound.glb` rewritten as `hound.gltf` with its binary chunk in `hound.bin` beside it.
+fn hound_as_gltf(dir: &Path) -> (PathBuf, PathBuf) {
+    let glb = std::fs::read(root().join("assets/creatures/hound.glb")).unwrap();
+    let u32_at = |i: usize| u32::from_le_bytes(glb[i..i + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let mut json: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_start = 20 + json_len;
+    let bin = &glb[bin_start + 8..bin_start + 8 + u32_at(bin_start)];
+    json["buffers"][0]["uri"] = Value::from("hound.bin");
+    let (gltf, bin_path) = (dir.join("hound.gltf"), dir.join("hound.bin"));
+    std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::write(&bin_path, bin).unwrap();
+    (gltf, bin_path)
+}
+
+#[test]
+fn files_read_implicitly_are_never_written_over() {
+    let dir = scratch("implicit-inputs");
+    let walk = dir.join("walk.bvh");
+    std::fs::copy(root().join("assets/motions/walk.bvh"), &walk).unwrap();
+    // A joint mapping beside the clip (read with it), a creature as .glb and as .gltf + .bin, a URDF
+    // with a profile beside it.
+    let mapping = dir.join("walk.mapping.toml");
+    std::fs::write(&mapping, "pelvis = \"Hips\"\n").unwrap();
+    let glb = dir.join("hound.glb");
+    std::fs::copy(root().join("assets/creatures/hound.glb"), &glb).unwrap();
+    let (gltf, bin) = hound_as_gltf(&dir);
+    let urdf = dir.join("stretch.urdf");
+    std::fs::copy(root().join("assets/characters/stretch.urdf"), &urdf).unwrap();
+    let profile = dir.join("stretch.profile.toml");
+    std::fs::write(&profile, "# nothing overridden\n").unwrap();
+    let before = snapshot(&dir);
+    let (hound_ck, stretch_ck) = (root().join("assets/checkpoints/hound"), root().join("assets/checkpoints/stretch"));
+    for (character, checkpoint, out, what) in [
+        (&glb, &hound_ck, &glb, "the character file"),
+        (&gltf, &hound_ck, &bin, "a file of the character's model (buffer or image)"),
+        (&urdf, &stretch_ck, &mapping, &*format!("the joint-mapping file read with {}", walk.display())),
+        (&urdf, &stretch_ck, &profile, "the character's profile"),
+    ] {
+        refused_up_front(
+            &[
+                "retarget",
+                &s(&walk),
+                "--character",
+                &s(character),
+                "--checkpoint",
+                &s(checkpoint),
+                "--out",
+                &s(out),
+            ],
+            &format!(
+                "{}: refusing to write there: it is {what} ({}) this command reads; choose another output path",
+                out.display(),
+                out.display()
+            ),
+        );
+        assert_eq!(snapshot(&dir), before, "{}: a file changed", out.display());
+    }
+}
+
+#[test]
+fn an_output_that_is_a_directory_leaves_the_previous_outputs_alone() {
+    let dir = scratch("directory-output");
+    let out = dir.join("out.glb");
+    std::fs::write(&out, b"previous").unwrap();
+    let metrics = dir.join("out.metrics.json");
+    std::fs::create_dir(&metrics).unwrap();
+    refused_up_front(
+        &["retarget", "assets/motions/walk.bvh", "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: refusing to write there: it is a directory, and this output is a file; remove the directory or \
+             choose another output path",
+            metrics.display()
+        ),
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous");
+    assert_eq!(names(&dir), ["out.glb", "out.metrics.json"]);
+    assert!(names(&metrics).is_empty());
 }
