@@ -126,6 +126,7 @@ pub fn train_missing(
         };
         for (system, slug) in missing {
             let dir = runs.join(slug);
+            crate::output::watch_dir(&dir);
             let clock = Instant::now();
             if slug == "nkn" {
                 let cfg = nkn_config(ace_cfg, quick);

@@ -92,6 +92,7 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     let correspondence = train::correspondence(&cfg, &set, &humans, body)?;
 
     let human_body_length = stored.record.body_lengths.human_override;
+    crate::output::watch_dir(&ft.to);
     start_fine_tune(&prior, stored, &ft.from, &ft.to, &cfg, &correspondence)
         .with_context(|| format!("starting to fine-tune {} into {}", ft.from.display(), ft.to.display()))?;
     train::write_reference(&ft.to, &set, &correspondence, body)?;

@@ -26,14 +26,22 @@ use anyhow::{Context, Result, bail};
 /// Temporaries of this process not yet renamed into place, for the signal handler.
 static LIVE: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
 
+/// Folders whose writers make their own temporaries (training's checkpoint directories), swept by the
+/// signal handler for this process' ([`watch_dir`]).
+static WATCHED: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
+
 /// The marker of this module's temporaries in a file name.
 const TMP_MARK: &str = ".ace-tmp-";
 
-/// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries and exits with
-/// status 130. Call once, at start-up.
+/// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries (and those in the
+/// [`watch_dir`] folders) and exits with status 130. Call once, at start-up.
 pub fn install_signal_cleanup() {
     let _ = ctrlc::set_handler(|| {
         remove_live_temporaries();
+        let watched = WATCHED.lock().unwrap_or_else(|e| e.into_inner());
+        for dir in watched.iter() {
+            remove_own_temporaries(dir);
+        }
         eprintln!("interrupted: temporary outputs removed, previous outputs left as they were");
         std::process::exit(130);
     });
@@ -43,7 +51,6 @@ pub fn install_signal_cleanup() {
 /// process' id, see [`remove_stale_temporaries`]).
 fn remove_live_temporaries() {
     let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
-    let me = std::process::id();
     for p in live.iter() {
         let _ = if p.is_dir() {
             fs::remove_dir_all(p)
@@ -51,17 +58,33 @@ fn remove_live_temporaries() {
             fs::remove_file(p)
         };
         let Some(dir) = p.parent() else { continue };
-        for e in fs::read_dir(dir).into_iter().flatten().flatten() {
-            if temporary_pid(&e.file_name().to_string_lossy()) == Some(me) {
-                let q = e.path();
-                let _ = if q.is_dir() {
-                    fs::remove_dir_all(&q)
-                } else {
-                    fs::remove_file(&q)
-                };
-            }
+        remove_own_temporaries(dir);
+    }
+}
+
+/// Removes this process' temporaries in `dir` (named with its id, see [`remove_stale_temporaries`]).
+fn remove_own_temporaries(dir: &Path) {
+    let me = std::process::id();
+    for e in fs::read_dir(dir).into_iter().flatten().flatten() {
+        if temporary_pid(&e.file_name().to_string_lossy()) == Some(me) {
+            let q = e.path();
+            let _ = if q.is_dir() {
+                fs::remove_dir_all(&q)
+            } else {
+                fs::remove_file(&q)
+            };
         }
     }
+}
+
+/// For a folder a command writes into through writers of its own (training's checkpoint directory,
+/// whose weights and records are saved under temporary names and renamed): removes the temporaries
+/// that runs killed harder left there ([`remove_stale_temporaries`]) and has the signal handler
+/// remove this process' on SIGINT or SIGTERM.
+pub fn watch_dir(dir: &Path) {
+    remove_stale_temporaries(dir);
+    let dir = fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    WATCHED.lock().unwrap_or_else(|e| e.into_inner()).insert(dir);
 }
 
 /// The output paths a command will write, each with what writes it, gathered before any work: two
@@ -422,23 +445,16 @@ pub fn remove_stale_temporaries(dir: &Path) {
     }
 }
 
-/// The process id in a temporary's name (see [`remove_stale_temporaries`]).
+/// The process id in a temporary's name (see [`remove_stale_temporaries`]): the number right after
+/// or right before a `tmp` part of a name that starts with a dot.
 fn temporary_pid(name: &str) -> Option<u32> {
     let rest = name.strip_prefix('.')?;
     let tokens: Vec<&str> = rest.split(['.', '-']).collect();
     let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-    let k = tokens.iter().position(|&t| t == "tmp" || t == "ace")?;
-    let (before, after) = (k.checked_sub(1).map(|i| tokens[i]), tokens.get(k + 1).copied());
-    let after = if tokens[k] == "ace" {
-        tokens.get(k + 2).copied().filter(|_| tokens.get(k + 1) == Some(&"tmp"))
-    } else {
-        after
-    };
-    [after, before]
-        .into_iter()
-        .flatten()
-        .find(|t| digits(t))
-        .and_then(|t| t.parse().ok())
+    (0..tokens.len()).filter(|&k| tokens[k] == "tmp").find_map(|k| {
+        let (after, before) = (tokens.get(k + 1).copied(), k.checked_sub(1).map(|i| tokens[i]));
+        [after, before].into_iter().flatten().find(|t| digits(t)).and_then(|t| t.parse().ok())
+    })
 }
 
 #[cfg(test)]
@@ -483,6 +499,13 @@ mod tests {
         assert_eq!(temporary_pid(".walk.glb.tmp-77"), Some(77));
         assert_eq!(temporary_pid(".prior.4242.tmp.safetensors"), Some(4242));
         assert_eq!(temporary_pid(".spot.safetensors.99.tmp"), Some(99));
+        // Training's: the records, the weights, the loss log, the FID reference, the plots.
+        assert_eq!(temporary_pid(".ace.json.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".config.4242.tmp.json"), Some(4242));
+        assert_eq!(temporary_pid(".generator.safetensors.4242.tmp.safetensors"), Some(4242));
+        assert_eq!(temporary_pid(".ace_losses.csv.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".reference.json.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".prior_losses.png.4242.tmp"), Some(4242));
         assert_eq!(temporary_pid("walk.glb"), None);
         assert_eq!(temporary_pid(".walk01.glb"), None);
         assert_eq!(temporary_pid(".hidden.tmp"), None);

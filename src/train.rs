@@ -169,6 +169,8 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
         &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
+    // Temporaries of killed runs go now, this run's on SIGINT or SIGTERM.
+    crate::output::watch_dir(&dir);
     let mut data_cfg = DatasetConfig::default();
     if let Some(n) = args.frames {
         data_cfg.frames = n;
@@ -209,6 +211,7 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
+    crate::output::watch_dir(&dir);
     // Training runs where the prior is loaded: on the configuration's device.
     let device = cfg.device.device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
@@ -283,7 +286,7 @@ pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Corresponde
     let v = json!({ "features": FeatureLayout::new(mapping).entry_names(), "frames": set.len(), "fit": fit });
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(REFERENCE_FILE);
-    let tmp = dir.join(format!("{REFERENCE_FILE}.tmp"));
+    let tmp = dir.join(format!(".{REFERENCE_FILE}.{}.tmp", std::process::id()));
     std::fs::write(&tmp, serde_json::to_string(&v)?).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
     Ok(())

@@ -805,3 +805,81 @@ fn an_output_that_is_a_directory_leaves_the_previous_outputs_alone() {
     assert_eq!(names(&dir), ["out.glb", "out.metrics.json"]);
     assert!(names(&metrics).is_empty());
 }
+
+const TINY_PRIOR: &str =
+    "steps = 40\nbatch_size = 16\ncheckpoint_every = 20\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n";
+const TINY_ACE: &str =
+    "steps = 10\nbatch_size = 8\ncheckpoint_every = 5\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n";
+
+/// A process id that does not exist.
+fn dead_pid() -> u32 {
+    (4_000_000..4_100_000)
+        .find(|p| !Path::new(&format!("/proc/{p}")).exists())
+        .unwrap()
+}
+
+fn run_ok(args: &[&str]) {
+    let o = ace(args);
+    assert!(o.status.success(), "ace {args:?}: {}", stderr(&o));
+}
+
+#[test]
+fn training_removes_temporaries_of_killed_runs_and_its_own_on_sigterm() {
+    let dir = scratch("training-temporaries");
+    let ck = dir.join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    // What a train-prior, train or eval --baselines run killed with SIGKILL leaves in its checkpoint
+    // directory (the saves' temporaries, the loss log's, the FID reference's, a plot's).
+    let dead = dead_pid();
+    let stale = [
+        format!(".prior.{dead}.tmp.safetensors"),
+        format!(".config.{dead}.tmp.json"),
+        format!(".ace.json.{dead}.tmp"),
+        format!(".generator.safetensors.{dead}.tmp.safetensors"),
+        format!(".ace_losses.csv.{dead}.tmp"),
+        format!(".reference.json.{dead}.tmp"),
+        format!(".prior_losses.png.{dead}.tmp"),
+    ];
+    for n in &stale {
+        std::fs::write(ck.join(n), b"half").unwrap();
+    }
+    let notes = ck.join(".notes.txt");
+    std::fs::write(&notes, b"mine").unwrap();
+    let cfg = dir.join("prior.toml");
+    std::fs::write(&cfg, TINY_PRIOR).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&cfg), "--checkpoint", &s(&ck)]);
+    assert_eq!(
+        names(&ck),
+        [".notes.txt", "config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
+        "the stale temporaries are gone, the user's file is kept"
+    );
+
+    // SIGTERM while the prior is saved at every step (networks wide enough that a save takes a while):
+    // the run's own temporaries go with it.
+    let ck = dir.join("ck-signal");
+    let cfg = dir.join("prior-long.toml");
+    let long = "steps = 1000000\nbatch_size = 16\ncheckpoint_every = 1\nencoder_hidden = [1024, 1024]\n\
+                decoder_hidden = [1024, 1024]\n";
+    std::fs::write(&cfg, long).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&cfg), "--checkpoint", &s(&ck)])
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(300);
+    let seen = loop {
+        let tmp = ck.is_dir() && names(&ck).iter().any(|n| n.contains("tmp"));
+        if tmp || Instant::now() > deadline || child.try_wait().unwrap().is_some() {
+            break tmp;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    };
+    assert!(seen, "no temporary seen");
+    assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let left: Vec<String> = names(&ck).into_iter().filter(|n| n.contains("tmp")).collect();
+    assert!(left.is_empty(), "SIGTERM left {left:?}");
+}
