@@ -236,7 +236,6 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let correspondence = correspondence(&cfg, &set, &humans, body)?;
     println!("{correspondence}");
 
-    write_reference(&dir, &set, &correspondence, body)?;
     let record = json!({ "humans": folder.display().to_string(), "character_file": character_record(&urdf)? });
     let inputs = AceInputs {
         prior: &prior,
@@ -251,6 +250,9 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         provenance: &provenance(record),
     };
     train_ace_with_progress(&inputs, &cfg, &dir, "ACE")?;
+    // Only once training succeeded: a run refused before it starts (implausible human statistics, a
+    // directory trained against another prior) leaves the checkpoint there as it was.
+    write_reference(&dir, &set, &correspondence, body)?;
     println!("generator and discriminator saved in {} (curves: ace_losses.csv, ace_losses.png)", dir.display());
     Ok(())
 }

@@ -883,3 +883,69 @@ fn training_removes_temporaries_of_killed_runs_and_its_own_on_sigterm() {
     let left: Vec<String> = names(&ck).into_iter().filter(|n| n.contains("tmp")).collect();
     assert!(left.is_empty(), "SIGTERM left {left:?}");
 }
+
+/// `walk.bvh` with its root raised 5 km (5e5 cm: each frame within the importer's bound of 10 km)
+/// from frame `from` on.
+fn walk_raised_from(from: usize) -> String {
+    let text = std::fs::read_to_string(root().join("assets/motions/walk.bvh")).unwrap();
+    let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+    let lines: Vec<String> = motion
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .enumerate()
+        .map(|(f, l)| {
+            let mut v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            if f >= from {
+                v[1] += 5e5; // the root's Yposition (the clip is y-up, in centimetres)
+            }
+            v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    format!("{head}Frame Time: 0.033333\n{}\n", lines.join("\n"))
+}
+
+/// Every file below `dir` with its bytes, inode and modification time: a file rewritten with the same
+/// bytes shows too.
+fn snapshot_with_times(dir: &Path) -> BTreeMap<PathBuf, (Vec<u8>, u64, i64, i64)> {
+    use std::os::unix::fs::MetadataExt;
+    snapshot(dir)
+        .into_iter()
+        .map(|(p, bytes)| {
+            let m = std::fs::metadata(&p).unwrap();
+            (p, (bytes, m.ino(), m.mtime(), m.mtime_nsec()))
+        })
+        .collect()
+}
+
+#[test]
+fn a_failed_train_leaves_the_checkpoint_as_it_was() {
+    let dir = scratch("failed-train");
+    let ck = dir.join("ck");
+    let (prior_cfg, ace_cfg) = (dir.join("prior.toml"), dir.join("ace.toml"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    run_ok(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    assert!(ck.join("reference.json").is_file() && ck.join("ace.json").is_file());
+    // Human clips 5 km up in half their frames: each frame passes the importer, their statistics do
+    // not (one of the two is held out, the other is trained on).
+    let humans = dir.join("humans");
+    std::fs::create_dir_all(&humans).unwrap();
+    for n in ["high-a.bvh", "high-b.bvh"] {
+        std::fs::write(humans.join(n), walk_raised_from(75)).unwrap();
+    }
+    let before = snapshot_with_times(&ck);
+    let o = ace(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", &s(&humans)]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("error: invalid training data: the human clips' x^h entry 0 has mean ")
+            && e.contains("(at most 1000 is plausible): ")
+            && e.contains(&s(&humans.join("high-")))
+            && e.contains("; nothing was trained or saved"),
+        "{e}"
+    );
+    // Not a byte, an inode or a modification time changed: reference.json is written only after
+    // training succeeds.
+    assert_eq!(snapshot_with_times(&ck), before);
+}
