@@ -98,8 +98,12 @@ pub fn train_missing(
         })
         .collect();
     if !missing.is_empty() {
-        let device = ace::models::learn::default_device();
-        let prior = PriorCheckpoint::load_for(ace_dir, device, tree, morph)?;
+        // The baselines train where the compared checkpoint's configuration says, as it did.
+        let device = ace_cfg.device;
+        device
+            .check_available()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", ace_dir.join(ace::models::learn::ace::ACE_FILE).display()))?;
+        let prior = PriorCheckpoint::load_for(ace_dir, device.device(), tree, morph)?;
         let data_cfg = train::prior_dataset_config(&prior)?;
         let set = train::generate_dataset(tree, morph, &data_cfg)?;
         let folder = humans::folder(humans_arg)?;
@@ -122,6 +126,7 @@ pub fn train_missing(
         };
         for (system, slug) in missing {
             let dir = runs.join(slug);
+            crate::output::watch_dir(&dir);
             let clock = Instant::now();
             if slug == "nkn" {
                 let cfg = nkn_config(ace_cfg, quick);

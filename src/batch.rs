@@ -24,9 +24,9 @@ use ace::models::morphology::Morphology;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
-use crate::output::Outputs;
+use crate::output::{Outputs, Planned};
 use crate::progress;
-use crate::retarget::{Networks, RetargetArgs, check_rig_options, default_checkpoint, import_options, output_paths, retarget_and_score, write_with};
+use crate::retarget::{Networks, RetargetArgs, check_rig_options, default_checkpoint, import_options, output_paths, OUTPUT_ROLES, retarget_and_score, write_with};
 use crate::scoring::Scorer;
 use crate::characters;
 
@@ -101,13 +101,18 @@ pub fn run(b: &BatchArgs) -> Result<()> {
             a.out.display()
         );
     }
+    // (The parser bounds --jobs; this is for callers of the library.)
+    if let Some(n) = b.jobs.filter(|n| !(1..=crate::limits::MAX_JOBS).contains(n)) {
+        bail!("--jobs {n}: expected a number of clips at once from 1 to {}", crate::limits::MAX_JOBS);
+    }
     let files = find_bvh_files(folder).with_context(|| format!("{}: cannot list its clips", folder.display()))?;
     if files.is_empty() {
         bail!("{}: no .bvh files in it or below it", folder.display());
     }
     let inputs = || {
         let mut o = Outputs::new();
-        o.input(folder, "the folder of input clips").input(&dir, "the checkpoint directory").input(&urdf, "the character's URDF");
+        // (The joint-mapping files beside the clips are inside the folder.)
+        o.input(folder, "the folder of input clips").input(&dir, "the checkpoint directory").input_character(&urdf);
         if let Some(m) = &a.mapping {
             o.input(m, "the joint-mapping file");
         }
@@ -122,13 +127,18 @@ pub fn run(b: &BatchArgs) -> Result<()> {
             (rel, out)
         })
         .collect();
+    // … and no two clips write the same file (`walk.bvh` and `walk.BVH` both make `walk.glb`; the
+    // trajectory of `walk.metrics.bvh` is the metrics of `walk.bvh`).
     let check = inputs();
-    for (_, out) in &jobs_out {
-        for p in output_paths(out) {
-            check.check(&p)?;
+    let mut planned = Planned::new();
+    let summary_path = a.out.join(SUMMARY);
+    planned.add(&summary_path, "the summary".into(), "rename the clip")?;
+    for (rel, out) in &jobs_out {
+        for (p, role) in output_paths(out).iter().zip(OUTPUT_ROLES) {
+            planned.add(p, format!("{role} of {}", rel.display()), "rename one of the clips")?;
+            check.check(p)?;
         }
     }
-    let summary_path = a.out.join(SUMMARY);
     check.check(&summary_path)?;
     // Fails early on a checkpoint that cannot be read or does not fit the character.
     let first = Networks::load(&dir, a.backend)?;
@@ -137,9 +147,6 @@ pub fn run(b: &BatchArgs) -> Result<()> {
     drop(first);
     let opts = import_options(a.mapping.as_deref())?;
 
-    if b.jobs == Some(0) {
-        bail!("--jobs 0: at least one clip must run at a time");
-    }
     let jobs = b
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

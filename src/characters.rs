@@ -58,7 +58,7 @@ pub fn check_dataset(set: &MotionSet, file: &Path, tree: &KinematicTree, urdf: &
     let names = tree.dof_names();
     if set.dof_names != names {
         bail!(
-            "{}: made for character `{}` with {} DoF, which does not match {} ({} DoF); pass the character's URDF with --character",
+            "{}: made for character `{}` with {} DoF, which does not match {} ({} DoF); pass the character's file (URDF or glTF) with --character",
             file.display(),
             set.character,
             set.dof_names.len(),

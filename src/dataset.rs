@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ace::models::dataset::{DatasetConfig, check_config, generate};
+use ace::models::dataset::{DatasetConfig, check_budget, check_config, generate};
 use anyhow::{Context, Result};
 
 use crate::output::Outputs;
@@ -24,7 +24,7 @@ pub struct DatasetArgs {
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let (path, tree, morph) = characters::load(&args.character)?;
     let mut outputs = Outputs::new();
-    outputs.input(&path, "the character's URDF");
+    outputs.input_character(&path);
     let mut cfg = match &args.config {
         Some(p) => {
             outputs.input(p, "the dataset configuration");
@@ -40,13 +40,13 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         cfg.seed = s;
     }
     // Bounds and outputs are checked before any work.
-    check_config(&cfg).with_context(|| match &args.config {
+    check_config(&cfg).and_then(|()| check_budget(&cfg, &tree, &morph)).with_context(|| match &args.config {
         Some(p) => format!("{} (with the command-line options)", p.display()),
         None => "the command-line options".to_string(),
     })?;
     outputs.check(&args.out)?;
     if let Some(dir) = &args.report {
-        outputs.check(dir)?;
+        outputs.check_dir(dir)?;
     }
     println!(
         "character {} ({}): {} DoF, {} feet, {} manipulators, {} wheels",

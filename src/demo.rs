@@ -14,7 +14,7 @@ use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 use serde_json::json;
 
-use crate::output::Outputs;
+use crate::output::{Outputs, Planned};
 use crate::scoring::Scorer;
 use crate::{characters, picture, retarget};
 
@@ -36,6 +36,7 @@ fn bundled_clips() -> Result<Vec<PathBuf>> {
 /// Names of the clips' outputs: each file stem, with `-2`, `-3`, … added to the second and later of
 /// clips that share a stem (`a/walk.bvh` and `b/walk.bvh` must not write the same files).
 pub fn unique_names(clips: &[PathBuf]) -> Vec<String> {
+    // Compared ignoring case, as the file systems that ignore it would.
     let mut used = std::collections::HashSet::new();
     clips
         .iter()
@@ -43,7 +44,7 @@ pub fn unique_names(clips: &[PathBuf]) -> Vec<String> {
             let stem = p.file_stem().map_or_else(|| "clip".to_string(), |s| s.to_string_lossy().into_owned());
             let mut name = stem.clone();
             let mut k = 1;
-            while !used.insert(name.clone()) {
+            while !used.insert(name.to_lowercase()) {
                 k += 1;
                 name = format!("{stem}-{k}");
             }
@@ -66,25 +67,32 @@ pub fn run(
     let names = unique_names(&clips);
     let mut outputs = Outputs::new();
     for p in &clips {
-        outputs.input(p, "an input clip");
-    }
-    if let Some(m) = mapping {
-        outputs.input(m, "the joint-mapping file");
+        outputs.input_clip(p, "an input clip", mapping);
     }
     let mut loaded = Vec::new();
     for name in characters_arg {
         let (urdf, tree, morph) = characters::load(name)?;
         let dir = retarget::default_checkpoint(name)?;
-        outputs.input(&urdf, "a character's URDF").input(&dir, "a shipped checkpoint");
+        outputs.input_character(&urdf).input(&dir, "a shipped checkpoint");
         loaded.push((name, tree, morph, dir));
     }
-    // Every output path is checked against every input before any work.
-    let planned = loaded.iter().flat_map(|(_, tree, ..)| {
-        let per_clip = names.iter().flat_map(|n| retarget::output_paths(&out.join(&tree.name).join(format!("{n}.glb"))));
-        per_clip.chain([out.join(format!("{}.png", tree.name))]).collect::<Vec<_>>()
-    });
-    for p in planned.chain([out.join("report.md"), out.join("report.json")]) {
-        outputs.check(&p)?;
+    // Every output path is gathered and checked against every input before any work: no two clips
+    // may write one file (the trajectory of `walk.metrics.bvh` would be the metrics of `walk.bvh`).
+    let mut planned = Planned::new();
+    for (p, what) in [(out.join("report.md"), "the report (Markdown)"), (out.join("report.json"), "the report (JSON)")] {
+        planned.add(&p, what.into(), "rename the clip")?;
+    }
+    for (_, tree, ..) in &loaded {
+        planned.add(&out.join(format!("{}.png", tree.name)), format!("the picture of {}", tree.name), "rename the clip")?;
+        for (clip, n) in clips.iter().zip(&names) {
+            let glb = out.join(&tree.name).join(format!("{n}.glb"));
+            for (p, role) in retarget::output_paths(&glb).iter().zip(retarget::OUTPUT_ROLES) {
+                planned.add(p, format!("{role} of {} on {}", clip.display(), tree.name), "rename one of the clips")?;
+            }
+        }
+    }
+    for p in planned.paths() {
+        outputs.check(p)?;
     }
     let mut humans: Vec<HumanClip> = Vec::with_capacity(clips.len());
     for (p, name) in clips.iter().zip(&names) {

@@ -138,7 +138,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
     // (The human clip folder is read too, but only for `.bvh` files, which eval never writes.)
     let mut outputs = Outputs::new();
-    outputs.input(&dir, "the checkpoint directory");
+    outputs.input(&dir, "the checkpoint directory").input_character(&character);
     for f in ["eval.md", "eval.csv", "eval.json", "eval.png"] {
         outputs.check(&out.join(f))?;
     }

@@ -11,9 +11,8 @@ use std::path::PathBuf;
 
 use ace::models::features::{FeatureWeights, character_body_length};
 use ace::models::human::EndEffector;
-use ace::models::learn::ace::AceCheckpoint;
+use ace::models::learn::ace::{ACE_FILE, AceCheckpoint, read_record};
 use ace::models::learn::checkpoint::PriorCheckpoint;
-use ace::models::learn::default_device;
 use ace::models::learn::train_ace::{AceInputs, AceProgress, start_fine_tune, train_ace};
 use ace::models::morphology::load_character;
 use anyhow::{Context, Result, bail};
@@ -27,7 +26,7 @@ pub const DEFAULT_STEPS: usize = 300;
 /// What to fine-tune and how.
 #[derive(Clone, Debug)]
 pub struct FineTune {
-    /// The character's URDF.
+    /// The character file (a URDF or a rigged glTF creature).
     pub urdf: PathBuf,
     /// The trained checkpoint directory to start from (left unchanged).
     pub from: PathBuf,
@@ -64,7 +63,11 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     }
     report(Stage::Preparing("loading the checkpoint"));
     let (tree, morph) = load_character(&ft.urdf)?;
-    let device = default_device();
+    // Training runs on the device the checkpoint's configuration names, as `ace train` does.
+    let ace_json = ft.from.join(ACE_FILE);
+    let device = read_record(&ft.from)?.config.device;
+    device.check_available().map_err(|e| anyhow::anyhow!("{}: {e}", ace_json.display()))?;
+    let device = device.device();
     let prior = PriorCheckpoint::load_for(&ft.from, device, &tree, &morph)?;
     let stored = AceCheckpoint::load(&ft.from, prior.prior.latent_dim(), &prior.mask, device, true)?;
     let mut cfg = stored.record.config.clone();
@@ -89,6 +92,7 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     let correspondence = train::correspondence(&cfg, &set, &humans, body)?;
 
     let human_body_length = stored.record.body_lengths.human_override;
+    crate::output::watch_dir(&ft.to);
     start_fine_tune(&prior, stored, &ft.from, &ft.to, &cfg, &correspondence)
         .with_context(|| format!("starting to fine-tune {} into {}", ft.from.display(), ft.to.display()))?;
     train::write_reference(&ft.to, &set, &correspondence, body)?;

@@ -4,6 +4,9 @@
 /// Most threads `--threads` may ask libtorch for.
 pub const MAX_THREADS: i64 = 1024;
 
+/// Most clips `ace retarget FOLDER --jobs` runs at once: each worker loads its own networks.
+pub const MAX_JOBS: usize = 256;
+
 /// Longest `ace eval --seconds` rollout (one hour).
 pub const MAX_SECONDS: f32 = 3600.0;
 
@@ -30,4 +33,12 @@ pub fn at_least_one(s: &str) -> Result<usize, String> {
         .ok()
         .filter(|n| *n >= 1)
         .ok_or_else(|| "expected a whole number of at least 1".to_string())
+}
+
+/// `--jobs`: 1 to [`MAX_JOBS`].
+pub fn jobs(s: &str) -> Result<usize, String> {
+    s.parse::<usize>()
+        .ok()
+        .filter(|n| (1..=MAX_JOBS).contains(n))
+        .ok_or_else(|| format!("expected a number of clips at once from 1 to {MAX_JOBS}"))
 }

@@ -133,8 +133,8 @@ enum Command {
         /// For a folder of clips, the output folder: each clip at its relative path, as a .glb.
         #[arg(long)]
         out: PathBuf,
-        /// For a folder of clips: how many clips run at once [default: one per core].
-        #[arg(long)]
+        /// For a folder of clips: how many clips run at once, 1 to 256 [default: one per core].
+        #[arg(long, value_parser = ace::limits::jobs)]
         jobs: Option<usize>,
         /// Leave the human skeleton out of the glTF (a glTF creature's model never has it).
         #[arg(long)]

@@ -1,8 +1,13 @@
 //! How every command writes: never over a file it read, and its outputs as a set.
 //!
 //! - [`Outputs::input`] records each file or directory a command reads (the clip, the checkpoint
-//!   directory, the config, the character); [`Outputs::check`] refuses an output path that is one of
-//!   them (same file, also through a symlink or a hard link) or lies inside an input directory.
+//!   directory, the config, the character), and also those read implicitly ([`Outputs::input_clip`]:
+//!   the joint-mapping file beside a clip; [`Outputs::input_character`]: the profile beside a
+//!   character, a `.gltf` creature's buffers and images); [`Outputs::check`] refuses an output path
+//!   that is one of them (same file, also through a symlink or a hard link) or lies inside an input
+//!   directory, or that is a directory where a file is written.
+//! - [`Planned`] gathers every output path of a command with what writes it, before any work: two
+//!   writers of one path (two clips' derived files, `--out x.json`) are refused, naming both.
 //! - [`Outputs::stage`] and [`Outputs::stage_dir`] hand out a temporary sibling of each output
 //!   (`.<name>.ace-tmp-<pid>`); the command writes there, and [`Outputs::commit`] renames every one of
 //!   them into place only after all were written. On an error, dropping the [`Outputs`] removes the
@@ -21,14 +26,22 @@ use anyhow::{Context, Result, bail};
 /// Temporaries of this process not yet renamed into place, for the signal handler.
 static LIVE: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
 
+/// Folders whose writers make their own temporaries (training's checkpoint directories), swept by the
+/// signal handler for this process' ([`watch_dir`]).
+static WATCHED: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
+
 /// The marker of this module's temporaries in a file name.
 const TMP_MARK: &str = ".ace-tmp-";
 
-/// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries and exits with
-/// status 130. Call once, at start-up.
+/// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries (and those in the
+/// [`watch_dir`] folders) and exits with status 130. Call once, at start-up.
 pub fn install_signal_cleanup() {
     let _ = ctrlc::set_handler(|| {
         remove_live_temporaries();
+        let watched = WATCHED.lock().unwrap_or_else(|e| e.into_inner());
+        for dir in watched.iter() {
+            remove_own_temporaries(dir);
+        }
         eprintln!("interrupted: temporary outputs removed, previous outputs left as they were");
         std::process::exit(130);
     });
@@ -38,7 +51,6 @@ pub fn install_signal_cleanup() {
 /// process' id, see [`remove_stale_temporaries`]).
 fn remove_live_temporaries() {
     let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
-    let me = std::process::id();
     for p in live.iter() {
         let _ = if p.is_dir() {
             fs::remove_dir_all(p)
@@ -46,17 +58,85 @@ fn remove_live_temporaries() {
             fs::remove_file(p)
         };
         let Some(dir) = p.parent() else { continue };
-        for e in fs::read_dir(dir).into_iter().flatten().flatten() {
-            if temporary_pid(&e.file_name().to_string_lossy()) == Some(me) {
-                let q = e.path();
-                let _ = if q.is_dir() {
-                    fs::remove_dir_all(&q)
-                } else {
-                    fs::remove_file(&q)
-                };
-            }
+        remove_own_temporaries(dir);
+    }
+}
+
+/// Removes this process' temporaries in `dir` (named with its id, see [`remove_stale_temporaries`]).
+fn remove_own_temporaries(dir: &Path) {
+    let me = std::process::id();
+    for e in fs::read_dir(dir).into_iter().flatten().flatten() {
+        if temporary_pid(&e.file_name().to_string_lossy()) == Some(me) {
+            let q = e.path();
+            let _ = if q.is_dir() {
+                fs::remove_dir_all(&q)
+            } else {
+                fs::remove_file(&q)
+            };
         }
     }
+}
+
+/// For a folder a command writes into through writers of its own (training's checkpoint directory,
+/// whose weights and records are saved under temporary names and renamed): removes the temporaries
+/// that runs killed harder left there ([`remove_stale_temporaries`]) and has the signal handler
+/// remove this process' on SIGINT or SIGTERM.
+pub fn watch_dir(dir: &Path) {
+    remove_stale_temporaries(dir);
+    let dir = fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    WATCHED.lock().unwrap_or_else(|e| e.into_inner()).insert(dir);
+}
+
+/// The output paths a command will write, each with what writes it, gathered before any work: two
+/// writers of one path (`a/walk.bvh` and `b/walk.metrics.bvh` both making `walk.metrics.json`, or
+/// `walk.bvh` and `walk.BVH` both making `walk.glb`) are refused up front, naming both. Paths that
+/// differ only in case count as one, as they are on the file systems that ignore it.
+#[derive(Debug, Default)]
+pub struct Planned {
+    seen: std::collections::HashMap<String, (PathBuf, String)>,
+}
+
+impl Planned {
+    /// No paths yet.
+    pub fn new() -> Planned {
+        Planned::default()
+    }
+
+    /// Records that `writer` (e.g. "the trajectory of a/walk.bvh") writes `path`; fails, naming both
+    /// writers and ending with `advice`, when another already does.
+    pub fn add(&mut self, path: &Path, writer: String, advice: &str) -> Result<()> {
+        let key = lexical(path).to_string_lossy().to_lowercase();
+        if let Some((first, other)) = self.seen.get(&key) {
+            let case = if first != path { format!(" (as {}: output names ignore case)", first.display()) } else { String::new() };
+            bail!(
+                "{}: both {other} and {writer} would be written there{case}; {advice}",
+                path.display()
+            );
+        }
+        self.seen.insert(key, (path.to_path_buf(), writer));
+        Ok(())
+    }
+
+    /// The paths recorded, in no particular order.
+    pub fn paths(&self) -> impl Iterator<Item = &Path> + '_ {
+        self.seen.values().map(|(p, _)| p.as_path())
+    }
+}
+
+/// `path` with `.` components dropped and `a/..` pairs folded, without touching the file system.
+fn lexical(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.components().next_back(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 /// An input a command read.
@@ -96,9 +176,66 @@ impl Outputs {
         self
     }
 
+    /// Records a clip and the joint-mapping file read with it: `mapping` (`--mapping`) when given, else
+    /// `<clip>.mapping.toml` beside it, which the importer reads when it is there.
+    pub fn input_clip(&mut self, clip: &Path, what: &str, mapping: Option<&Path>) -> &mut Outputs {
+        self.input(clip, what);
+        match mapping {
+            Some(m) => self.input(m, "the joint-mapping file"),
+            None => {
+                let beside = ace::models::human::clip::mapping_path_beside(clip);
+                self.input(&beside, &format!("the joint-mapping file read with {}", clip.display()))
+            }
+        }
+    }
+
+    /// Records a character file (`--character`: a URDF or a glTF creature) and the files read with
+    /// it: the profile beside it (`<name>.profile.toml`) and a `.gltf` creature's external buffers and
+    /// images.
+    pub fn input_character(&mut self, path: &Path) -> &mut Outputs {
+        self.input(path, "the character file");
+        let profile = ace::models::morphology::Profile::path_beside(path);
+        self.input(&profile, "the character's profile");
+        if ace::models::character::is_gltf(path) {
+            // The character was loaded from it already, so it parses; were it to fail now, loading it
+            // again would fail before anything is written.
+            for f in ace::models::character::gltf::external_files(path).unwrap_or_default() {
+                self.input(&f, "a file of the character's model (buffer or image)");
+            }
+        }
+        self
+    }
+
+    /// Fails, naming both, when writing the file `out` would overwrite an input or write inside an
+    /// input directory; also when `out` is a directory (renaming a file onto it would fail after the
+    /// other outputs were already in place).
+    pub fn check(&self, out: &Path) -> Result<()> {
+        self.check_inputs(out)?;
+        if out.is_dir() {
+            bail!(
+                "{}: refusing to write there: it is a directory, and this output is a file; remove the directory \
+                 or choose another output path",
+                out.display()
+            );
+        }
+        Ok(())
+    }
+
+    /// [`Outputs::check`] for an output folder (`out` may be a folder, but not a file).
+    pub fn check_dir(&self, out: &Path) -> Result<()> {
+        self.check_inputs(out)?;
+        if out.exists() && !out.is_dir() {
+            bail!(
+                "{}: refusing to write there: it is a file, and this output is a folder; choose another output path",
+                out.display()
+            );
+        }
+        Ok(())
+    }
+
     /// Fails, naming both, when writing `out` would overwrite an input or write inside an input
     /// directory.
-    pub fn check(&self, out: &Path) -> Result<()> {
+    fn check_inputs(&self, out: &Path) -> Result<()> {
         let target = resolve(out)?;
         for i in &self.inputs {
             let same = target == i.canonical || same_file(&target, &i.canonical);
@@ -127,6 +264,11 @@ impl Outputs {
     /// created, and stale temporaries of killed runs in it are removed).
     pub fn stage(&mut self, out: &Path) -> Result<PathBuf> {
         self.check(out)?;
+        self.stage_checked(out)
+    }
+
+    /// [`Outputs::stage`] once `out` is checked.
+    fn stage_checked(&mut self, out: &Path) -> Result<PathBuf> {
         if self.staged.iter().any(|(_, f)| f == out) {
             bail!("{}: written twice by the same command", out.display());
         }
@@ -158,15 +300,31 @@ impl Outputs {
     /// (created, empty) temporary folder; [`Outputs::commit`] moves each of them into `dir`, keeping the
     /// files of `dir` it did not write.
     pub fn stage_dir(&mut self, dir: &Path) -> Result<PathBuf> {
-        let tmp = self.stage(dir)?;
+        self.check_dir(dir)?;
+        let tmp = self.stage_checked(dir)?;
         fs::create_dir_all(&tmp)
             .with_context(|| format!("{}: cannot create the folder {}", dir.display(), tmp.display()))?;
         Ok(tmp)
     }
 
-    /// Renames every staged output into place, in the order staged. (Renames within a folder do not
-    /// fail for want of space; should one fail, the outputs not yet renamed are removed.)
+    /// Renames every staged output into place, in the order staged. Before the first rename, every
+    /// target is checked again: a file output whose path has become a directory, or a folder output
+    /// whose path has become a file, fails the commit with nothing renamed (the temporaries are
+    /// removed). (Renames within a folder do not fail for want of space; should one still fail, the
+    /// outputs not yet renamed are removed.)
     pub fn commit(mut self) -> Result<()> {
+        for (tmp, out) in &self.staged {
+            if tmp.is_dir() {
+                if out.exists() && !out.is_dir() {
+                    bail!("{}: cannot write this folder there: it is a file now; nothing was written", out.display());
+                }
+            } else if out.is_dir() {
+                bail!(
+                    "{}: cannot write this file there: it is a directory now; nothing was written",
+                    out.display()
+                );
+            }
+        }
         while !self.staged.is_empty() {
             let (tmp, out) = self.staged.remove(0);
             let moved = if tmp.is_dir() {
@@ -287,23 +445,16 @@ pub fn remove_stale_temporaries(dir: &Path) {
     }
 }
 
-/// The process id in a temporary's name (see [`remove_stale_temporaries`]).
+/// The process id in a temporary's name (see [`remove_stale_temporaries`]): the number right after
+/// or right before a `tmp` part of a name that starts with a dot.
 fn temporary_pid(name: &str) -> Option<u32> {
     let rest = name.strip_prefix('.')?;
     let tokens: Vec<&str> = rest.split(['.', '-']).collect();
     let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-    let k = tokens.iter().position(|&t| t == "tmp" || t == "ace")?;
-    let (before, after) = (k.checked_sub(1).map(|i| tokens[i]), tokens.get(k + 1).copied());
-    let after = if tokens[k] == "ace" {
-        tokens.get(k + 2).copied().filter(|_| tokens.get(k + 1) == Some(&"tmp"))
-    } else {
-        after
-    };
-    [after, before]
-        .into_iter()
-        .flatten()
-        .find(|t| digits(t))
-        .and_then(|t| t.parse().ok())
+    (0..tokens.len()).filter(|&k| tokens[k] == "tmp").find_map(|k| {
+        let (after, before) = (tokens.get(k + 1).copied(), k.checked_sub(1).map(|i| tokens[i]));
+        [after, before].into_iter().flatten().find(|t| digits(t)).and_then(|t| t.parse().ok())
+    })
 }
 
 #[cfg(test)]
@@ -311,11 +462,50 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_commit_onto_a_directory_renames_nothing() {
+        let dir = std::env::temp_dir().join(format!("ace-output-commit-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let (glb, metrics) = (dir.join("out.glb"), dir.join("out.metrics.json"));
+        fs::write(&glb, b"previous").unwrap();
+        let mut outputs = Outputs::new();
+        fs::write(outputs.stage(&glb).unwrap(), b"new").unwrap();
+        fs::write(outputs.stage(&metrics).unwrap(), b"new").unwrap();
+        // A directory appears where the second output goes, after it was staged: the commit checks
+        // every target before its first rename.
+        fs::create_dir(&metrics).unwrap();
+        assert_eq!(
+            outputs.commit().unwrap_err().to_string(),
+            format!("{}: cannot write this file there: it is a directory now; nothing was written", metrics.display())
+        );
+        assert_eq!(fs::read(&glb).unwrap(), b"previous");
+        let mut names: Vec<String> = fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        names.sort();
+        assert_eq!(names, ["out.glb", "out.metrics.json"], "the temporaries are gone");
+        // Staged or checked up front, it is refused before anything is written.
+        let refused = format!(
+            "{}: refusing to write there: it is a directory, and this output is a file; remove the directory or \
+             choose another output path",
+            metrics.display()
+        );
+        assert_eq!(Outputs::new().stage(&metrics).unwrap_err().to_string(), refused);
+        assert_eq!(Outputs::new().check(&metrics).unwrap_err().to_string(), refused);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn temporary_names_are_recognised() {
         assert_eq!(temporary_pid(".walk.glb.ace-tmp-1234"), Some(1234));
         assert_eq!(temporary_pid(".walk.glb.tmp-77"), Some(77));
         assert_eq!(temporary_pid(".prior.4242.tmp.safetensors"), Some(4242));
         assert_eq!(temporary_pid(".spot.safetensors.99.tmp"), Some(99));
+        // Training's: the records, the weights, the loss log, the FID reference, the plots.
+        assert_eq!(temporary_pid(".ace.json.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".config.4242.tmp.json"), Some(4242));
+        assert_eq!(temporary_pid(".generator.safetensors.4242.tmp.safetensors"), Some(4242));
+        assert_eq!(temporary_pid(".ace_losses.csv.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".reference.json.4242.tmp"), Some(4242));
+        assert_eq!(temporary_pid(".prior_losses.png.4242.tmp"), Some(4242));
         assert_eq!(temporary_pid("walk.glb"), None);
         assert_eq!(temporary_pid(".walk01.glb"), None);
         assert_eq!(temporary_pid(".hidden.tmp"), None);

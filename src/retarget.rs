@@ -24,7 +24,7 @@ use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 
 use crate::characters;
-use crate::output::Outputs;
+use crate::output::{Outputs, Planned};
 use crate::scoring::{HumanSource, Scorer};
 
 /// Where a bundled character's shipped checkpoint lives.
@@ -170,12 +170,14 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     };
     // Every output is checked against every input before any work.
     let mut outputs = Outputs::new();
-    outputs.input(&a.clip, "the input clip").input(&dir, "the checkpoint directory").input(&urdf, "the character's URDF");
-    if let Some(m) = &a.mapping {
-        outputs.input(m, "the joint-mapping file");
-    }
-    for p in output_paths(&a.out) {
-        outputs.check(&p)?;
+    outputs
+        .input_clip(&a.clip, "the input clip", a.mapping.as_deref())
+        .input(&dir, "the checkpoint directory")
+        .input_character(&urdf);
+    let mut planned = Planned::new();
+    for (p, role) in output_paths(&a.out).iter().zip(OUTPUT_ROLES) {
+        planned.add(p, role.to_string(), "give --out a name ending in .glb")?;
+        outputs.check(p)?;
     }
     let mut retargeter = Networks::load(&dir, a.backend)?;
     retargeter.check_character(&tree, &morph)?;
@@ -201,6 +203,9 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
 pub fn output_paths(out: &Path) -> [PathBuf; 4] {
     [out.to_path_buf(), out.with_extension("json"), out.with_extension("csv"), out.with_extension("metrics.json")]
 }
+
+/// What each of [`output_paths`] is, in its order (for errors).
+pub const OUTPUT_ROLES: [&str; 4] = ["the glTF binary", "the trajectory (JSON)", "the trajectory (CSV)", "the metrics"];
 
 /// One clip retargeted and scored.
 pub struct Retargeted {

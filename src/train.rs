@@ -83,9 +83,11 @@ fn read_config<T: DeserializeOwned + Default>(
     Ok(cfg)
 }
 
-/// Fails when a file this stage writes into `dir` is one of its inputs (`--config`, `--dataset`).
-fn check_outputs(dir: &Path, files: &[&str], inputs: &[(Option<&Path>, &str)]) -> Result<()> {
+/// Fails when a file this stage writes into `dir` is one of its inputs (the character and the files
+/// read with it, `--config`, `--dataset`).
+fn check_outputs(dir: &Path, files: &[&str], character: &Path, inputs: &[(Option<&Path>, &str)]) -> Result<()> {
     let mut outputs = Outputs::new();
+    outputs.input_character(character);
     for (p, what) in inputs {
         if let Some(p) = p {
             outputs.input(p, what);
@@ -157,12 +159,18 @@ pub fn prior_dataset_config(prior: &PriorCheckpoint) -> Result<DatasetConfig> {
 pub fn prior(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper, PriorConfig::check)?;
+    let cfg: PriorConfig = read_config(args.config.as_deref(), PriorConfig::paper, args.paper, |c: &PriorConfig| {
+        c.check()?;
+        c.device.check_available()
+    })?;
     check_outputs(
         &dir,
         &["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
+        &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
+    // Temporaries of killed runs go now, this run's on SIGINT or SIGTERM.
+    crate::output::watch_dir(&dir);
     let mut data_cfg = DatasetConfig::default();
     if let Some(n) = args.frames {
         data_cfg.frames = n;
@@ -193,13 +201,19 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
 pub fn ace(args: &TrainArgs) -> Result<()> {
     let (urdf, tree, morph) = characters::load(&args.character)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
-    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, AceConfig::check)?;
+    let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, |c: &AceConfig| {
+        c.check()?;
+        c.device.check_available()
+    })?;
     check_outputs(
         &dir,
         &["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", REFERENCE_FILE],
+        &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
-    let device = ace::models::learn::default_device();
+    crate::output::watch_dir(&dir);
+    // Training runs where the prior is loaded: on the configuration's device.
+    let device = cfg.device.device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
     let data_cfg = prior_dataset_config(&prior).map_err(|e| anyhow::anyhow!("{e}; pass --dataset"))?;
@@ -222,7 +236,6 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let correspondence = correspondence(&cfg, &set, &humans, body)?;
     println!("{correspondence}");
 
-    write_reference(&dir, &set, &correspondence, body)?;
     let record = json!({ "humans": folder.display().to_string(), "character_file": character_record(&urdf)? });
     let inputs = AceInputs {
         prior: &prior,
@@ -237,6 +250,9 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         provenance: &provenance(record),
     };
     train_ace_with_progress(&inputs, &cfg, &dir, "ACE")?;
+    // Only once training succeeded: a run refused before it starts (implausible human statistics, a
+    // directory trained against another prior) leaves the checkpoint there as it was.
+    write_reference(&dir, &set, &correspondence, body)?;
     println!("generator and discriminator saved in {} (curves: ace_losses.csv, ace_losses.png)", dir.display());
     Ok(())
 }
@@ -272,7 +288,7 @@ pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Corresponde
     let v = json!({ "features": FeatureLayout::new(mapping).entry_names(), "frames": set.len(), "fit": fit });
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(REFERENCE_FILE);
-    let tmp = dir.join(format!("{REFERENCE_FILE}.tmp"));
+    let tmp = dir.join(format!(".{REFERENCE_FILE}.{}.tmp", std::process::id()));
     std::fs::write(&tmp, serde_json::to_string(&v)?).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
     Ok(())

@@ -106,7 +106,7 @@ fn a_folder_run_refuses_outputs_it_cannot_write_before_any_work() {
         (vec!["--out".into(), lib.join("out").to_string_lossy().into()], "inside the folder of input clips"),
         // A file name where a folder is meant.
         (vec!["--out".into(), lib.join("../x.glb").to_string_lossy().into()], "is a folder"),
-        (vec!["--out".into(), fresh("zero").to_string_lossy().into(), "--jobs".into(), "0".into()], "--jobs 0"),
+        (vec!["--out".into(), fresh("zero").to_string_lossy().into(), "--jobs".into(), "0".into()], "invalid value '0' for '--jobs <JOBS>'"),
         // An empty folder.
         (vec!["--out".into(), fresh("never").to_string_lossy().into()], "no .bvh files"),
     ];

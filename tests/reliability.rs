@@ -200,7 +200,7 @@ fn demo_clips_of_the_same_file_name_do_not_collide() {
 
 #[test]
 fn numeric_options_are_bounded_before_any_work() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (
             &["--threads", "100000", "inspect", "assets/motions/walk.bvh"],
             "invalid value '100000' for '--threads <THREADS>': 100000 is not in 1..=1024",
@@ -229,6 +229,16 @@ fn numeric_options_are_bounded_before_any_work() {
             &["eval", "--character", "spot", "--max-clips", "0"],
             "invalid value '0' for '--max-clips <MAX_CLIPS>': expected a whole number of at least 1",
         ),
+        // Checked by the parser, before the folder is listed or a checkpoint loaded (each worker loads
+        // its own networks: 10,000 of them would not fit).
+        (
+            &["retarget", "assets/motions", "--character", "stretch", "--out", "x-out", "--jobs", "0"],
+            "invalid value '0' for '--jobs <JOBS>': expected a number of clips at once from 1 to 256",
+        ),
+        (
+            &["retarget", "assets/motions", "--character", "stretch", "--out", "x-out", "--jobs", "10000"],
+            "invalid value '10000' for '--jobs <JOBS>': expected a number of clips at once from 1 to 256",
+        ),
     ];
     for (args, expected) in cases {
         let start = Instant::now();
@@ -241,6 +251,7 @@ fn numeric_options_are_bounded_before_any_work() {
         );
     }
     assert!(!root().join("x.safetensors").exists());
+    assert!(!root().join("x-out").exists());
 }
 
 #[test]
@@ -253,9 +264,16 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "`batch_size` = 1000000000 is out of range: expected 1 to 65536",
         ),
         ("steps = 0\n", "`steps` = 0 is out of range: expected 1 to 100000000"),
+        // A device libtorch does not have: refused where the config is read, before the dataset is
+        // generated (libtorch would abort the process on it).
+        (
+            "device = \"cuda:99\"\n",
+            "`device` = \"cuda:99\" is not available: libtorch sees ",
+        ),
     ] {
         let cfg = dir.join("prior.toml");
         std::fs::write(&cfg, text).unwrap();
+        let start = Instant::now();
         let o = ace(&[
             "train-prior",
             "--character",
@@ -267,10 +285,29 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
             "--checkpoint",
             &s(&ck),
         ]);
-        assert!(!o.status.success());
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         let e = stderr(&o);
         assert!(
             e.contains(&format!("error: {}: invalid configuration: {expected}", cfg.display())),
+            "{e}"
+        );
+        assert!(!ck.exists(), "nothing written");
+        assert!(start.elapsed() < Duration::from_secs(10), "{text}: worked before checking");
+    }
+    // `ace train` honours `device` too, and checks it before loading anything: on a machine without
+    // CUDA, `"cuda"` (device 0) is refused naming the file and the field.
+    if ace::models::learn::cuda_devices() == 0 {
+        let cfg = dir.join("ace.toml");
+        std::fs::write(&cfg, "device = \"cuda\"\n").unwrap();
+        let o = ace(&["train", "--character", "stretch", "--config", &s(&cfg), "--checkpoint", &s(&ck)]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!(
+                "error: {}: invalid configuration: `device` = \"cuda:0\" is not available: libtorch sees no CUDA \
+                 device on this machine; use \"cpu\" or \"auto\"",
+                cfg.display()
+            )),
             "{e}"
         );
         assert!(!ck.exists(), "nothing written");
@@ -611,4 +648,304 @@ fn scale_lengths(text: &str, k: f64) -> String {
     }
     out.push_str(rest);
     out
+}
+
+/// Every file name in `dir` (not below it), sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut n: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    n.sort();
+    n
+}
+
+/// Runs `ace` and checks that it failed with status 1 within 10 s (before any work), its error
+/// being `expected` exactly; returns nothing, the caller checks what is left on disk.
+fn refused_up_front(args: &[&str], expected: &str) {
+    let start = Instant::now();
+    let o = ace(args);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.lines().any(|l| l == format!("error: {expected}")), "{args:?}:\n{e}\nexpected: error: {expected}");
+    assert!(start.elapsed() < Duration::from_secs(10), "{args:?} worked before checking");
+}
+
+#[test]
+fn two_outputs_of_one_path_are_refused_before_any_work() {
+    let dir = scratch("collisions");
+    let walk = root().join("assets/motions/walk.bvh");
+    // `--out x.json`: the glTF binary and the trajectory would be one file.
+    let out = dir.join("x.json");
+    refused_up_front(
+        &["retarget", &s(&walk), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the glTF binary and the trajectory (JSON) would be written there; give --out a name ending in .glb",
+            out.display()
+        ),
+    );
+    // A folder where `walk.bvh` and `walk.BVH` both make `walk.glb` (and the rest).
+    let clips = dir.join("clips");
+    std::fs::create_dir_all(&clips).unwrap();
+    std::fs::copy(&walk, clips.join("walk.bvh")).unwrap();
+    std::fs::copy(root().join("assets/motions/wave.bvh"), clips.join("walk.BVH")).unwrap();
+    let out = dir.join("out");
+    refused_up_front(
+        &["retarget", &s(&clips), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the glTF binary of walk.BVH and the glTF binary of walk.bvh would be written there; rename one \
+             of the clips",
+            out.join("walk.glb").display()
+        ),
+    );
+    // … and where the trajectory of `walk.metrics.bvh` is the metrics file of `walk.bvh`.
+    std::fs::remove_file(clips.join("walk.BVH")).unwrap();
+    std::fs::copy(root().join("assets/motions/wave.bvh"), clips.join("walk.metrics.bvh")).unwrap();
+    refused_up_front(
+        &["retarget", &s(&clips), "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: both the metrics of walk.bvh and the trajectory (JSON) of walk.metrics.bvh would be written there; \
+             rename one of the clips",
+            out.join("walk.metrics.json").display()
+        ),
+    );
+    // The demo gathers its outputs the same way.
+    let (a, b) = (clips.join("walk.bvh"), clips.join("walk.metrics.bvh"));
+    refused_up_front(
+        &["demo", "--characters", "stretch", "--clip", &s(&a), "--clip", &s(&b), "--out", &s(&out)],
+        &format!(
+            "{}: both the metrics of {} on stretch and the trajectory (JSON) of {} on stretch would be written \
+             there; rename one of the clips",
+            out.join("stretch/walk.metrics.json").display(),
+            a.display(),
+            b.display()
+        ),
+    );
+    // Nothing was written: the clips are as they were and no output folder or file appeared.
+    assert_eq!(names(&dir), ["clips"]);
+    assert_eq!(names(&clips), ["walk.bvh", "walk.metrics.bvh"]);
+}
+
+/// `hound.glb` rewritten as `hound.gltf` with its binary chunk in `hound.bin` beside it.
+fn hound_as_gltf(dir: &Path) -> (PathBuf, PathBuf) {
+    let glb = std::fs::read(root().join("assets/creatures/hound.glb")).unwrap();
+    let u32_at = |i: usize| u32::from_le_bytes(glb[i..i + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let mut json: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_start = 20 + json_len;
+    let bin = &glb[bin_start + 8..bin_start + 8 + u32_at(bin_start)];
+    json["buffers"][0]["uri"] = Value::from("hound.bin");
+    let (gltf, bin_path) = (dir.join("hound.gltf"), dir.join("hound.bin"));
+    std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::write(&bin_path, bin).unwrap();
+    (gltf, bin_path)
+}
+
+#[test]
+fn files_read_implicitly_are_never_written_over() {
+    let dir = scratch("implicit-inputs");
+    let walk = dir.join("walk.bvh");
+    std::fs::copy(root().join("assets/motions/walk.bvh"), &walk).unwrap();
+    // A joint mapping beside the clip (read with it), a creature as .glb and as .gltf + .bin, a URDF
+    // with a profile beside it.
+    let mapping = dir.join("walk.mapping.toml");
+    std::fs::write(&mapping, "pelvis = \"Hips\"\n").unwrap();
+    let glb = dir.join("hound.glb");
+    std::fs::copy(root().join("assets/creatures/hound.glb"), &glb).unwrap();
+    let (gltf, bin) = hound_as_gltf(&dir);
+    let urdf = dir.join("stretch.urdf");
+    std::fs::copy(root().join("assets/characters/stretch.urdf"), &urdf).unwrap();
+    let profile = dir.join("stretch.profile.toml");
+    std::fs::write(&profile, "# nothing overridden\n").unwrap();
+    let before = snapshot(&dir);
+    let (hound_ck, stretch_ck) = (root().join("assets/checkpoints/hound"), root().join("assets/checkpoints/stretch"));
+    for (character, checkpoint, out, what) in [
+        (&glb, &hound_ck, &glb, "the character file"),
+        (&gltf, &hound_ck, &bin, "a file of the character's model (buffer or image)"),
+        (&urdf, &stretch_ck, &mapping, &*format!("the joint-mapping file read with {}", walk.display())),
+        (&urdf, &stretch_ck, &profile, "the character's profile"),
+    ] {
+        refused_up_front(
+            &[
+                "retarget",
+                &s(&walk),
+                "--character",
+                &s(character),
+                "--checkpoint",
+                &s(checkpoint),
+                "--out",
+                &s(out),
+            ],
+            &format!(
+                "{}: refusing to write there: it is {what} ({}) this command reads; choose another output path",
+                out.display(),
+                out.display()
+            ),
+        );
+        assert_eq!(snapshot(&dir), before, "{}: a file changed", out.display());
+    }
+}
+
+#[test]
+fn an_output_that_is_a_directory_leaves_the_previous_outputs_alone() {
+    let dir = scratch("directory-output");
+    let out = dir.join("out.glb");
+    std::fs::write(&out, b"previous").unwrap();
+    let metrics = dir.join("out.metrics.json");
+    std::fs::create_dir(&metrics).unwrap();
+    refused_up_front(
+        &["retarget", "assets/motions/walk.bvh", "--character", "stretch", "--out", &s(&out)],
+        &format!(
+            "{}: refusing to write there: it is a directory, and this output is a file; remove the directory or \
+             choose another output path",
+            metrics.display()
+        ),
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous");
+    assert_eq!(names(&dir), ["out.glb", "out.metrics.json"]);
+    assert!(names(&metrics).is_empty());
+}
+
+const TINY_PRIOR: &str =
+    "steps = 40\nbatch_size = 16\ncheckpoint_every = 20\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n";
+const TINY_ACE: &str =
+    "steps = 10\nbatch_size = 8\ncheckpoint_every = 5\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n";
+
+/// A process id that does not exist.
+fn dead_pid() -> u32 {
+    (4_000_000..4_100_000)
+        .find(|p| !Path::new(&format!("/proc/{p}")).exists())
+        .unwrap()
+}
+
+fn run_ok(args: &[&str]) {
+    let o = ace(args);
+    assert!(o.status.success(), "ace {args:?}: {}", stderr(&o));
+}
+
+#[test]
+fn training_removes_temporaries_of_killed_runs_and_its_own_on_sigterm() {
+    let dir = scratch("training-temporaries");
+    let ck = dir.join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    // What a train-prior, train or eval --baselines run killed with SIGKILL leaves in its checkpoint
+    // directory (the saves' temporaries, the loss log's, the FID reference's, a plot's).
+    let dead = dead_pid();
+    let stale = [
+        format!(".prior.{dead}.tmp.safetensors"),
+        format!(".config.{dead}.tmp.json"),
+        format!(".ace.json.{dead}.tmp"),
+        format!(".generator.safetensors.{dead}.tmp.safetensors"),
+        format!(".ace_losses.csv.{dead}.tmp"),
+        format!(".reference.json.{dead}.tmp"),
+        format!(".prior_losses.png.{dead}.tmp"),
+    ];
+    for n in &stale {
+        std::fs::write(ck.join(n), b"half").unwrap();
+    }
+    let notes = ck.join(".notes.txt");
+    std::fs::write(&notes, b"mine").unwrap();
+    let cfg = dir.join("prior.toml");
+    std::fs::write(&cfg, TINY_PRIOR).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&cfg), "--checkpoint", &s(&ck)]);
+    assert_eq!(
+        names(&ck),
+        [".notes.txt", "config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
+        "the stale temporaries are gone, the user's file is kept"
+    );
+
+    // SIGTERM while the prior is saved at every step (networks wide enough that a save takes a while):
+    // the run's own temporaries go with it.
+    let ck = dir.join("ck-signal");
+    let cfg = dir.join("prior-long.toml");
+    let long = "steps = 1000000\nbatch_size = 16\ncheckpoint_every = 1\nencoder_hidden = [1024, 1024]\n\
+                decoder_hidden = [1024, 1024]\n";
+    std::fs::write(&cfg, long).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&cfg), "--checkpoint", &s(&ck)])
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(300);
+    let seen = loop {
+        let tmp = ck.is_dir() && names(&ck).iter().any(|n| n.contains("tmp"));
+        if tmp || Instant::now() > deadline || child.try_wait().unwrap().is_some() {
+            break tmp;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    };
+    assert!(seen, "no temporary seen");
+    assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    let left: Vec<String> = names(&ck).into_iter().filter(|n| n.contains("tmp")).collect();
+    assert!(left.is_empty(), "SIGTERM left {left:?}");
+}
+
+/// `walk.bvh` with its root raised 5 km (5e5 cm: each frame within the importer's bound of 10 km)
+/// from frame `from` on.
+fn walk_raised_from(from: usize) -> String {
+    let text = std::fs::read_to_string(root().join("assets/motions/walk.bvh")).unwrap();
+    let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+    let lines: Vec<String> = motion
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .enumerate()
+        .map(|(f, l)| {
+            let mut v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            if f >= from {
+                v[1] += 5e5; // the root's Yposition (the clip is y-up, in centimetres)
+            }
+            v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    format!("{head}Frame Time: 0.033333\n{}\n", lines.join("\n"))
+}
+
+/// Every file below `dir` with its bytes, inode and modification time: a file rewritten with the same
+/// bytes shows too.
+fn snapshot_with_times(dir: &Path) -> BTreeMap<PathBuf, (Vec<u8>, u64, i64, i64)> {
+    use std::os::unix::fs::MetadataExt;
+    snapshot(dir)
+        .into_iter()
+        .map(|(p, bytes)| {
+            let m = std::fs::metadata(&p).unwrap();
+            (p, (bytes, m.ino(), m.mtime(), m.mtime_nsec()))
+        })
+        .collect()
+}
+
+#[test]
+fn a_failed_train_leaves_the_checkpoint_as_it_was() {
+    let dir = scratch("failed-train");
+    let ck = dir.join("ck");
+    let (prior_cfg, ace_cfg) = (dir.join("prior.toml"), dir.join("ace.toml"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    run_ok(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    assert!(ck.join("reference.json").is_file() && ck.join("ace.json").is_file());
+    // Human clips 5 km up in half their frames: each frame passes the importer, their statistics do
+    // not (one of the two is held out, the other is trained on).
+    let humans = dir.join("humans");
+    std::fs::create_dir_all(&humans).unwrap();
+    for n in ["high-a.bvh", "high-b.bvh"] {
+        std::fs::write(humans.join(n), walk_raised_from(75)).unwrap();
+    }
+    let before = snapshot_with_times(&ck);
+    let o = ace(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", &s(&humans)]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("error: invalid training data: the human clips' x^h entry 0 has mean ")
+            && e.contains("(at most 1000 is plausible): ")
+            && e.contains(&s(&humans.join("high-")))
+            && e.contains("; nothing was trained or saved"),
+        "{e}"
+    );
+    // Not a byte, an inode or a modification time changed: reference.json is written only after
+    // training succeeds.
+    assert_eq!(snapshot_with_times(&ck), before);
 }

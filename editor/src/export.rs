@@ -19,9 +19,9 @@ pub fn export(result: &PreviewResult, out: &Path) -> Result<Written> {
     let (tree, _) = load_character(&inputs.character)?;
     let mut outputs = Outputs::new();
     outputs
-        .input(&inputs.clip, "the input clip")
+        .input_clip(&inputs.clip, "the input clip", None)
         .input(&inputs.checkpoint, "the checkpoint directory")
-        .input(&inputs.character, "the character's file");
+        .input_character(&inputs.character);
     let written = write(&result.retargeted, &tree, &result.clip, out, true, &mut outputs)?;
     outputs.commit()?;
     Ok(written)

@@ -197,6 +197,7 @@ pub fn generate(
     progress: &mut dyn FnMut(usize),
 ) -> Result<MotionSet, DatasetError> {
     check_config(cfg)?;
+    check_budget(cfg, tree, morph)?;
     let rig = rig(tree, morph, cfg)?;
     let layout = CharacterLayout::new(tree, morph);
     let (n, dof, dim, n_feet) = (cfg.frames, tree.dof(), layout.dim(), morph.feet.len());
@@ -268,6 +269,29 @@ pub fn generate(
 /// Most frames a dataset may have: 25 times the paper's 200k, a few GB of states and poses. Checked
 /// before anything is allocated.
 pub const MAX_FRAMES: usize = 5_000_000;
+
+/// Most bytes of states and joint positions a dataset may hold (4 GiB): `frames` × (x^r + DoF) × 4 B.
+/// [`MAX_FRAMES`] of a bundled character stay far below it; 5 million frames of a 1,024-link robot
+/// would take 40 GB. Checked before anything is allocated ([`check_budget`]).
+pub const MAX_DATASET_BYTES: u64 = 4 << 30;
+
+/// Checks that `cfg.frames` of this character fit in [`MAX_DATASET_BYTES`]; the error names `frames`,
+/// the character's DoF and state width, the bytes and the most frames that fit.
+pub fn check_budget(cfg: &DatasetConfig, tree: &KinematicTree, morph: &Morphology) -> Result<(), DatasetError> {
+    let (dof, dim) = (tree.dof(), CharacterLayout::new(tree, morph).dim());
+    let per_frame = 4 * (dim + dof) as u64;
+    let bytes = (cfg.frames as u64).saturating_mul(per_frame);
+    if bytes <= MAX_DATASET_BYTES {
+        return Ok(());
+    }
+    Err(DatasetError::Config(format!(
+        "`frames` = {} of `{}` ({dof} DoF, x^r of {dim} values: {per_frame} bytes a frame) is {bytes} bytes, \
+         more than the {MAX_DATASET_BYTES} a dataset may hold: at most {} frames of this character",
+        cfg.frames,
+        tree.name,
+        MAX_DATASET_BYTES / per_frame
+    )))
+}
 
 /// Checks that every value of `cfg` is in range; errors name the field and the valid range.
 pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {

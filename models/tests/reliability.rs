@@ -84,6 +84,49 @@ fn an_absurd_frame_time_is_an_error() {
     }
 }
 
+/// The walk clip with `frames` motion lines (its own, repeated) at `Frame Time: {frame_time}`.
+fn walk_of(frames: usize, frame_time: &str) -> String {
+    let text = walk();
+    let (head, motion) = text.split_once("MOTION\n").unwrap();
+    let lines: Vec<&str> = motion.lines().skip(2).filter(|l| !l.trim().is_empty()).collect();
+    let body: Vec<&str> = (0..frames).map(|k| lines[k % lines.len()]).collect();
+    format!("{head}MOTION\nFrames: {frames}\nFrame Time: {frame_time}\n{}\n", body.join("\n"))
+}
+
+#[test]
+fn a_long_frame_time_is_not_resampled_into_more_frames_than_memory_holds() {
+    use ace_models::human::bvh::MAX_CLIP_SECONDS;
+    use ace_models::human::import::MAX_RESAMPLED_FRAMES;
+    // 2,000 frames of 10 s each: 20,000 s, 600,000 frames at the project's 30 fps. Refused by the
+    // reader, naming the header (line 134), before any frame is computed.
+    let start = std::time::Instant::now();
+    let opts = ImportOptions { fps: Some(30.0), mapping: None };
+    let e = HumanClip::from_bvh_str(&walk_of(2_000, "10"), "long.bvh", &opts).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "long.bvh, line 134: `Frames: 2000` at `Frame Time: 10` is 20000 s of motion; clips of at most \
+             {MAX_CLIP_SECONDS} s (2 hours) are read: split the clip"
+        )
+    );
+    // Within the reader's two hours, a target frame rate that would make more frames than the limit is
+    // refused too: 700 frames of 10 s (6,990 s) at 100 fps.
+    let opts = ImportOptions { fps: Some(100.0), mapping: None };
+    let e = HumanClip::from_bvh_str(&walk_of(700, "10"), "long.bvh", &opts).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "long.bvh: `Frames: 700` at `Frame Time: 10` (6990 s) resampled to 100 fps would be 699001 frames; \
+             at most {MAX_RESAMPLED_FRAMES} are made: split the clip"
+        )
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(1), "{:?}", start.elapsed());
+    // The same 700 frames at 30 fps (209,700 frames) are within both limits.
+    let opts = ImportOptions { fps: Some(30.0), mapping: None };
+    let clip = HumanClip::from_bvh_str(&walk_of(700, "10"), "long.bvh", &opts).unwrap();
+    assert_eq!(clip.frames.len(), 209_701);
+}
+
 /// A chain of `depth` joints below a root, one frame.
 fn deep_chain(depth: usize) -> String {
     let mut s = String::from("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n");
@@ -445,5 +488,95 @@ fn a_urdf_with_more_links_than_supported_is_refused_before_any_work() {
     for links in [MAX_LINKS + 1, 100_000] {
         let e = parse_urdf(&chain_robot(links), "huge.urdf", None).unwrap_err().to_string();
         assert_eq!(e, format!("huge.urdf: the robot has {links} links, more than the {MAX_LINKS} supported"));
+    }
+}
+
+#[test]
+fn sizes_each_in_range_are_bounded_together_before_any_allocation() {
+    use ace_models::checkpoint::limits::{ACTIVATIONS, HIDDEN_WEIGHTS, STEP_FRAMES};
+    use ace_models::learn::ace::AceConfig;
+    use ace_models::learn::prior::PriorConfig;
+    let ace = |s: &str| toml::from_str::<AceConfig>(s).unwrap().check().unwrap_err().to_string();
+    let prior = |s: &str| toml::from_str::<PriorConfig>(s).unwrap().check().unwrap_err().to_string();
+    let over = |what: &str, v: u128, limit: usize, advice: &str| {
+        format!("invalid configuration: {what} = {v}, more than the {limit} a training step may use; {advice}")
+    };
+    // Every value is within its own bound (batch_size ≤ 65536, window ≤ 1024, widths ≤ 16384, 64 layers).
+    assert_eq!(
+        ace("batch_size = 65536\nwindow = 1024"),
+        over("`batch_size` × `window` (frames per step)", 65536 * 1024, STEP_FRAMES, "lower batch_size or window")
+    );
+    let hidden = format!("generator_hidden = [{}]", vec!["16384"; 64].join(", "));
+    assert_eq!(
+        ace(&hidden),
+        over(
+            "the weights between the hidden layers of `generator_hidden` and `discriminator_hidden`",
+            63 * 16384 * 16384 + 2 * 256 * 256,
+            HIDDEN_WEIGHTS,
+            "use fewer or narrower hidden layers"
+        )
+    );
+    assert_eq!(
+        ace("batch_size = 65536\nwindow = 16\ngenerator_hidden = [4096, 4096]"),
+        over(
+            "`batch_size` × `window` × the widths of `generator_hidden` and `discriminator_hidden` (hidden activations per step)",
+            65536 * 16 * (2 * 4096 + 3 * 256),
+            ACTIVATIONS,
+            "lower batch_size or window, or use fewer or narrower hidden layers"
+        )
+    );
+    assert_eq!(
+        prior("batch_size = 65536\nrollout = 1024"),
+        over("`batch_size` × `rollout` (frames per step)", 65536 * 1024, STEP_FRAMES, "lower batch_size or rollout")
+    );
+    assert_eq!(
+        prior("experts = 256\ndecoder_hidden = [4096, 4096, 4096, 4096]"),
+        over(
+            "the weights between the hidden layers of `encoder_hidden`, `experts` × `decoder_hidden` and `gating_hidden`",
+            3 * 256 * 256 + 256 * 3 * 4096 * 4096 + 64 * 64,
+            HIDDEN_WEIGHTS,
+            "use fewer experts or fewer or narrower hidden layers"
+        )
+    );
+    // The defaults and the paper's sizes are well within.
+    for cfg in [AceConfig::default(), AceConfig::paper()] {
+        cfg.check().unwrap();
+    }
+    for cfg in [PriorConfig::default(), PriorConfig::paper()] {
+        cfg.check().unwrap();
+    }
+}
+
+#[test]
+fn a_dataset_too_large_for_its_character_is_refused_before_allocation() {
+    use ace_models::character_state::CharacterLayout;
+    use ace_models::dataset::{DatasetConfig, MAX_DATASET_BYTES, MAX_FRAMES, check_budget, generate};
+    use ace_models::urdf::MAX_LINKS;
+    // The longest chain a URDF may have, and as many frames as `frames` allows: 40 GB of states.
+    let tree = parse_urdf(&chain_robot(MAX_LINKS), "long.urdf", None).unwrap();
+    let morph = ace_models::morphology::Morphology::analyze(&tree);
+    let dim = CharacterLayout::new(&tree, &morph).dim();
+    let cfg = DatasetConfig {
+        frames: MAX_FRAMES,
+        ..DatasetConfig::default()
+    };
+    let per_frame = 4 * (dim + 1023) as u64;
+    let expected = format!(
+        "invalid dataset configuration: `frames` = 5000000 of `chain` (1023 DoF, x^r of {dim} values: {per_frame} bytes a \
+         frame) is {} bytes, more than the {MAX_DATASET_BYTES} a dataset may hold: at most {} frames of this character",
+        5_000_000 * per_frame,
+        MAX_DATASET_BYTES / per_frame
+    );
+    assert_eq!(check_budget(&cfg, &tree, &morph).unwrap_err().to_string(), expected);
+    // `generate` refuses it the same way, before its first allocation (no progress is reported).
+    let start = std::time::Instant::now();
+    let mut reported = false;
+    let e = generate(&tree, &morph, &cfg, &mut |_| reported = true).unwrap_err().to_string();
+    assert_eq!(e, expected);
+    assert!(!reported && start.elapsed() < std::time::Duration::from_secs(1));
+    // The bundled characters fit at MAX_FRAMES.
+    for name in ["spot", "crab", "stretch"] {
+        let (tree, morph) = ace_models::morphology::load_character(&asset(&format!("assets/characters/{name}.urdf"))).unwrap();
+        check_budget(&cfg, &tree, &morph).unwrap();
     }
 }

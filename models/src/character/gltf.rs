@@ -32,7 +32,7 @@
 //!   [`fit_capsule`]); a foot gets the sphere of its contact instead. UFR, the cleanup and the
 //!   controllers use them as they use URDF geometry.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use ::gltf::animation::util::ReadOutputs;
 use nalgebra::{
@@ -813,6 +813,37 @@ pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<String>, GltfEr
             ::gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => Some(percent_decode(uri)),
             _ => None,
         })
+        .collect())
+}
+
+/// Every other file the glTF file at `path` reads: its buffers' and its images' URIs that are not
+/// data URIs, percent-decoded and relative to the file's folder (what [`open`] and the rig export read
+/// beside it). Empty for a self-contained file. Commands register them as inputs, never to be written
+/// over.
+pub fn external_files(path: &Path) -> Result<Vec<PathBuf>, GltfError> {
+    let fail = |p: GltfProblem| p.in_file(path);
+    let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    if !meta.is_file() {
+        return Err(fail(GltfProblem::NotAFile));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(fail(GltfProblem::TooLarge(meta.len())));
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    let gltf = ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf.document.buffers().filter_map(|b| match b.source() {
+        ::gltf::buffer::Source::Uri(uri) => Some(uri),
+        ::gltf::buffer::Source::Bin => None,
+    });
+    let images = gltf.document.images().filter_map(|i| match i.source() {
+        ::gltf::image::Source::Uri { uri, .. } => Some(uri),
+        ::gltf::image::Source::View { .. } => None,
+    });
+    Ok(buffers
+        .chain(images)
+        .filter(|uri| !uri.starts_with("data:"))
+        .map(|uri| base.join(percent_decode(uri)))
         .collect())
 }
 

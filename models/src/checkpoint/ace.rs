@@ -144,6 +144,22 @@ impl AceConfig {
         in_range("discriminator_steps", self.discriminator_steps, 0, 1_000)?;
         limits::widths("generator_hidden", &self.generator_hidden)?;
         limits::widths("discriminator_hidden", &self.discriminator_hidden)?;
+        // What the sizes come to together.
+        let frames = self.batch_size as u128 * self.window as u128;
+        limits::budget("`batch_size` × `window` (frames per step)", frames, limits::STEP_FRAMES, "lower batch_size or window")?;
+        let (g, d) = (&self.generator_hidden, &self.discriminator_hidden);
+        limits::budget(
+            "the weights between the hidden layers of `generator_hidden` and `discriminator_hidden`",
+            limits::hidden_weights(g) + limits::hidden_weights(d),
+            limits::HIDDEN_WEIGHTS,
+            "use fewer or narrower hidden layers",
+        )?;
+        limits::budget(
+            "`batch_size` × `window` × the widths of `generator_hidden` and `discriminator_hidden` (hidden activations per step)",
+            frames * (limits::width_sum(g) + limits::width_sum(d)),
+            limits::ACTIVATIONS,
+            "lower batch_size or window, or use fewer or narrower hidden layers",
+        )?;
         self.feature_weights.check().map_err(LearnError::Config)?;
         for (name, v) in [
             ("generator_lr", self.generator_lr),

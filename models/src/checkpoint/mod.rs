@@ -118,6 +118,43 @@ pub mod limits {
     /// Latent dimensions and experts.
     pub const LATENT: usize = 4_096;
 
+    // The sizes above are bounded one at a time; their products are bounded below, so that no
+    // combination of values in range asks for more memory than a workstation has.
+
+    /// Frames one optimiser step rolls out at once (`batch_size` × `window`, or × `rollout` for the
+    /// prior): 2²⁰. The paper's settings use 2,048.
+    pub const STEP_FRAMES: usize = 1 << 20;
+    /// Weights between the hidden layers of a stage's networks together (each expert counted), 2²⁷:
+    /// half a gigabyte of `f32`, two with the gradients and Adam's moments. The layers into and out of
+    /// the hidden ones, sized by the character, come on top. The paper's prior has 4.2 million.
+    pub const HIDDEN_WEIGHTS: usize = 1 << 27;
+    /// Hidden activations one optimiser step keeps for its gradients (frames per step × the hidden
+    /// widths summed, each expert's counted), 2²⁸: a gigabyte of `f32`. The paper's settings use 7
+    /// million.
+    pub const ACTIVATIONS: usize = 1 << 28;
+
+    /// Weights between consecutive hidden layers of widths `w`.
+    pub fn hidden_weights(w: &[usize]) -> u128 {
+        w.windows(2).map(|p| p[0] as u128 * p[1] as u128).sum()
+    }
+
+    /// The sum of the widths `w`.
+    pub fn width_sum(w: &[usize]) -> u128 {
+        w.iter().map(|&v| v as u128).sum()
+    }
+
+    /// `Err` saying that `what` (naming the fields) comes to `value`, over `limit`, and `advice` (which
+    /// fields to lower) unless `value ≤ limit`.
+    pub fn budget(what: &str, value: u128, limit: usize, advice: &str) -> Result<(), super::LearnError> {
+        if value <= limit as u128 {
+            Ok(())
+        } else {
+            Err(super::LearnError::Config(format!(
+                "{what} = {value}, more than the {limit} a training step may use; {advice}"
+            )))
+        }
+    }
+
     /// `Err` naming `field`, its value and the valid range unless `lo ≤ v ≤ hi`.
     pub fn in_range(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), super::LearnError> {
         if (lo..=hi).contains(&v) {

@@ -210,6 +210,24 @@ impl PriorConfig {
         limits::widths("encoder_hidden", &self.encoder_hidden)?;
         limits::widths("decoder_hidden", &self.decoder_hidden)?;
         limits::widths("gating_hidden", &self.gating_hidden)?;
+        // What the sizes come to together (the decoder's experts each have their own weights and, in the
+        // blend, their own activations).
+        let frames = self.batch_size as u128 * self.rollout as u128;
+        limits::budget("`batch_size` × `rollout` (frames per step)", frames, limits::STEP_FRAMES, "lower batch_size or rollout")?;
+        let experts = self.experts as u128;
+        let (e, d, g) = (&self.encoder_hidden, &self.decoder_hidden, &self.gating_hidden);
+        limits::budget(
+            "the weights between the hidden layers of `encoder_hidden`, `experts` × `decoder_hidden` and `gating_hidden`",
+            limits::hidden_weights(e) + experts * limits::hidden_weights(d) + limits::hidden_weights(g),
+            limits::HIDDEN_WEIGHTS,
+            "use fewer experts or fewer or narrower hidden layers",
+        )?;
+        limits::budget(
+            "`batch_size` × `rollout` × the widths of `encoder_hidden`, `experts` × `decoder_hidden` and `gating_hidden` (hidden activations per step)",
+            frames * (limits::width_sum(e) + experts * limits::width_sum(d) + limits::width_sum(g)),
+            limits::ACTIVATIONS,
+            "lower batch_size or rollout, or use fewer experts or fewer or narrower hidden layers",
+        )?;
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
             return bad(format!(
                 "learning_rate must be positive, not {}",

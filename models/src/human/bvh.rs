@@ -16,6 +16,12 @@ pub const MAX_CHANNELS_PER_JOINT: usize = 12;
 /// one frame when resampled).
 pub const FRAME_TIME_RANGE: (f32, f32) = (1e-3, 10.0);
 
+/// Longest clip accepted, seconds (`Frames:` × `Frame Time:`): two hours. Checked once the motion
+/// lines are read (their storage is bounded by the file's size), before anything is made of them: a
+/// clip is resampled to the project's frame rate after import, so 100,000 frames of `Frame Time: 10`
+/// (a 13 MB file) would otherwise become 30 million frames, many gigabytes.
+pub const MAX_CLIP_SECONDS: f64 = 7200.0;
+
 /// A coordinate axis of the file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Axis {
@@ -167,7 +173,7 @@ impl Bvh {
                 ));
             }
         };
-        let frame_time = match header.next() {
+        let (frame_time_line, frame_time_text, frame_time) = match header.next() {
             Some((i, l)) => {
                 let rest = strip_keyword(l, &["Frame Time:", "FrameTime:"]).ok_or_else(|| {
                     err(
@@ -198,7 +204,7 @@ impl Bvh {
                         ),
                     ));
                 }
-                t
+                (i + 1, rest.trim(), t)
             }
             None => {
                 return Err(err(
@@ -276,6 +282,18 @@ impl Bvh {
                 declared: frame_count,
                 found,
             });
+        }
+        // The frames are all there (a header that lies about their count is said to, above); whatever
+        // is made of them later stays bounded.
+        let seconds = frame_count as f64 * f64::from(frame_time);
+        if seconds > MAX_CLIP_SECONDS {
+            return Err(err(
+                frame_time_line,
+                format!(
+                    "`Frames: {frame_count}` at `Frame Time: {frame_time_text}` is {seconds:.0} s of motion; \
+                     clips of at most {MAX_CLIP_SECONDS} s (2 hours) are read: split the clip"
+                ),
+            ));
         }
         Ok(Bvh {
             joints,

@@ -36,6 +36,11 @@ pub const MAX_FILE_LENGTH: f32 = 1e7;
 /// its yaw stays far below it).
 pub const MAX_ROTATION_DEG: f32 = 1e6;
 
+/// Most frames a clip is resampled into ([`ImportOptions::fps`]): two hours at 60 fps. With the
+/// reader's [`super::bvh::MAX_CLIP_SECONDS`] it bounds what resampling allocates whatever the target
+/// frame rate; it is checked on the header, before any frame is computed.
+pub const MAX_RESAMPLED_FRAMES: usize = 432_000;
+
 /// What the importer detected about a file, for diagnostics and user-facing reports.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImportReport {
@@ -80,6 +85,9 @@ pub fn import_with_report(
     opts: &ImportOptions,
 ) -> Result<(HumanClip, ImportReport), HumanImportError> {
     let bvh = Bvh::parse(text, file)?;
+    if let Some(fps) = opts.fps {
+        check_resampling(&bvh, fps, file)?;
+    }
     check_values(&bvh, file)?;
     let user = opts.mapping.as_ref();
     let map = SkeletonMap::build(&bvh, user, file)?;
@@ -162,12 +170,6 @@ pub fn import_with_report(
         source_joints: map.source_names(&bvh),
     };
     if let Some(fps) = opts.fps {
-        if !(fps.is_finite() && fps > 0.0) {
-            return Err(HumanImportError::Skeleton {
-                file: file.to_string(),
-                message: format!("invalid target frame rate {fps}"),
-            });
-        }
         clip = clip.resampled(fps);
     }
     let report = ImportReport {
@@ -179,6 +181,31 @@ pub fn import_with_report(
         height_m,
     };
     Ok((clip, report))
+}
+
+/// Refuses a target frame rate that is not a positive number, or that would resample the clip into
+/// more than [`MAX_RESAMPLED_FRAMES`] frames, from the header alone (before anything is allocated).
+fn check_resampling(bvh: &Bvh, fps: f32, file: &str) -> Result<(), HumanImportError> {
+    let refuse = |message: String| {
+        Err(HumanImportError::Skeleton {
+            file: file.to_string(),
+            message,
+        })
+    };
+    if !(fps.is_finite() && fps > 0.0) {
+        return refuse(format!("invalid target frame rate {fps}"));
+    }
+    // As `HumanClip::resampled` counts them (fewer when leading rest frames are dropped).
+    let seconds = bvh.frame_count.saturating_sub(1) as f32 / snap_fps(1.0 / bvh.frame_time);
+    let frames = f64::from((seconds * fps + 1e-3).floor()) + 1.0;
+    if frames > MAX_RESAMPLED_FRAMES as f64 {
+        return refuse(format!(
+            "`Frames: {}` at `Frame Time: {}` ({seconds:.0} s) resampled to {fps} fps would be {frames:.0} \
+             frames; at most {MAX_RESAMPLED_FRAMES} are made: split the clip",
+            bvh.frame_count, bvh.frame_time
+        ));
+    }
+    Ok(())
 }
 
 /// Refuses skeletons without geometry and absurd rotation values, before any inference on them.

@@ -82,12 +82,18 @@ pub(crate) fn open_losses(
             }
         }
     }
-    let tmp = path.with_extension("csv.tmp");
+    // Named `.<name>.<pid>.tmp`, as every temporary of the project, so that a run killed before the
+    // rename leaves one the next run recognises and removes.
+    let name = path.file_name().map_or_else(|| "losses".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
     let mut text = kept.join("\n");
     text.push('\n');
     fs::write(&tmp, text)
         .and_then(|_| fs::rename(&tmp, path))
-        .map_err(|e| LearnError::io(path, e))?;
+        .map_err(|e| {
+            let _ = fs::remove_file(&tmp);
+            LearnError::io(path, e)
+        })?;
     let f = fs::OpenOptions::new()
         .append(true)
         .open(path)

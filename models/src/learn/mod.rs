@@ -38,6 +38,11 @@ pub fn default_device() -> Device {
     Device::cuda_if_available()
 }
 
+/// How many CUDA devices libtorch sees on this machine (0 with a CPU-only libtorch or no GPU).
+pub fn cuda_devices() -> usize {
+    usize::try_from(tch::Cuda::device_count()).unwrap_or(0)
+}
+
 /// Sets how many threads libtorch's CPU kernels use (intra-op parallelism).
 pub fn set_threads(n: i32) {
     tch::set_num_threads(n.max(1));

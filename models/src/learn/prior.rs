@@ -77,6 +77,27 @@ impl DeviceChoice {
             DeviceChoice::Cuda(n) => Device::Cuda(n),
         }
     }
+
+    /// Fails, naming the `device` field and what is valid, unless libtorch can use this device here:
+    /// `"auto"` and `"cpu"` always, `"cuda:N"` when libtorch sees more than N CUDA devices. Training
+    /// checks it before any work (libtorch aborts the process on a device it does not have); a stored
+    /// checkpoint's device is not checked when it is only loaded.
+    pub fn check_available(self) -> Result<(), LearnError> {
+        let DeviceChoice::Cuda(n) = self else { return Ok(()) };
+        let count = super::cuda_devices();
+        if n < count {
+            return Ok(());
+        }
+        let seen = match count {
+            0 => "no CUDA device".to_string(),
+            1 => "1 CUDA device (\"cuda:0\")".to_string(),
+            c => format!("{c} CUDA devices (\"cuda:0\" to \"cuda:{}\")", c - 1),
+        };
+        Err(LearnError::Config(format!(
+            "`device` = \"cuda:{n}\" is not available: libtorch sees {seen} on this machine; use \"cpu\" or \"auto\"{}",
+            if count > 0 { " or one of those" } else { "" }
+        )))
+    }
 }
 
 /// The losses of one transition, as tensors (scalars but for `prediction`).
@@ -365,6 +386,7 @@ pub fn train_prior_with(
     progress: &mut dyn FnMut(&PriorProgress),
 ) -> Result<MotionPrior, LearnError> {
     cfg.check()?;
+    cfg.device.check_available()?;
     let dim = set.layout.dim();
     if mask.len() != dim {
         return Err(LearnError::Data(format!(

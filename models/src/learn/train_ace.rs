@@ -165,6 +165,7 @@ pub fn train_ace(
     progress: &mut dyn FnMut(&AceProgress),
 ) -> Result<AceCheckpoint, LearnError> {
     cfg.check()?;
+    cfg.device.check_available()?;
     let prior = inputs.prior;
     let device = prior.prior.device();
     check_inputs(inputs, run_dir)?;
@@ -812,6 +813,59 @@ mod tests {
     use super::*;
     use crate::learn::ace::{DISCRIMINATOR_FILE, GENERATOR_FILE, read_record};
     use crate::learn::prior::test_support::{assert_weights, scratch_dir};
+
+    /// `walk.bvh` with its root raised 5 km (5e5 cm: within the importer's bound of 10 km) from
+    /// frame `from` on.
+    fn walk_raised_from(from: usize) -> String {
+        let text = fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh")).unwrap();
+        let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+        let lines: Vec<String> = motion
+            .lines()
+            .filter(|l| !l.trim().is_empty())
+            .enumerate()
+            .map(|(f, l)| {
+                let mut v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                if f >= from {
+                    v[1] += 5e5; // the root's Yposition (the clip is y-up, in centimetres)
+                }
+                v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+            })
+            .collect();
+        format!("{head}Frame Time: 0.033333\n{}\n", lines.join("\n"))
+    }
+
+    #[test]
+    fn implausible_human_statistics_are_refused_naming_the_clip() {
+        // The bundled clips are plausible.
+        let bundled = bundled_humans();
+        check_human_stats(bundled, &bundled.train_statistics()).unwrap();
+        // A clip 5 km up in half its frames imports (each frame is within 10 km) but its root height
+        // makes the training statistics absurd: refused, naming the entry and the clip.
+        let dir = scratch_dir("human_stats");
+        fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh"), dir.join("walk.bvh")).unwrap();
+        fs::write(dir.join("high.bvh"), walk_raised_from(75)).unwrap();
+        let opts = crate::human_set::HumanSetOptions {
+            held_out_fraction: 0.0,
+            ..Default::default()
+        };
+        let set = HumanSet::load(&dir, &opts, &mut |_| {}).unwrap();
+        assert!(set.skipped.is_empty(), "{:?}", set.skipped.iter().map(|s| &s.error).collect::<Vec<_>>());
+        let stats = set.train_statistics();
+        let high = set.clips.iter().find(|c| c.relative == "high.bvh").unwrap();
+        let reach = high.states.iter().map(|s| s[0].abs()).fold(0.0f32, f32::max);
+        assert!(stats.mean[0] > MAX_HUMAN_STAT && reach > 4_000.0, "{} {reach}", stats.mean[0]);
+        assert_eq!(
+            check_human_stats(&set, &stats).unwrap_err().to_string(),
+            format!(
+                "invalid training data: the human clips' x^h entry 0 has mean {} and standard deviation {} (at most \
+                 1000 is plausible): {} reaches {reach}; nothing was trained or saved",
+                stats.mean[0],
+                stats.std[0],
+                high.path.display()
+            )
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn fine_tuning_continues_the_networks_under_new_weights_and_mapping() {
