@@ -125,6 +125,8 @@ pub struct Overrides {
     pub dofs: BTreeMap<String, Vec<String>>,
     /// Joint (`bone:axis`) → limits (rad).
     pub limits: BTreeMap<String, [f32; 2]>,
+    /// Bones that also slide along their rest axes (prismatic DoFs `bone:x`, `bone:y`, `bone:z`).
+    pub translate: Vec<String>,
 }
 
 /// What the analysis decided, for `ace inspect` and the warnings.
@@ -159,6 +161,9 @@ pub struct BoneJoint {
     pub link: usize,
     /// DoF of its yaw, pitch and roll axis, where it has one.
     pub dofs: [Option<usize>; 3],
+    /// DoF of its slide along the x, y and z axis of its rest frame (m), where it has one
+    /// ([`Overrides::translate`]); applied before its turns.
+    pub slides: [Option<usize>; 3],
     /// Its axes in the character frame at rest: columns roll (x), pitch (y), yaw (z).
     pub basis: Matrix3<f32>,
 }
@@ -633,7 +638,8 @@ pub fn build(
             }
         }
         let axes: Vec<usize> = (0..3).filter(|&k| limits[k].is_some()).collect();
-        if axes.is_empty() {
+        let slides = ov.translate.iter().any(|n| *n == bone.name);
+        if axes.is_empty() && !slides {
             if b != root && in_body[b] {
                 plan.at_rest.push(bone.name.clone());
             }
@@ -652,30 +658,45 @@ pub fn build(
         let m = basis.get(&b).copied().unwrap_or_else(Matrix3::identity);
         let to_bone = bone.rest.rotation.inverse();
         let mut parent_link = parent_link;
-        let mut dofs = [None; 3];
-        for (n, &k) in axes.iter().enumerate() {
-            dofs[k] = Some(dof);
+        // Joints in order: the slides along the rest frame's x, y, z, then the turns; the first carries
+        // the bone's offset and the last link is the bone's own.
+        let mut joints: Vec<(String, JointKind, Vector3<f32>, (f32, f32))> = Vec::new();
+        if slides {
+            let reach = 10.0 * extent;
+            for (k, a) in ["x", "y", "z"].into_iter().enumerate() {
+                joints.push((a.to_owned(), JointKind::Prismatic, Vector3::ith(k, 1.0), (-reach, reach)));
+            }
+        }
+        for &k in &axes {
             let world_axis: Vector3<f32> = m.column(2 - k).into_owned();
-            let axis = nalgebra::Unit::new_normalize(to_bone * world_axis);
-            let (lo, hi) = limits[k].expect("kept axis");
-            let last = n + 1 == axes.len();
+            joints.push((AXES[k].to_owned(), JointKind::Revolute, to_bone * world_axis, limits[k].expect("kept axis")));
+        }
+        let mut dofs = [None; 3];
+        let mut slide_dofs = [None; 3];
+        let count = joints.len();
+        for (n, (axis_name, kind, axis, (lo, hi))) in joints.into_iter().enumerate() {
+            match AXES.iter().position(|a| *a == axis_name) {
+                Some(k) if kind == JointKind::Revolute => dofs[k] = Some(dof),
+                _ => slide_dofs[n] = Some(dof),
+            }
+            let last = n + 1 == count;
             let link_name = if last {
                 bone.name.clone()
             } else {
-                format!("{}:{}", bone.name, AXES[k])
+                format!("{}:{axis_name}", bone.name)
             };
             links.push(Link {
                 name: link_name,
                 parent: Some(parent_link),
                 joint: Some(JointSpec {
-                    name: format!("{}:{}", bone.name, AXES[k]),
-                    kind: JointKind::Revolute,
+                    name: format!("{}:{axis_name}", bone.name),
+                    kind,
                     origin: if n == 0 {
                         origin
                     } else {
                         Isometry3::identity()
                     },
-                    axis,
+                    axis: nalgebra::Unit::new_normalize(axis),
                     limits: Some(Limits {
                         lower: lo,
                         upper: hi,
@@ -693,8 +714,8 @@ pub fn build(
             parent_link = links.len() - 1;
         }
         link_of[b] = links.len() - 1;
-        plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, basis: m });
-        plan.roles.insert(bone.name.clone(), role[&b].label());
+        plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, slides: slide_dofs, basis: m });
+        plan.roles.insert(bone.name.clone(), role.get(&b).map_or("slide", |r| r.label()));
     }
     // Deforming helpers follow the body bone their vertices went to.
     for (&h, &host) in &helper_host {

@@ -70,6 +70,7 @@ pub fn creature_from_document(
         at_rest: profile.at_rest.clone(),
         dofs: profile.dofs.clone(),
         limits: profile.limits.clone(),
+        translate: profile.translate.clone(),
     };
     let (mut tree, mut morphology, plan) =
         body_plan::build(&rig, &name, &ov).map_err(|p| ProfileError {
