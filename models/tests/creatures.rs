@@ -242,8 +242,11 @@ fn rest_pose_forward_kinematics_is_the_skins_bind_pose() {
             let Some(m) = at(&link.name) else { continue };
             let want = to_char(m.fixed_view::<3, 1>(0, 3).into_owned()) * c.scale - origin;
             let got = fk[l].translation.vector;
+            // A deforming helper hangs off its host where the clips hold it (the Spider's IK feet 3.5 cm
+            // nearer the ends of its legs than bound), in its bind orientation.
+            let helper = c.plan.helpers.contains(&link.name);
             assert!(
-                (want - got).norm() <= 1e-4 * size,
+                helper || (want - got).norm() <= 1e-4 * size,
                 "{file}: {} at {got:?}, the bind pose says {want:?}",
                 link.name
             );

@@ -1,7 +1,8 @@
 //! The body plan of a rigged creature, and the [`KinematicTree`] and [`Morphology`] built from it.
 //!
 //! Works on the bones [`super::gltf::read`] found, at rest, in the character frame, with a capsule per
-//! bone fitted to the vertices it deforms. Nothing depends on bone names.
+//! bone fitted to the vertices it deforms most, thinned where it would reach below the creature at rest
+//! ([`super::proxy::above_floor`]). Nothing depends on bone names.
 //!
 //! # Limbs
 //! A *branching* bone has two or more children. The children of the body root and of branching bones
@@ -11,7 +12,9 @@
 //! Then, with `H` the creature's height, `S` its largest extent and `W` its width at rest:
 //! - **Feet**: limbs of two or more bones whose lowest vertex (of the tip and its fingers/toes) is
 //!   within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
-//!   The foot point is that vertex, and the foot's collision shape the sphere resting on it.
+//!   The foot point is that vertex (for a paw that an IK helper holds, the point under the helper's
+//!   origin at that height: see [`super::helpers`]), and the foot's collision shape the sphere resting
+//!   on it.
 //! - **Head**: of the limbs whose tip is near the mid-plane (`|y| < 10 % W` from the body root) and
 //!   that deform at least 30 % as many vertices as the largest such limb (a head, not a tongue), the
 //!   one whose tip is farthest forward.
@@ -39,6 +42,7 @@ use std::collections::BTreeMap;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 
 use super::gltf::{Rig, fit_capsule};
+use super::{helpers, proxy};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link};
 use crate::morphology::Morphology;
@@ -228,9 +232,10 @@ pub fn build(
         ..Default::default()
     };
 
-    // Each vertex goes to its heaviest body bone. Vertices that only helpers deform (an IK foot hanging
-    // off the root) go to the helper's host: the end of a body chain nearest to the helper, which is
-    // where an IK target sits; the helper then follows that bone as a fixed link.
+    // Each vertex goes to its heaviest bone; a vertex that a helper deforms most (an IK foot hanging off
+    // the root) goes to the helper's host: the end of a body chain nearest to the helper, which is where an
+    // IK target sits; the helper then follows that bone as a fixed link, where the clips hold it
+    // ([`super::helpers`]), and moves its vertices there with it.
     let leaves: Vec<usize> = body
         .iter()
         .copied()
@@ -244,23 +249,29 @@ pub fn build(
             .min_by(|&a, &b| (pos0(a) - p).norm().total_cmp(&(pos0(b) - p).norm()))
             .unwrap_or(root)
     };
-    let mut owned: Vec<Vec<Point3<f32>>> = vec![Vec::new(); nb];
+    let heaviest = |w: &[(usize, f32)]| w.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|&(b, _)| b);
     let mut helper_host: BTreeMap<usize, usize> = BTreeMap::new();
+    for (_, w) in &rig.vertices {
+        if let Some(h) = heaviest(w).filter(|&h| !in_body[h]) {
+            helper_host.entry(h).or_insert_with(|| host_of(h));
+        }
+    }
+    let held = helpers::held_offsets(rig, &helper_host);
+    // A helper's move from its bind offset, at rest in the character frame.
+    let shift: BTreeMap<usize, Vector3<f32>> = held
+        .iter()
+        .map(|(&h, at)| {
+            let host = &rig.bones[helper_host[&h]].rest;
+            (h, host * Point3::from(*at) - Point3::from(rig.bones[h].rest.translation.vector))
+        })
+        .collect();
+    let mut owned: Vec<Vec<Point3<f32>>> = vec![Vec::new(); nb];
     for (p, w) in &rig.vertices {
-        let heaviest = |body_only: bool| {
-            w.iter()
-                .filter(|(b, _)| !body_only || in_body[*b])
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|&(b, _)| b)
-        };
-        match heaviest(true) {
-            Some(b) => owned[b].push(*p),
-            None => {
-                if let Some(h) = heaviest(false) {
-                    let host = *helper_host.entry(h).or_insert_with(|| host_of(h));
-                    owned[host].push(*p);
-                }
-            }
+        let p = w.iter().filter_map(|(b, wb)| shift.get(b).map(|s| s * *wb)).fold(*p, |p, s| p + s);
+        match heaviest(w) {
+            Some(b) if in_body[b] => owned[b].push(p),
+            Some(h) => owned[helper_host[&h]].push(p),
+            None => {}
         }
     }
     for i in 0..nb {
@@ -416,6 +427,15 @@ pub fn build(
             if let Some(i) = limbs.iter().position(|l| l.path.contains(&b)) {
                 foot_limbs.push(i);
             }
+        }
+    }
+    // A paw that a helper holds pivots about the helper's origin: its contact is under the pivot (the
+    // top of the helpers on the foot, e.g. an IK foot rather than its toes).
+    for (f, p) in feet.iter_mut() {
+        let on_foot: Vec<usize> = helper_host.iter().filter(|&(_, &host)| host == *f).map(|(&h, _)| h).collect();
+        let top = on_foot.iter().copied().find(|&h| rig.bones[h].parent.is_none_or(|q| !on_foot.contains(&q)));
+        if let Some(h) = top {
+            *p = helpers::under_pivot(&(rig.bones[*f].rest * Point3::from(held[&h])), p);
         }
     }
     if feet.is_empty() {
@@ -584,7 +604,12 @@ pub fn build(
     warnings.extend(plan.warnings.iter().cloned());
     for &b in &body {
         let bone = &rig.bones[b];
-        let geometry: Vec<Geometry> = capsules[b].iter().cloned().collect();
+        // A proxy reaching below the creature at rest would be in the ground where the mesh is not (a
+        // foot's becomes its contact sphere).
+        let geometry: Vec<Geometry> = capsules[b]
+            .iter()
+            .map(|g| if feet.iter().any(|&(f, _)| f == b) { g.clone() } else { proxy::above_floor(g, &bone.rest, ground) })
+            .collect();
         let mass = geometry.iter().map(|g| capsule_mass(&g.shape)).sum();
         if b == root {
             // The root link is upright at rest (the character frame at the body root); the root bone
@@ -717,9 +742,10 @@ pub fn build(
         plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, slides: slide_dofs, basis: m });
         plan.roles.insert(bone.name.clone(), role.get(&b).map_or("slide", |r| r.label()));
     }
-    // Deforming helpers follow the body bone their vertices went to.
+    // Deforming helpers follow the body bone their vertices went to, where the clips hold them.
     for (&h, &host) in &helper_host {
-        let origin = rig.bones[host].rest.inverse() * rig.bones[h].rest;
+        let mut origin = rig.bones[host].rest.inverse() * rig.bones[h].rest;
+        origin.translation.vector = held[&h];
         links.push(Link {
             name: rig.bones[h].name.clone(),
             parent: Some(link_of[host]),

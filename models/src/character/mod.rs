@@ -5,6 +5,8 @@
 pub mod body_plan;
 pub mod clips;
 pub mod gltf;
+pub mod helpers;
+pub mod proxy;
 pub mod rig_pose;
 
 use std::path::Path;
