@@ -686,3 +686,184 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
         }
     }
 }
+
+// ---- The creatures' own clips by the UFR detectors (issue 13) ------------------------------------
+
+/// The skinned mesh's triangles as indices into the rig's vertices (which keep the file's order).
+fn triangles(path: &Path, c: &Creature) -> Vec<[usize; 3]> {
+    let g = gltf::Gltf::open(path).unwrap();
+    let data = buffers(path, &g);
+    let skin = c.rig.skins.iter().position(|s| s.used).unwrap();
+    let (mut base, mut out) = (0, Vec::new());
+    for nd in g.nodes().filter(|n| n.skin().is_some_and(|s| s.index() == skin)) {
+        for p in nd.mesh().unwrap().primitives() {
+            let r = p.reader(|b| Some(&data[b.index()]));
+            let n = r.read_positions().unwrap().len();
+            let idx: Vec<usize> = r.read_indices().map_or((0..n).collect(), |i| i.into_u32().map(|x| x as usize).collect());
+            out.extend(idx.chunks(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+            base += n;
+        }
+    }
+    assert_eq!(base, c.rig.vertices.len(), "every vertex is skinned");
+    out
+}
+
+/// Whether triangles `a` and `b` cross: an edge of one passes through the other (Möller–Trumbore).
+fn triangles_cross(a: [Point3<f32>; 3], b: [Point3<f32>; 3]) -> bool {
+    let edge_hits = |p: Point3<f32>, q: Point3<f32>, t: &[Point3<f32>; 3]| {
+        let (d, e1, e2) = (q - p, t[1] - t[0], t[2] - t[0]);
+        let h = d.cross(&e2);
+        let det = e1.dot(&h);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = p - t[0];
+        let u = s.dot(&h) / det;
+        let k = s.cross(&e1);
+        let v = d.dot(&k) / det;
+        let w = e2.dot(&k) / det;
+        (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&w)
+    };
+    (0..3).any(|i| edge_hits(a[i], a[(i + 1) % 3], &b)) || (0..3).any(|i| edge_hits(b[i], b[(i + 1) % 3], &a))
+}
+
+/// The crossing triangle pairs between two sets of triangles (pairs sharing a vertex left out).
+fn crossings(tris: &[[usize; 3]], v: &[Point3<f32>], a: &[usize], b: &[usize]) -> std::collections::BTreeSet<(usize, usize)> {
+    let corners = |t: usize| tris[t].map(|i| v[i]);
+    let bounds = |t: usize| {
+        let c = corners(t);
+        (c.iter().fold(Vector3::repeat(f32::INFINITY), |m, p| m.inf(&p.coords)), c.iter().fold(Vector3::repeat(f32::NEG_INFINITY), |m, p| m.sup(&p.coords)))
+    };
+    let mut out = std::collections::BTreeSet::new();
+    for &i in a {
+        let (lo, hi) = bounds(i);
+        for &j in b {
+            let (lo2, hi2) = bounds(j);
+            let apart = (0..3).any(|k| hi[k] < lo2[k] || hi2[k] < lo[k]);
+            let shared = tris[i].iter().any(|&x| tris[j].iter().any(|&y| (v[x] - v[y]).norm() < 1e-7));
+            if !apart && !shared && triangles_cross(corners(i), corners(j)) {
+                out.insert((i.min(j), i.max(j)));
+            }
+        }
+    }
+    out
+}
+
+/// One clip of a creature by the UFR detectors, beside what its skinned mesh does.
+#[derive(Default)]
+struct OwnClip {
+    frames: usize,
+    /// Frames the detectors flag.
+    collision: usize,
+    penetration: usize,
+    /// Of those, frames where the mesh does not: no two parts whose capsules collide cross where they
+    /// do not cross at rest / no vertex more than the penetration depth below the ground.
+    false_collision: usize,
+    false_penetration: usize,
+    /// Frames where the mesh itself is below the ground by more than the penetration depth.
+    mesh_below: usize,
+    /// Colliding pairs and links below the ground (foot points `foot …`), frames each.
+    pairs: std::collections::BTreeMap<String, usize>,
+    below: std::collections::BTreeMap<String, usize>,
+}
+
+/// Every clip of the creature at `path`, played at 30 fps on the exact profile's tree (every bone
+/// where the file puts it) and scored by the UFR detectors, with the creature's own mesh as the file
+/// deforms it as the reference.
+fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
+    use ace_models::character::clips::{bone_worlds, clip_poses, exact_profile, rest_worlds, skinned_vertices};
+    use ace_models::character::load_creature_with;
+    use ace_models::metrics::{UfrConfig, UfrDetector};
+    let c = load_creature_with(path, &exact_profile(&load(path))).unwrap();
+    let config = UfrConfig::for_character(&c.tree, &c.morphology);
+    let detector = UfrDetector::new(&c.tree, &c.morphology, config);
+    let sc = detector.self_collision();
+    let below = config.ground_z - config.penetration_depth;
+    let tris = triangles(path, &c);
+    let rest_mesh: Vec<Point3<f32>> = c.rig.vertices.iter().map(|(p, _)| *p).collect();
+    // A capsule stands for the flesh its bone deforms, which blends into its neighbours' at the joints:
+    // a pair's region is the triangles its bones or their parents or children (the body root aside)
+    // deform by at least 10 %.
+    let bone = |link: usize| c.rig.bones.iter().position(|b| b.name == c.tree.links[link].name).unwrap();
+    let region = |b: usize| -> Vec<usize> {
+        let near = |x: usize| x == b || x != c.plan.root_bone && (c.rig.bones[x].parent == Some(b) || c.rig.bones[b].parent == Some(x));
+        (0..tris.len()).filter(|&t| tris[t].iter().any(|&i| c.rig.vertices[i].1.iter().any(|&(x, w)| w >= 0.1 && near(x)))).collect()
+    };
+    let rest = rest_worlds(&c.rig);
+    let fps = 30.0;
+    let mut out = Vec::new();
+    for k in 0..c.rig.animations.len() {
+        let poses = clip_poses(&c, k, fps);
+        let report = detector.evaluate(&poses, &[0..poses.len()], fps);
+        let worlds = bone_worlds(&c.rig, k, fps);
+        let mut s = OwnClip { frames: poses.len(), ..Default::default() };
+        for (t, pose) in poses.iter().enumerate() {
+            let mesh = skinned_vertices(&c.rig, &rest, &worlds[t]);
+            let mesh_below = mesh.iter().any(|p| p.z < below);
+            s.mesh_below += usize::from(mesh_below);
+            let links = c.tree.forward_kinematics(pose);
+            if report.penetration[t] {
+                s.penetration += 1;
+                s.false_penetration += usize::from(!mesh_below);
+                for &f in &c.morphology.feet {
+                    if c.morphology.ee_point(f, &links).z < below {
+                        *s.below.entry(format!("foot {}", c.tree.links[f].name)).or_default() += 1;
+                    }
+                }
+                for body in sc.bodies() {
+                    if body.primitives.iter().any(|p| p.transformed(&links[body.link]).lowest_z() < below) {
+                        *s.below.entry(c.tree.links[body.link].name.clone()).or_default() += 1;
+                    }
+                }
+            }
+            if report.self_collision[t] {
+                s.collision += 1;
+                let mut real = false;
+                for (a, b) in sc.colliding_pairs(&links) {
+                    *s.pairs.entry(format!("{} – {}", c.tree.links[a].name, c.tree.links[b].name)).or_default() += 1;
+                    let (ra, rb) = (region(bone(a)), region(bone(b)));
+                    real |= !crossings(&tris, &mesh, &ra, &rb).is_subset(&crossings(&tris, &rest_mesh, &ra, &rb));
+                }
+                s.false_collision += usize::from(!real);
+            }
+        }
+        out.push((c.rig.animations[k].name.clone(), s));
+    }
+    out
+}
+
+/// Issue 13: the creatures' own clips, scored as a dataset, self-collide and penetrate the ground only
+/// where the artist's mesh does. Played on the exact profile's tree, every bone where the file puts it,
+/// a frame the detectors flag counts against them when the creature's skinned mesh, as the file deforms
+/// it, shows nothing of the kind: no vertex more than the penetration depth below the ground, or no two
+/// triangles of the colliding parts crossing that do not cross at rest. Those false alarms stay within
+/// 1 % of every creature's frames; the rest is the artist's motion (see docs/creatures.md, "The
+/// creatures' own clips"), printed with the mesh's own figures.
+#[test]
+fn the_creatures_own_clips_trip_the_ufr_detectors_only_where_their_meshes_do() {
+    let Some(dir) = creatures() else { return };
+    for (file, _) in SHARED {
+        let clips = own_clips(&dir.join(file));
+        let total = |f: fn(&OwnClip) -> usize| clips.iter().map(|(_, s)| f(s)).sum::<usize>();
+        let frames = total(|s| s.frames) as f32;
+        let pct = |n: usize| 100.0 * n as f32 / frames;
+        println!(
+            "{file}: {} frames, self-collision {:.1} % ({:.1} % where the mesh does not cross), penetration {:.1} % ({:.1} % where the mesh is not below; the mesh is below in {:.1} %)",
+            frames,
+            pct(total(|s| s.collision)),
+            pct(total(|s| s.false_collision)),
+            pct(total(|s| s.penetration)),
+            pct(total(|s| s.false_penetration)),
+            pct(total(|s| s.mesh_below)),
+        );
+        for (name, s) in &clips {
+            let n = s.frames as f32 / 100.0;
+            println!(
+                "  {name} ({} frames): self-collision {:.1} % ({} not in the mesh), penetration {:.1} % ({} not in the mesh), mesh below {:.1} %; {:?} {:?}",
+                s.frames, s.collision as f32 / n, s.false_collision, s.penetration as f32 / n, s.false_penetration, s.mesh_below as f32 / n, s.pairs, s.below
+            );
+        }
+        assert!(pct(total(|s| s.false_collision)) <= 1.0, "{file}: self-collision where the mesh does not cross");
+        assert!(pct(total(|s| s.false_penetration)) <= 1.0, "{file}: penetration where the mesh is above the ground");
+    }
+}

@@ -279,6 +279,9 @@ pub fn build(
             plan.helpers.push(rig.bones[i].name.clone());
         }
     }
+    for &b in &body {
+        proxy::at_played_size(&mut owned[b], &rig.bones[b]);
+    }
     let capsules: Vec<Option<Geometry>> = (0..nb)
         .map(|b| {
             if !in_body[b] {

@@ -1,8 +1,23 @@
 //! Adjustments of the capsules fitted to a creature's bones ([`super::gltf::fit_capsule`]).
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
+use super::gltf::Bone;
 use crate::geometry::{Geometry, Shape};
+
+/// `points` (character frame, at rest) that `bone` deforms, at the size a player shows the bone: its
+/// node's scale over its bind scale along its own axes, about its origin. A player keeps a node's scale
+/// where a clip has no scale channel, and the clips' scale channels are not read, so a bone the nodes
+/// keep at another size than it was bound (the Spider's abdomen at 0.88) is that size in every clip.
+pub fn at_played_size(points: &mut [Point3<f32>], bone: &Bone) {
+    let ratio = bone.file_local.scale.component_div(&bone.rest_local.scale);
+    if (ratio - Vector3::repeat(1.0)).abs().max() <= 1e-3 || !ratio.iter().all(|r| r.is_finite()) {
+        return;
+    }
+    for p in points {
+        *p = bone.rest * Point3::from(bone.rest.inverse_transform_point(p).coords.component_mul(&ratio));
+    }
+}
 
 /// `g` (a capsule in the frame whose world pose is `pose`) thinned about its axis, which it keeps, so
 /// that it reaches no lower than `floor` (world z): the core of a flat section lying on the ground (the
