@@ -794,7 +794,7 @@ fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
     let mut out = Vec::new();
     for k in 0..c.rig.animations.len() {
         let poses = clip_poses(&c, k, fps);
-        let report = detector.evaluate(&poses, &[0..poses.len()], fps);
+        let report = detector.evaluate(&poses, std::slice::from_ref(&(0..poses.len())), fps);
         let worlds = bone_worlds(&c.rig, k, fps);
         let mut s = OwnClip { frames: poses.len(), ..Default::default() };
         for (t, pose) in poses.iter().enumerate() {

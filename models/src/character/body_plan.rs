@@ -666,7 +666,7 @@ pub fn build(
             }
         }
         let axes: Vec<usize> = (0..3).filter(|&k| limits[k].is_some()).collect();
-        let slides = ov.translate.iter().any(|n| *n == bone.name);
+        let slides = ov.translate.contains(&bone.name);
         if axes.is_empty() && !slides {
             if b != root && in_body[b] {
                 plan.at_rest.push(bone.name.clone());
@@ -688,25 +688,34 @@ pub fn build(
         let mut parent_link = parent_link;
         // Joints in order: the slides along the rest frame's x, y, z, then the turns; the first carries
         // the bone's offset and the last link is the bone's own.
-        let mut joints: Vec<(String, JointKind, Vector3<f32>, (f32, f32))> = Vec::new();
+        let mut joints: Vec<BoneAxis> = Vec::new();
         if slides {
             let reach = 10.0 * extent;
-            for (k, a) in ["x", "y", "z"].into_iter().enumerate() {
-                joints.push((a.to_owned(), JointKind::Prismatic, Vector3::ith(k, 1.0), (-reach, reach)));
+            for (k, name) in ["x", "y", "z"].into_iter().enumerate() {
+                joints.push(BoneAxis { name, slide: true, index: k, axis: Vector3::ith(k, 1.0), range: (-reach, reach) });
             }
         }
         for &k in &axes {
             let world_axis: Vector3<f32> = m.column(2 - k).into_owned();
-            joints.push((AXES[k].to_owned(), JointKind::Revolute, to_bone * world_axis, limits[k].expect("kept axis")));
+            joints.push(BoneAxis {
+                name: AXES[k],
+                slide: false,
+                index: k,
+                axis: to_bone * world_axis,
+                range: limits[k].expect("kept axis"),
+            });
         }
         let mut dofs = [None; 3];
         let mut slide_dofs = [None; 3];
         let count = joints.len();
-        for (n, (axis_name, kind, axis, (lo, hi))) in joints.into_iter().enumerate() {
-            match AXES.iter().position(|a| *a == axis_name) {
-                Some(k) if kind == JointKind::Revolute => dofs[k] = Some(dof),
-                _ => slide_dofs[n] = Some(dof),
-            }
+        for (n, BoneAxis { name: axis_name, slide, index, axis, range: (lo, hi) }) in joints.into_iter().enumerate() {
+            let kind = if slide {
+                slide_dofs[index] = Some(dof);
+                JointKind::Prismatic
+            } else {
+                dofs[index] = Some(dof);
+                JointKind::Revolute
+            };
             let last = n + 1 == count;
             let link_name = if last {
                 bone.name.clone()
@@ -823,6 +832,19 @@ pub fn build(
     morph.manipulators.sort_unstable();
     tree.warnings.dedup();
     Ok((tree, morph, plan))
+}
+
+/// One joint of a moving bone: a slide along or a turn about an axis of its rest frame.
+struct BoneAxis {
+    /// Its name after the bone's (`x`, `y`, `z`, or one of [`AXES`]).
+    name: &'static str,
+    slide: bool,
+    /// The axis' index among the slides (x, y, z) or the turns ([`AXES`]).
+    index: usize,
+    /// The axis in the bone's rest frame.
+    axis: Vector3<f32>,
+    /// Limits (m or rad).
+    range: (f32, f32),
 }
 
 fn fixed(name: String, origin: Isometry3<f32>) -> JointSpec {
