@@ -760,8 +760,10 @@ struct OwnClip {
     /// do not cross at rest / no vertex more than the penetration depth below the ground.
     false_collision: usize,
     false_penetration: usize,
-    /// Frames where the mesh itself is below the ground by more than the penetration depth.
+    /// Frames where the mesh itself is below the ground by more than the penetration depth, and of
+    /// those the frames the detectors flag.
     mesh_below: usize,
+    caught: usize,
     /// Colliding pairs and links below the ground (foot points `foot …`), frames each.
     pairs: std::collections::BTreeMap<String, usize>,
     below: std::collections::BTreeMap<String, usize>,
@@ -784,7 +786,11 @@ fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
     // A capsule stands for the flesh its bone deforms, which blends into its neighbours' at the joints:
     // a pair's region is the triangles its bones or their parents or children (the body root aside)
     // deform by at least 10 %.
-    let bone = |link: usize| c.rig.bones.iter().position(|b| b.name == c.tree.links[link].name).unwrap();
+    // The bone of a body (named by its first link; the root's body starts at its `:frame` link).
+    let bone = |link: usize| {
+        let body = &sc.bodies()[sc.body_of(link)];
+        body.links.iter().find_map(|&l| c.rig.bones.iter().position(|b| b.name == c.tree.links[l].name)).unwrap()
+    };
     let region = |b: usize| -> Vec<usize> {
         let near = |x: usize| x == b || x != c.plan.root_bone && (c.rig.bones[x].parent == Some(b) || c.rig.bones[b].parent == Some(x));
         (0..tris.len()).filter(|&t| tris[t].iter().any(|&i| c.rig.vertices[i].1.iter().any(|&(x, w)| w >= 0.1 && near(x)))).collect()
@@ -805,6 +811,7 @@ fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
             if report.penetration[t] {
                 s.penetration += 1;
                 s.false_penetration += usize::from(!mesh_below);
+                s.caught += usize::from(mesh_below);
                 for &f in &c.morphology.feet {
                     if c.morphology.ee_point(f, &links).z < below {
                         *s.below.entry(format!("foot {}", c.tree.links[f].name)).or_default() += 1;
@@ -837,8 +844,9 @@ fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
 /// a frame the detectors flag counts against them when the creature's skinned mesh, as the file deforms
 /// it, shows nothing of the kind: no vertex more than the penetration depth below the ground, or no two
 /// triangles of the colliding parts crossing that do not cross at rest. Those false alarms stay within
-/// 1 % of every creature's frames; the rest is the artist's motion (see docs/creatures.md, "The
-/// creatures' own clips"), printed with the mesh's own figures.
+/// 1 % of every creature's frames, while they still see most of the frames where the mesh is below the
+/// ground; the rest is the artist's motion (see docs/creatures.md, "The creatures' own clips"), printed
+/// with the mesh's own figures.
 #[test]
 fn the_creatures_own_clips_trip_the_ufr_detectors_only_where_their_meshes_do() {
     let Some(dir) = creatures() else { return };
@@ -865,5 +873,8 @@ fn the_creatures_own_clips_trip_the_ufr_detectors_only_where_their_meshes_do() {
         }
         assert!(pct(total(|s| s.false_collision)) <= 1.0, "{file}: self-collision where the mesh does not cross");
         assert!(pct(total(|s| s.false_penetration)) <= 1.0, "{file}: penetration where the mesh is above the ground");
+        // Not blind either: the contacts and capsules lie inside the flesh, so they miss a toe or a claw
+        // under the ground, but not most of the frames where the mesh is.
+        assert!(2 * total(|s| s.caught) >= total(|s| s.mesh_below), "{file}: most of the mesh's penetrations unseen");
     }
 }
