@@ -50,6 +50,8 @@
 //! [limits]                           # joint = [lower, upper] (rad)
 //! "b_Head_05:yaw" = [-0.5, 0.5]
 //! ```
+//! and `translate = ["Tail1"]`: bones that also slide along their rest axes (three prismatic DoFs
+//! `bone:x`, `bone:y`, `bone:z`), for playing clips that move bones off their bind offsets.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -214,6 +216,10 @@ pub struct Profile {
     /// glTF creatures only: joint (`"bone:axis"`) → `[lower, upper]` (rad).
     #[serde(default)]
     pub limits: BTreeMap<String, [f32; 2]>,
+    /// glTF creatures only: bones that also slide along the three axes of their rest frame (DoFs
+    /// `bone:x`, `bone:y`, `bone:z`, in metres), for playing clips that move them off their bind offsets.
+    #[serde(default)]
+    pub translate: Vec<String>,
     /// File the profile was read from (for error messages).
     #[serde(skip)]
     pub source: Option<String>,
@@ -291,6 +297,7 @@ impl Profile {
             ("at_rest", !self.at_rest.is_empty()),
             ("dofs", !self.dofs.is_empty()),
             ("limits", !self.limits.is_empty()),
+            ("translate", !self.translate.is_empty()),
         ]
         .into_iter()
         .find(|k| k.1);

@@ -242,8 +242,11 @@ fn rest_pose_forward_kinematics_is_the_skins_bind_pose() {
             let Some(m) = at(&link.name) else { continue };
             let want = to_char(m.fixed_view::<3, 1>(0, 3).into_owned()) * c.scale - origin;
             let got = fk[l].translation.vector;
+            // A deforming helper hangs off its host where the clips hold it (the Spider's IK feet 3.5 cm
+            // nearer the ends of its legs than bound), in its bind orientation.
+            let helper = c.plan.helpers.contains(&link.name);
             assert!(
-                (want - got).norm() <= 1e-4 * size,
+                helper || (want - got).norm() <= 1e-4 * size,
                 "{file}: {} at {got:?}, the bind pose says {want:?}",
                 link.name
             );
@@ -722,6 +725,9 @@ fn tails_do_not_hold_back_the_hind_legs() {
     }
 }
 
+/// On the exact profile's tree every bone of every clip lands where the file's own nodes put it at the
+/// clip's start, read here with the gltf crate: the T-Rex's and the Snake's clips (and their nodes) move
+/// bones off their bind offsets by up to 2 m, which the tree follows by sliding them.
 #[test]
 fn clip_poses_put_every_bone_where_the_file_animates_it() {
     use ace_models::character::clips::{clip_poses, exact_profile};
@@ -736,7 +742,7 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
         let g = gltf::Gltf::open(&path).unwrap();
         let buffers = buffers(&path, &g);
         let nodes: Vec<_> = g.nodes().collect();
-        for (k, anim) in g.animations().enumerate().take(3) {
+        for (k, anim) in g.animations().enumerate() {
             // The first keyframe of every channel: the pose at t = 0.
             let mut trs: Vec<_> = nodes.iter().map(|n| n.transform().decomposed()).collect();
             for ch in anim.channels() {
@@ -774,47 +780,210 @@ fn clip_poses_put_every_bone_where_the_file_animates_it() {
             let pose = &clip_poses(&c, k, 30.0)[0];
             let fk = c.tree.forward_kinematics(pose);
             let size = c.tree.aabb(&fk).half_extents().max() * 2.0;
-            // Rest offsets: the import's (the skin's bind pose), nodes outside the skin their own.
-            let mut rest: Vec<_> = nodes.iter().map(|n| Vector3::from(n.transform().decomposed().0)).collect();
-            for b in &c.rig.bones {
-                rest[b.node] = b.rest_local.translation;
-            }
             let mut checked = 0;
             for (l, link) in c.tree.links.iter().enumerate() {
                 let Some(n) = nodes.iter().position(|n| n.name() == Some(link.name.as_str())) else { continue };
                 if c.plan.helpers.contains(&link.name) {
                     continue; // helpers follow their host bone, not the file's IK
                 }
-                // Bones translate only as root motion: below a bone that the clip moves away from its
-                // rest offset (the T-Rex's clips hold its hips and front legs 2–5 mm off the skin's bind
-                // pose, the Snake's slide its body sideways), compare positions relative to that bone.
-                let mut up = Some(n);
-                let mut stretched = None;
-                while let Some(i) = up {
-                    if nodes[i].name() == Some(c.plan.body_root.as_str()) {
-                        break;
-                    }
-                    // The offset is in the parent's units: the T-Rex's armature scales them ×300.
-                    let units = parent[i].map_or(1.0, |p| world(p).fixed_view::<3, 1>(0, 0).norm());
-                    if stretched.is_none() && (Vector3::from(trs[i].0) - rest[i]).norm() * units * c.scale > 1e-4 * size {
-                        stretched = Some(i);
-                    }
-                    up = parent[i];
-                }
                 let at = |m: Matrix4<f32>| Vector3::new(m[(2, 3)], m[(0, 3)], m[(1, 3)]) * c.scale;
-                let (want, got) = match stretched {
-                    None => (at(world(n)), fk[l].translation.vector),
-                    Some(s) if s == n => continue,
-                    Some(s) => {
-                        let name = nodes[s].name().unwrap_or_default();
-                        let Some(ls) = c.tree.link_index(name) else { continue };
-                        (at(world(n)) - at(world(s)), fk[l].translation.vector - fk[ls].translation.vector)
-                    }
-                };
+                let (want, got) = (at(world(n)), fk[l].translation.vector);
                 assert!((want - got).norm() <= 1e-3 * size, "{file} clip {k}: {} at {got:?}, the file puts it at {want:?}", link.name);
                 checked += 1;
             }
             assert!(checked >= 4, "{file}: {checked} bones checked");
         }
+    }
+}
+
+// ---- The creatures' own clips by the UFR detectors (issue 13) ------------------------------------
+
+/// The skinned mesh's triangles as indices into the rig's vertices (which keep the file's order).
+fn triangles(path: &Path, c: &Creature) -> Vec<[usize; 3]> {
+    let g = gltf::Gltf::open(path).unwrap();
+    let data = buffers(path, &g);
+    let skin = c.rig.skins.iter().position(|s| s.used).unwrap();
+    let (mut base, mut out) = (0, Vec::new());
+    for nd in g.nodes().filter(|n| n.skin().is_some_and(|s| s.index() == skin)) {
+        for p in nd.mesh().unwrap().primitives() {
+            let r = p.reader(|b| Some(&data[b.index()]));
+            let n = r.read_positions().unwrap().len();
+            let idx: Vec<usize> = r.read_indices().map_or((0..n).collect(), |i| i.into_u32().map(|x| x as usize).collect());
+            out.extend(idx.chunks(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+            base += n;
+        }
+    }
+    assert_eq!(base, c.rig.vertices.len(), "every vertex is skinned");
+    out
+}
+
+/// Whether triangles `a` and `b` cross: an edge of one passes through the other (Möller–Trumbore).
+fn triangles_cross(a: [Point3<f32>; 3], b: [Point3<f32>; 3]) -> bool {
+    let edge_hits = |p: Point3<f32>, q: Point3<f32>, t: &[Point3<f32>; 3]| {
+        let (d, e1, e2) = (q - p, t[1] - t[0], t[2] - t[0]);
+        let h = d.cross(&e2);
+        let det = e1.dot(&h);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = p - t[0];
+        let u = s.dot(&h) / det;
+        let k = s.cross(&e1);
+        let v = d.dot(&k) / det;
+        let w = e2.dot(&k) / det;
+        (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&w)
+    };
+    (0..3).any(|i| edge_hits(a[i], a[(i + 1) % 3], &b)) || (0..3).any(|i| edge_hits(b[i], b[(i + 1) % 3], &a))
+}
+
+/// The crossing triangle pairs between two sets of triangles (pairs sharing a vertex left out).
+fn crossings(tris: &[[usize; 3]], v: &[Point3<f32>], a: &[usize], b: &[usize]) -> std::collections::BTreeSet<(usize, usize)> {
+    let corners = |t: usize| tris[t].map(|i| v[i]);
+    let bounds = |t: usize| {
+        let c = corners(t);
+        (c.iter().fold(Vector3::repeat(f32::INFINITY), |m, p| m.inf(&p.coords)), c.iter().fold(Vector3::repeat(f32::NEG_INFINITY), |m, p| m.sup(&p.coords)))
+    };
+    let mut out = std::collections::BTreeSet::new();
+    for &i in a {
+        let (lo, hi) = bounds(i);
+        for &j in b {
+            let (lo2, hi2) = bounds(j);
+            let apart = (0..3).any(|k| hi[k] < lo2[k] || hi2[k] < lo[k]);
+            let shared = tris[i].iter().any(|&x| tris[j].iter().any(|&y| (v[x] - v[y]).norm() < 1e-7));
+            if !apart && !shared && triangles_cross(corners(i), corners(j)) {
+                out.insert((i.min(j), i.max(j)));
+            }
+        }
+    }
+    out
+}
+
+/// One clip of a creature by the UFR detectors, beside what its skinned mesh does.
+#[derive(Default)]
+struct OwnClip {
+    frames: usize,
+    /// Frames the detectors flag.
+    collision: usize,
+    penetration: usize,
+    /// Of those, frames where the mesh does not: no two parts whose capsules collide cross where they
+    /// do not cross at rest / no vertex more than the penetration depth below the ground.
+    false_collision: usize,
+    false_penetration: usize,
+    /// Frames where the mesh itself is below the ground by more than the penetration depth, and of
+    /// those the frames the detectors flag.
+    mesh_below: usize,
+    caught: usize,
+    /// Colliding pairs and links below the ground (foot points `foot …`), frames each.
+    pairs: std::collections::BTreeMap<String, usize>,
+    below: std::collections::BTreeMap<String, usize>,
+}
+
+/// Every clip of the creature at `path`, played at 30 fps on the exact profile's tree (every bone
+/// where the file puts it) and scored by the UFR detectors, with the creature's own mesh as the file
+/// deforms it as the reference.
+fn own_clips(path: &Path) -> Vec<(String, OwnClip)> {
+    use ace_models::character::clips::{bone_worlds, clip_poses, exact_profile, rest_worlds, skinned_vertices};
+    use ace_models::character::load_creature_with;
+    use ace_models::metrics::{UfrConfig, UfrDetector};
+    let c = load_creature_with(path, &exact_profile(&load(path))).unwrap();
+    let config = UfrConfig::for_character(&c.tree, &c.morphology);
+    let detector = UfrDetector::new(&c.tree, &c.morphology, config);
+    let sc = detector.self_collision();
+    let below = config.ground_z - config.penetration_depth;
+    let tris = triangles(path, &c);
+    let rest_mesh: Vec<Point3<f32>> = c.rig.vertices.iter().map(|(p, _)| *p).collect();
+    // A capsule stands for the flesh its bone deforms, which blends into its neighbours' at the joints:
+    // a pair's region is the triangles its bones or their parents or children (the body root aside)
+    // deform by at least 10 %.
+    // The bone of a body (named by its first link; the root's body starts at its `:frame` link).
+    let bone = |link: usize| {
+        let body = &sc.bodies()[sc.body_of(link)];
+        body.links.iter().find_map(|&l| c.rig.bones.iter().position(|b| b.name == c.tree.links[l].name)).unwrap()
+    };
+    let region = |b: usize| -> Vec<usize> {
+        let near = |x: usize| x == b || x != c.plan.root_bone && (c.rig.bones[x].parent == Some(b) || c.rig.bones[b].parent == Some(x));
+        (0..tris.len()).filter(|&t| tris[t].iter().any(|&i| c.rig.vertices[i].1.iter().any(|&(x, w)| w >= 0.1 && near(x)))).collect()
+    };
+    let rest = rest_worlds(&c.rig);
+    let fps = 30.0;
+    let mut out = Vec::new();
+    for k in 0..c.rig.animations.len() {
+        let poses = clip_poses(&c, k, fps);
+        let report = detector.evaluate(&poses, std::slice::from_ref(&(0..poses.len())), fps);
+        let worlds = bone_worlds(&c.rig, k, fps);
+        let mut s = OwnClip { frames: poses.len(), ..Default::default() };
+        for (t, pose) in poses.iter().enumerate() {
+            let mesh = skinned_vertices(&c.rig, &rest, &worlds[t]);
+            let mesh_below = mesh.iter().any(|p| p.z < below);
+            s.mesh_below += usize::from(mesh_below);
+            let links = c.tree.forward_kinematics(pose);
+            if report.penetration[t] {
+                s.penetration += 1;
+                s.false_penetration += usize::from(!mesh_below);
+                s.caught += usize::from(mesh_below);
+                for &f in &c.morphology.feet {
+                    if c.morphology.ee_point(f, &links).z < below {
+                        *s.below.entry(format!("foot {}", c.tree.links[f].name)).or_default() += 1;
+                    }
+                }
+                for body in sc.bodies() {
+                    if body.primitives.iter().any(|p| p.transformed(&links[body.link]).lowest_z() < below) {
+                        *s.below.entry(c.tree.links[body.link].name.clone()).or_default() += 1;
+                    }
+                }
+            }
+            if report.self_collision[t] {
+                s.collision += 1;
+                let mut real = false;
+                for (a, b) in sc.colliding_pairs(&links) {
+                    *s.pairs.entry(format!("{} – {}", c.tree.links[a].name, c.tree.links[b].name)).or_default() += 1;
+                    let (ra, rb) = (region(bone(a)), region(bone(b)));
+                    real |= !crossings(&tris, &mesh, &ra, &rb).is_subset(&crossings(&tris, &rest_mesh, &ra, &rb));
+                }
+                s.false_collision += usize::from(!real);
+            }
+        }
+        out.push((c.rig.animations[k].name.clone(), s));
+    }
+    out
+}
+
+/// Issue 13: the creatures' own clips, scored as a dataset, self-collide and penetrate the ground only
+/// where the artist's mesh does. Played on the exact profile's tree, every bone where the file puts it,
+/// a frame the detectors flag counts against them when the creature's skinned mesh, as the file deforms
+/// it, shows nothing of the kind: no vertex more than the penetration depth below the ground, or no two
+/// triangles of the colliding parts crossing that do not cross at rest. Those false alarms stay within
+/// 1 % of every creature's frames, while they still see most of the frames where the mesh is below the
+/// ground; the rest is the artist's motion (see docs/creatures.md, "The creatures' own clips"), printed
+/// with the mesh's own figures.
+#[test]
+fn the_creatures_own_clips_trip_the_ufr_detectors_only_where_their_meshes_do() {
+    let Some(dir) = creatures() else { return };
+    for (file, _) in SHARED {
+        let clips = own_clips(&dir.join(file));
+        let total = |f: fn(&OwnClip) -> usize| clips.iter().map(|(_, s)| f(s)).sum::<usize>();
+        let frames = total(|s| s.frames) as f32;
+        let pct = |n: usize| 100.0 * n as f32 / frames;
+        println!(
+            "{file}: {} frames, self-collision {:.1} % ({:.1} % where the mesh does not cross), penetration {:.1} % ({:.1} % where the mesh is not below; the mesh is below in {:.1} %)",
+            frames,
+            pct(total(|s| s.collision)),
+            pct(total(|s| s.false_collision)),
+            pct(total(|s| s.penetration)),
+            pct(total(|s| s.false_penetration)),
+            pct(total(|s| s.mesh_below)),
+        );
+        for (name, s) in &clips {
+            let n = s.frames as f32 / 100.0;
+            println!(
+                "  {name} ({} frames): self-collision {:.1} % ({} not in the mesh), penetration {:.1} % ({} not in the mesh), mesh below {:.1} %; {:?} {:?}",
+                s.frames, s.collision as f32 / n, s.false_collision, s.penetration as f32 / n, s.false_penetration, s.mesh_below as f32 / n, s.pairs, s.below
+            );
+        }
+        assert!(pct(total(|s| s.false_collision)) <= 1.0, "{file}: self-collision where the mesh does not cross");
+        assert!(pct(total(|s| s.false_penetration)) <= 1.0, "{file}: penetration where the mesh is above the ground");
+        // Not blind either: the contacts and capsules lie inside the flesh, so they miss a toe or a claw
+        // under the ground, but not most of the frames where the mesh is.
+        assert!(2 * total(|s| s.caught) >= total(|s| s.mesh_below), "{file}: most of the mesh's penetrations unseen");
     }
 }

@@ -1,7 +1,8 @@
 //! The body plan of a rigged creature, and the [`KinematicTree`] and [`Morphology`] built from it.
 //!
 //! Works on the bones [`super::gltf::read`] found, at rest, in the character frame, with a capsule per
-//! bone fitted to the vertices it deforms. Nothing depends on bone names.
+//! bone fitted to the vertices it deforms most, thinned where it would reach below the creature at rest
+//! ([`super::proxy::above_floor`]). Nothing depends on bone names.
 //!
 //! # Limbs
 //! A *branching* bone has two or more children. The children of the body root and of branching bones
@@ -11,7 +12,9 @@
 //! Then, with `H` the creature's height, `S` its largest extent and `W` its width at rest:
 //! - **Feet**: limbs of two or more bones whose lowest vertex (of the tip and its fingers/toes) is
 //!   within `max(3 % H, 5 mm)` of the ground and whose first joint stands at least `H/4` above it.
-//!   The foot point is that vertex, and the foot's collision shape the sphere resting on it.
+//!   The foot point is that vertex (for a paw that an IK helper holds, the point under the helper's
+//!   origin at that height: see [`super::helpers`]), and the foot's collision shape the sphere resting
+//!   on it.
 //! - **Head**: of the limbs whose tip is near the mid-plane (`|y| < 10 % W` from the body root) and
 //!   that deform at least 30 % as many vertices as the largest such limb, the longest one whose tip
 //!   lies ahead of the body root: the front of the body's axis, not a jaw or a tongue (short limbs off
@@ -46,6 +49,7 @@ use std::collections::BTreeMap;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 
 use super::gltf::{Rig, fit_capsule};
+use super::{helpers, proxy};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::kinematics::{JointKind, JointSpec, KinematicTree, Limits, Link};
 use crate::morphology::Morphology;
@@ -132,6 +136,8 @@ pub struct Overrides {
     pub dofs: BTreeMap<String, Vec<String>>,
     /// Joint (`bone:axis`) → limits (rad).
     pub limits: BTreeMap<String, [f32; 2]>,
+    /// Bones that also slide along their rest axes (prismatic DoFs `bone:x`, `bone:y`, `bone:z`).
+    pub translate: Vec<String>,
 }
 
 /// What the analysis decided, for `ace inspect` and the warnings.
@@ -166,6 +172,9 @@ pub struct BoneJoint {
     pub link: usize,
     /// DoF of its yaw, pitch and roll axis, where it has one.
     pub dofs: [Option<usize>; 3],
+    /// DoF of its slide along the x, y and z axis of its rest frame (m), where it has one
+    /// ([`Overrides::translate`]); applied before its turns.
+    pub slides: [Option<usize>; 3],
     /// Its axes in the character frame at rest: columns roll (x), pitch (y), yaw (z).
     pub basis: Matrix3<f32>,
 }
@@ -230,9 +239,10 @@ pub fn build(
         ..Default::default()
     };
 
-    // Each vertex goes to its heaviest body bone. Vertices that only helpers deform (an IK foot hanging
-    // off the root) go to the helper's host: the end of a body chain nearest to the helper, which is
-    // where an IK target sits; the helper then follows that bone as a fixed link.
+    // Each vertex goes to its heaviest bone; a vertex that a helper deforms most (an IK foot hanging off
+    // the root) goes to the helper's host: the end of a body chain nearest to the helper, which is where an
+    // IK target sits; the helper then follows that bone as a fixed link, where the clips hold it
+    // ([`super::helpers`]), and moves its vertices there with it.
     let leaves: Vec<usize> = body
         .iter()
         .copied()
@@ -246,29 +256,38 @@ pub fn build(
             .min_by(|&a, &b| (pos0(a) - p).norm().total_cmp(&(pos0(b) - p).norm()))
             .unwrap_or(root)
     };
-    let mut owned: Vec<Vec<Point3<f32>>> = vec![Vec::new(); nb];
+    let heaviest = |w: &[(usize, f32)]| w.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|&(b, _)| b);
     let mut helper_host: BTreeMap<usize, usize> = BTreeMap::new();
+    for (_, w) in &rig.vertices {
+        if let Some(h) = heaviest(w).filter(|&h| !in_body[h]) {
+            helper_host.entry(h).or_insert_with(|| host_of(h));
+        }
+    }
+    let held = helpers::held_offsets(rig, &helper_host);
+    // A helper's move from its bind offset, at rest in the character frame.
+    let shift: BTreeMap<usize, Vector3<f32>> = held
+        .iter()
+        .map(|(&h, at)| {
+            let host = &rig.bones[helper_host[&h]].rest;
+            (h, host * Point3::from(*at) - Point3::from(rig.bones[h].rest.translation.vector))
+        })
+        .collect();
+    let mut owned: Vec<Vec<Point3<f32>>> = vec![Vec::new(); nb];
     for (p, w) in &rig.vertices {
-        let heaviest = |body_only: bool| {
-            w.iter()
-                .filter(|(b, _)| !body_only || in_body[*b])
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|&(b, _)| b)
-        };
-        match heaviest(true) {
-            Some(b) => owned[b].push(*p),
-            None => {
-                if let Some(h) = heaviest(false) {
-                    let host = *helper_host.entry(h).or_insert_with(|| host_of(h));
-                    owned[host].push(*p);
-                }
-            }
+        let p = w.iter().filter_map(|(b, wb)| shift.get(b).map(|s| s * *wb)).fold(*p, |p, s| p + s);
+        match heaviest(w) {
+            Some(b) if in_body[b] => owned[b].push(p),
+            Some(h) => owned[helper_host[&h]].push(p),
+            None => {}
         }
     }
     for i in 0..nb {
         if !in_body[i] {
             plan.helpers.push(rig.bones[i].name.clone());
         }
+    }
+    for &b in &body {
+        proxy::at_played_size(&mut owned[b], &rig.bones[b]);
     }
     let capsules: Vec<Option<Geometry>> = (0..nb)
         .map(|b| {
@@ -418,6 +437,15 @@ pub fn build(
             if let Some(i) = limbs.iter().position(|l| l.path.contains(&b)) {
                 foot_limbs.push(i);
             }
+        }
+    }
+    // A paw that a helper holds pivots about the helper's origin: its contact is under the pivot (the
+    // top of the helpers on the foot, e.g. an IK foot rather than its toes).
+    for (f, p) in feet.iter_mut() {
+        let on_foot: Vec<usize> = helper_host.iter().filter(|&(_, &host)| host == *f).map(|(&h, _)| h).collect();
+        let top = on_foot.iter().copied().find(|&h| rig.bones[h].parent.is_none_or(|q| !on_foot.contains(&q)));
+        if let Some(h) = top {
+            *p = helpers::under_pivot(&(rig.bones[*f].rest * Point3::from(held[&h])), p);
         }
     }
     if feet.is_empty() {
@@ -609,7 +637,12 @@ pub fn build(
     warnings.extend(plan.warnings.iter().cloned());
     for &b in &body {
         let bone = &rig.bones[b];
-        let geometry: Vec<Geometry> = capsules[b].iter().cloned().collect();
+        // A proxy reaching below the creature at rest would be in the ground where the mesh is not (a
+        // foot's becomes its contact sphere).
+        let geometry: Vec<Geometry> = capsules[b]
+            .iter()
+            .map(|g| if feet.iter().any(|&(f, _)| f == b) { g.clone() } else { proxy::above_floor(g, &bone.rest, ground) })
+            .collect();
         let mass = geometry.iter().map(|g| capsule_mass(&g.shape)).sum();
         if b == root {
             // The root link is upright at rest (the character frame at the body root); the root bone
@@ -663,7 +696,8 @@ pub fn build(
             }
         }
         let axes: Vec<usize> = (0..3).filter(|&k| limits[k].is_some()).collect();
-        if axes.is_empty() {
+        let slides = ov.translate.contains(&bone.name);
+        if axes.is_empty() && !slides {
             if b != root && in_body[b] {
                 plan.at_rest.push(bone.name.clone());
             }
@@ -682,30 +716,54 @@ pub fn build(
         let m = basis.get(&b).copied().unwrap_or_else(Matrix3::identity);
         let to_bone = bone.rest.rotation.inverse();
         let mut parent_link = parent_link;
-        let mut dofs = [None; 3];
-        for (n, &k) in axes.iter().enumerate() {
-            dofs[k] = Some(dof);
+        // Joints in order: the slides along the rest frame's x, y, z, then the turns; the first carries
+        // the bone's offset and the last link is the bone's own.
+        let mut joints: Vec<BoneAxis> = Vec::new();
+        if slides {
+            let reach = 10.0 * extent;
+            for (k, name) in ["x", "y", "z"].into_iter().enumerate() {
+                joints.push(BoneAxis { name, slide: true, index: k, axis: Vector3::ith(k, 1.0), range: (-reach, reach) });
+            }
+        }
+        for &k in &axes {
             let world_axis: Vector3<f32> = m.column(2 - k).into_owned();
-            let axis = nalgebra::Unit::new_normalize(to_bone * world_axis);
-            let (lo, hi) = limits[k].expect("kept axis");
-            let last = n + 1 == axes.len();
+            joints.push(BoneAxis {
+                name: AXES[k],
+                slide: false,
+                index: k,
+                axis: to_bone * world_axis,
+                range: limits[k].expect("kept axis"),
+            });
+        }
+        let mut dofs = [None; 3];
+        let mut slide_dofs = [None; 3];
+        let count = joints.len();
+        for (n, BoneAxis { name: axis_name, slide, index, axis, range: (lo, hi) }) in joints.into_iter().enumerate() {
+            let kind = if slide {
+                slide_dofs[index] = Some(dof);
+                JointKind::Prismatic
+            } else {
+                dofs[index] = Some(dof);
+                JointKind::Revolute
+            };
+            let last = n + 1 == count;
             let link_name = if last {
                 bone.name.clone()
             } else {
-                format!("{}:{}", bone.name, AXES[k])
+                format!("{}:{axis_name}", bone.name)
             };
             links.push(Link {
                 name: link_name,
                 parent: Some(parent_link),
                 joint: Some(JointSpec {
-                    name: format!("{}:{}", bone.name, AXES[k]),
-                    kind: JointKind::Revolute,
+                    name: format!("{}:{axis_name}", bone.name),
+                    kind,
                     origin: if n == 0 {
                         origin
                     } else {
                         Isometry3::identity()
                     },
-                    axis,
+                    axis: nalgebra::Unit::new_normalize(axis),
                     limits: Some(Limits {
                         lower: lo,
                         upper: hi,
@@ -723,12 +781,13 @@ pub fn build(
             parent_link = links.len() - 1;
         }
         link_of[b] = links.len() - 1;
-        plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, basis: m });
-        plan.roles.insert(bone.name.clone(), role[&b].label());
+        plan.joints.push(BoneJoint { bone: b, link: link_of[b], dofs, slides: slide_dofs, basis: m });
+        plan.roles.insert(bone.name.clone(), role.get(&b).map_or("slide", |r| r.label()));
     }
-    // Deforming helpers follow the body bone their vertices went to.
+    // Deforming helpers follow the body bone their vertices went to, where the clips hold them.
     for (&h, &host) in &helper_host {
-        let origin = rig.bones[host].rest.inverse() * rig.bones[h].rest;
+        let mut origin = rig.bones[host].rest.inverse() * rig.bones[h].rest;
+        origin.translation.vector = held[&h];
         links.push(Link {
             name: rig.bones[h].name.clone(),
             parent: Some(link_of[host]),
@@ -828,6 +887,19 @@ pub fn build(
     morph.manipulators.sort_unstable();
     tree.warnings.dedup();
     Ok((tree, morph, plan))
+}
+
+/// One joint of a moving bone: a slide along or a turn about an axis of its rest frame.
+struct BoneAxis {
+    /// Its name after the bone's (`x`, `y`, `z`, or one of [`AXES`]).
+    name: &'static str,
+    slide: bool,
+    /// The axis' index among the slides (x, y, z) or the turns ([`AXES`]).
+    index: usize,
+    /// The axis in the bone's rest frame.
+    axis: Vector3<f32>,
+    /// Limits (m or rad).
+    range: (f32, f32),
 }
 
 fn fixed(name: String, origin: Isometry3<f32>) -> JointSpec {

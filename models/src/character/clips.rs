@@ -3,62 +3,135 @@
 //! roll) and kept on the axes the tree gives it, clamped to their limits; bones held at rest stay there,
 //! so the poses are the clip projected onto the tree. The root follows the body root bone, translation
 //! channels of the bones above it included (root motion).
+//!
+//! [`bone_worlds`] and [`skinned_vertices`] give the file's own skeleton and mesh in a clip's frame, as
+//! a player deforms them (IK and helper bones included), for checking the tree against them.
 
-use nalgebra::{Isometry3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix4, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use super::Creature;
-use super::gltf::{TrackKind, polar_rotation};
+use super::gltf::{Rig, TrackKind, polar_rotation};
 use crate::kinematics::CharacterPose;
+
+/// The number of frames of animation `clip` sampled at `fps` from its start to its end inclusive.
+pub fn clip_frames(rig: &Rig, clip: usize, fps: f32) -> usize {
+    (rig.animations[clip].duration_s.max(0.0) * fps).floor() as usize + 1
+}
+
+/// Every bone's world matrix (file frame and units) at time `t` of animation `clip`: the nodes' own
+/// transforms with the clip's channels applied, as a player poses them. `rot` and `tra` are scratch.
+fn pose_bones(
+    rig: &Rig,
+    clip: usize,
+    t: f32,
+    rot: &mut Vec<UnitQuaternion<f32>>,
+    tra: &mut Vec<Vector3<f32>>,
+    world: &mut Vec<Matrix4<f32>>,
+) {
+    let nb = rig.bones.len();
+    rot.clear();
+    tra.clear();
+    rot.extend(rig.bones.iter().map(|b| b.file_local.rotation));
+    tra.extend(rig.bones.iter().map(|b| b.file_local.translation));
+    for tr in &rig.clips[clip] {
+        let v = tr.sample(t);
+        match tr.kind {
+            TrackKind::Rotation => {
+                rot[tr.bone] = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(v[3], v[0], v[1], v[2]))
+            }
+            TrackKind::Translation => tra[tr.bone] = Vector3::new(v[0], v[1], v[2]),
+        }
+    }
+    world.resize(nb, Matrix4::identity());
+    for (b, bone) in rig.bones.iter().enumerate() {
+        let local = Matrix4::new_translation(&tra[b])
+            * rot[b].to_homogeneous()
+            * Matrix4::new_nonuniform_scaling(&bone.file_local.scale);
+        world[b] = match bone.parent {
+            Some(p) => world[p] * local,
+            None => bone.parent_world * local,
+        };
+    }
+}
+
+/// Every bone's world matrix (file frame and units) in each frame of animation `clip` sampled at
+/// `fps` (as [`clip_poses`] samples it), as a player poses the file's nodes.
+pub fn bone_worlds(rig: &Rig, clip: usize, fps: f32) -> Vec<Vec<Matrix4<f32>>> {
+    let (mut rot, mut tra) = (Vec::new(), Vec::new());
+    (0..clip_frames(rig, clip, fps))
+        .map(|f| {
+            let mut world = Vec::new();
+            pose_bones(rig, clip, f as f32 / fps, &mut rot, &mut tra, &mut world);
+            world
+        })
+        .collect()
+}
+
+/// Every bone's world matrix at rest (the skin's bind pose; file frame and units).
+pub fn rest_worlds(rig: &Rig) -> Vec<Matrix4<f32>> {
+    let mut out: Vec<Matrix4<f32>> = Vec::with_capacity(rig.bones.len());
+    for b in &rig.bones {
+        let above = b.parent.map_or(b.parent_world, |p| out[p]);
+        out.push(above * b.rest_local.matrix());
+    }
+    out
+}
+
+/// The rig's vertices ([`Rig::vertices`], character frame, metres) skinned by the bones' world
+/// matrices `world` (file frame and units, e.g. one frame of [`bone_worlds`]); `rest` from
+/// [`rest_worlds`].
+pub fn skinned_vertices(rig: &Rig, rest: &[Matrix4<f32>], world: &[Matrix4<f32>]) -> Vec<Point3<f32>> {
+    let c = rig.to_character.to_homogeneous();
+    let to_file = Matrix4::new_scaling(1.0 / rig.scale) * c.transpose();
+    let to_char = c * Matrix4::new_scaling(rig.scale);
+    // Per bone, rest vertex (character frame) → posed vertex (character frame).
+    let moves: Vec<Matrix4<f32>> = world
+        .iter()
+        .zip(rest)
+        .map(|(w, r)| to_char * w * r.try_inverse().unwrap_or_else(Matrix4::identity) * to_file)
+        .collect();
+    rig.vertices
+        .iter()
+        .map(|(p, w)| {
+            let m = w.iter().fold(Matrix4::zeros(), |m, &(b, wb)| m + moves[b] * wb);
+            m.transform_point(p)
+        })
+        .collect()
+}
 
 /// The poses of animation `clip` (index into the rig's [`super::gltf::Rig::animations`]) sampled at `fps` from its start
 /// to its end inclusive.
 pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
     let rig = &c.rig;
-    let tracks = &rig.clips[clip];
-    let duration = rig.animations[clip].duration_s.max(0.0);
-    let frames = (duration * fps).floor() as usize + 1;
-    let nb = rig.bones.len();
+    let frames = clip_frames(rig, clip, fps);
     let to_char = rig.to_character;
     let root = c.plan.root_bone;
     let root_rest = rig.bones[root].rest.rotation;
+    let rest = rest_worlds(rig);
     let mut out = Vec::with_capacity(frames);
-    let mut rot = vec![UnitQuaternion::identity(); nb];
-    let mut tra = vec![Vector3::zeros(); nb];
-    let mut world = vec![Matrix4::identity(); nb];
+    let (mut rot, mut tra, mut world) = (Vec::new(), Vec::new(), Vec::new());
     for f in 0..frames {
-        let t = f as f32 / fps;
-        for (b, bone) in rig.bones.iter().enumerate() {
-            rot[b] = bone.file_local.rotation;
-            tra[b] = bone.file_local.translation;
-        }
-        for tr in tracks {
-            let v = tr.sample(t);
-            match tr.kind {
-                TrackKind::Rotation => {
-                    rot[tr.bone] = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(v[3], v[0], v[1], v[2]))
-                }
-                TrackKind::Translation => tra[tr.bone] = Vector3::new(v[0], v[1], v[2]),
-            }
-        }
-        for (b, bone) in rig.bones.iter().enumerate() {
-            let local = Matrix4::new_translation(&tra[b])
-                * rot[b].to_homogeneous()
-                * Matrix4::new_nonuniform_scaling(&bone.file_local.scale);
-            world[b] = match bone.parent {
-                Some(p) => world[p] * local,
-                None => bone.parent_world * local,
-            };
-        }
+        pose_bones(rig, clip, f as f32 / fps, &mut rot, &mut tra, &mut world);
         let m = &world[root];
         let r = polar_rotation(&(to_char.matrix() * m.fixed_view::<3, 3>(0, 0))).unwrap_or(root_rest);
         let p = to_char * m.fixed_view::<3, 1>(0, 3).into_owned() * rig.scale;
         let mut q = c.tree.neutral_q();
         for j in &c.plan.joints {
+            let bone = &rig.bones[j.bone];
+            let Some(parent) = bone.parent else { continue };
+            if j.slides.iter().any(Option::is_some) {
+                // The bone's offset from its bind offset, in the parent's axes at rest, then in its own.
+                let moved = rest[parent].fixed_view::<3, 3>(0, 0) * (tra[j.bone] - bone.rest_local.translation);
+                let s = bone.rest.rotation.inverse() * (to_char * moved) * rig.scale;
+                for (k, d) in j.slides.iter().enumerate() {
+                    if let Some(d) = d {
+                        q[*d] = s[k];
+                    }
+                }
+            }
             if j.dofs.iter().all(Option::is_none) {
                 continue;
             }
-            let bone = &rig.bones[j.bone];
-            let Some(parent) = bone.parent else { continue };
             let rp = rig.bones[parent].rest.rotation;
             let d = rp * (rot[j.bone] * bone.rest_local.rotation.inverse()) * rp.inverse();
             let bq = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(j.basis));
@@ -75,9 +148,10 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
     out
 }
 
-/// A profile under which every body bone of `c` turns about all three axes over ±π: the tree on which
-/// the file's clips play exactly (no bone held at rest, no axis dropped, nothing clamped), for checking
-/// the clips themselves, e.g. with the UFR detectors.
+/// A profile under which every body bone of `c` turns about all three axes over ±π, and every body bone
+/// that a clip (or the file's node transforms, which a player keeps where a clip has no channel) moves off
+/// its bind offset also slides: the tree on which the file's clips play exactly (no bone held at rest,
+/// no axis dropped, nothing clamped), for checking the clips themselves, e.g. with the UFR detectors.
 pub fn exact_profile(c: &Creature) -> crate::morphology::Profile {
     let pi = std::f32::consts::PI;
     let bones: Vec<String> = c
@@ -87,9 +161,23 @@ pub fn exact_profile(c: &Creature) -> crate::morphology::Profile {
         .map(|j| c.rig.bones[j.bone].name.clone())
         .chain(c.plan.at_rest.iter().cloned())
         .collect();
+    let rig = &c.rig;
+    let moves = |b: usize| {
+        let bone = &rig.bones[b];
+        let off = |t: &Vector3<f32>| (t - bone.rest_local.translation).norm() > 1e-6 * (1.0 + bone.rest_local.translation.norm());
+        off(&bone.file_local.translation)
+            || rig.clips.iter().flatten().any(|t| {
+                t.bone == b && t.kind == TrackKind::Translation && t.values.iter().any(|v| off(&Vector3::new(v[0], v[1], v[2])))
+            })
+    };
+    let translate = (0..rig.bones.len())
+        .filter(|&b| b != c.plan.root_bone && bones.contains(&rig.bones[b].name) && moves(b))
+        .map(|b| rig.bones[b].name.clone())
+        .collect();
     let mut p = crate::morphology::Profile {
         scale: Some(c.scale),
         animated: Some(bones.clone()),
+        translate,
         ..Default::default()
     };
     for b in &bones {

@@ -14,8 +14,9 @@
 //! - **Bones.** The *body root* is found by walking down from the skin's top joint past joints whose
 //!   other children are small (at most two joints: IK targets, pole targets, foot controls). Bones
 //!   outside the body root's subtree are *helpers* and never DoFs: non-deforming helpers are dropped;
-//!   deforming ones (a foot bone driven by IK, hanging off the root) become fixed links under the body
-//!   bone whose segment is nearest to the vertices they deform, and those vertices count as that bone's.
+//!   deforming ones (a foot bone driven by IK, hanging off the root) become fixed links under the end of
+//!   the body chain nearest to them, where the file's clips hold them, and the vertices they deform most
+//!   count as that bone's (see [`super::helpers`]).
 //!   Ancestors of the body root fold into the root pose.
 //! - **Joints.** A moving bone becomes up to three revolute DoFs about axes fixed in its rest frame and
 //!   applied in the order yaw, pitch, roll: links `bone:yaw`, `bone:pitch` and finally `bone` (the link

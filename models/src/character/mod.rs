@@ -5,6 +5,8 @@
 pub mod body_plan;
 pub mod clips;
 pub mod gltf;
+pub mod helpers;
+pub mod proxy;
 pub mod rig_pose;
 
 use std::path::Path;
@@ -70,6 +72,7 @@ pub fn creature_from_document(
         at_rest: profile.at_rest.clone(),
         dofs: profile.dofs.clone(),
         limits: profile.limits.clone(),
+        translate: profile.translate.clone(),
     };
     let (mut tree, mut morphology, plan) =
         body_plan::build(&rig, &name, &ov).map_err(|p| ProfileError {
