@@ -9,12 +9,14 @@
 //! holding a hound checkpoint's `ace.json` works. `--screenshot` saves the window after four seconds of
 //! the clip and exits. Space pauses, ←/→ scrub by a second.
 
+#[path = "support/screenshot.rs"]
+mod screenshot;
 use std::path::PathBuf;
 
 use bevy::asset::UnapprovedPathMode;
 use bevy::prelude::*;
+use screenshot::{ScreenshotAt, take_screenshot};
 use bevy::transform::TransformSystems;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_ace::ace_models::human::Joint;
 use bevy_ace::prelude::*;
 
@@ -23,9 +25,6 @@ struct Player(Entity);
 
 #[derive(Component)]
 struct Hound;
-
-#[derive(Resource)]
-struct ScreenshotTo(Option<PathBuf>);
 
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 
@@ -53,7 +52,7 @@ fn main() -> AppExit {
             ..default()
         }))
         .add_plugins(AcePlugin)
-        .insert_resource(ScreenshotTo(screenshot))
+        .insert_resource(ScreenshotAt(screenshot.map(|p| (p, 4.0))))
         .add_systems(Startup, move |commands: Commands, server: Res<AssetServer>| setup(commands, server, &checkpoint, &clip))
         .add_systems(Update, (controls, report_errors, take_screenshot))
         // After transform propagation, so that the lines and the camera show this frame's poses.
@@ -127,30 +126,6 @@ fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints:
                 gizmos.line(a.translation(), b.translation(), Color::srgb(0.3, 0.6, 1.0));
             }
         }
-    }
-}
-
-/// With `--screenshot`: saves the window once the clip has played four seconds, then exits.
-fn take_screenshot(
-    mut commands: Commands,
-    mut to: ResMut<ScreenshotTo>,
-    player: Res<Player>,
-    players: Query<&HumanClipPlayer>,
-    mut countdown: Local<Option<u32>>,
-    mut exit: MessageWriter<AppExit>,
-) {
-    if let Some(n) = countdown.as_mut() {
-        *n -= 1;
-        if *n == 0 {
-            exit.write(AppExit::Success);
-        }
-        return;
-    }
-    let Some(path) = to.0.clone() else { return };
-    if players.get(player.0).is_ok_and(|p| p.time >= 4.0) {
-        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path));
-        to.0 = None;
-        *countdown = Some(30);
     }
 }
 

@@ -7,19 +7,17 @@
 //! Space pauses, ←/→ scrub by a second, ↑/↓ change the speed. `--screenshot` saves the window once the
 //! clip has played `--at` seconds (default 4), then exits: a check of the characters in a window.
 
+#[path = "support/screenshot.rs"]
+mod screenshot;
 use std::path::PathBuf;
 
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use screenshot::{ScreenshotAt, take_screenshot};
 use bevy_ace::ace_models::human::Joint;
 use bevy_ace::prelude::*;
 
 #[derive(Resource)]
 struct Player(Entity);
-
-/// Where and when to save the window (`--screenshot`, `--at`).
-#[derive(Resource)]
-struct ScreenshotAt(Option<(PathBuf, f32)>);
 
 fn main() -> AppExit {
     let (mut clip, mut screenshot, mut at) = ("walk".to_string(), None, 4.0);
@@ -98,30 +96,6 @@ fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints:
                 gizmos.line(a.translation(), b.translation(), Color::srgb(0.3, 0.6, 1.0));
             }
         }
-    }
-}
-
-/// With `--screenshot`: saves the window once the clip has played the asked time, then exits.
-fn take_screenshot(
-    mut commands: Commands,
-    mut to: ResMut<ScreenshotAt>,
-    player: Res<Player>,
-    players: Query<&HumanClipPlayer>,
-    mut countdown: Local<Option<u32>>,
-    mut exit: MessageWriter<AppExit>,
-) {
-    if let Some(n) = countdown.as_mut() {
-        *n -= 1;
-        if *n == 0 {
-            exit.write(AppExit::Success);
-        }
-        return;
-    }
-    let Some((path, at)) = to.0.clone() else { return };
-    if players.get(player.0).is_ok_and(|p| p.time >= at) {
-        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path));
-        to.0 = None;
-        *countdown = Some(30);
     }
 }
 
