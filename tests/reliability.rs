@@ -949,3 +949,32 @@ fn a_failed_train_leaves_the_checkpoint_as_it_was() {
     // training succeeds.
     assert_eq!(snapshot_with_times(&ck), before);
 }
+
+include!("../models/tests/data/bad_dataset_configs.rs");
+
+#[test]
+fn every_dataset_configuration_field_is_bounded_naming_the_file_and_field() {
+    let dir = scratch("dataset-config-bounds");
+    let cfg = dir.join("data.toml");
+    for (text, problem) in BAD_DATASET_CONFIGS {
+        std::fs::write(&cfg, format!("frames = 300\n{text}\n")).unwrap();
+        refused_up_front(
+            &[
+                "dataset",
+                "--character",
+                "stretch",
+                "--config",
+                &s(&cfg),
+                "--out",
+                &s(&dir.join("d.safetensors")),
+                "--report",
+                &s(&dir.join("report")),
+            ],
+            &format!(
+                "{} (with the command-line options): invalid dataset configuration: {problem}",
+                cfg.display()
+            ),
+        );
+        assert_eq!(names(&dir), ["data.toml"], "{text}: nothing is written");
+    }
+}

@@ -580,3 +580,81 @@ fn a_dataset_too_large_for_its_character_is_refused_before_allocation() {
         check_budget(&cfg, &tree, &morph).unwrap();
     }
 }
+
+include!("data/bad_dataset_configs.rs");
+
+#[test]
+fn every_dataset_configuration_field_is_bounded_before_generation() {
+    use ace_models::dataset::{DatasetConfig, check_config, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    for (text, problem) in BAD_DATASET_CONFIGS {
+        let cfg: DatasetConfig = toml::from_str(&format!("frames = 300\n{text}\n")).unwrap();
+        let expected = format!("invalid dataset configuration: {problem}");
+        assert_eq!(check_config(&cfg).unwrap_err().to_string(), expected, "{text}");
+        // `generate` refuses it before its first frame.
+        let mut reported = false;
+        let e = generate(&tree, &morph, &cfg, &mut |_| reported = true).unwrap_err().to_string();
+        assert_eq!(e, expected, "{text}");
+        assert!(!reported, "{text}: generated before checking");
+    }
+    // The defaults, and the configurations the bundled checkpoints' datasets were generated with (which
+    // `ace train` regenerates), are within the bounds.
+    check_config(&DatasetConfig::default()).unwrap();
+    for name in ["spot", "crab", "stretch", "hound"] {
+        let text = std::fs::read_to_string(asset(&format!("assets/checkpoints/{name}/config.json"))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let cfg = DatasetConfig::from_record(v["provenance"]["dataset"]["config"].clone()).unwrap();
+        check_config(&cfg).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
+
+#[test]
+fn a_dataset_with_non_finite_values_is_neither_written_nor_read() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let cfg = DatasetConfig {
+        frames: 120,
+        ..DatasetConfig::default()
+    };
+    let good = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+    assert_eq!(good.non_finite(), None);
+    let dir = scratch("non-finite-dataset");
+    let dim = good.layout.dim();
+    // An infinity in frame 7's x^r (what `human_leg_length = 0` gave), then a NaN in a joint position.
+    let mut bad = good.clone();
+    bad.states[7 * dim + 2] = f32::INFINITY;
+    bad.states[9 * dim] = f32::NAN;
+    let path = dir.join("bad.safetensors");
+    assert_eq!(
+        bad.save(&path).unwrap_err().to_string(),
+        format!(
+            "{}: refusing to write a dataset that holds 2 non-finite value(s) (NaN or infinity) in `states`, the first \
+             at frame 7 (column 2)",
+            path.display()
+        )
+    );
+    let mut bad_q = good.clone();
+    bad_q.q[3 * good.dof() + 1] = f32::NAN;
+    assert_eq!(
+        bad_q.save(&path).unwrap_err().to_string(),
+        format!(
+            "{}: refusing to write a dataset that holds 1 non-finite value(s) (NaN or infinity) in `q`, the first at \
+             frame 3 (column 1)",
+            path.display()
+        )
+    );
+    // Nothing was written, not even a temporary.
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    // Such a file written by other means is refused by the reader, naming it.
+    std::fs::write(&path, bad.to_bytes().unwrap()).unwrap();
+    assert_eq!(
+        MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string(),
+        format!(
+            "{}: the dataset holds 2 non-finite value(s) (NaN or infinity) in `states`, the first at frame 7 (column 2)",
+            path.display()
+        )
+    );
+    // A finite one round-trips.
+    good.save(&path).unwrap();
+    assert_eq!(MotionSet::load(&path).unwrap(), good);
+}
