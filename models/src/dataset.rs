@@ -623,9 +623,13 @@ impl MotionSet {
         Ok(out)
     }
 
-    /// Reads a dataset written by [`MotionSet::save`], checking it (see the module docs).
+    /// Reads a dataset written by [`MotionSet::save`] from a regular file ([`crate::input::read_regular`]),
+    /// checking it (see the module docs).
     pub fn load(path: &Path) -> Result<MotionSet, DatasetError> {
-        let bytes = fs::read(path).map_err(|e| file_error(path, format!("cannot read the file: {e}")))?;
+        let bytes = crate::input::read_regular(path).map_err(|e| match e {
+            crate::input::ReadError::Io(e) => file_error(path, format!("cannot read the file: {e}")),
+            other => file_error(path, other.to_string()),
+        })?;
         MotionSet::from_bytes(&bytes).map_err(|p| file_error(path, p))
     }
 

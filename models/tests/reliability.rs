@@ -658,3 +658,114 @@ fn a_dataset_with_non_finite_values_is_neither_written_nor_read() {
     good.save(&path).unwrap();
     assert_eq!(MotionSet::load(&path).unwrap(), good);
 }
+
+/// `f()`'s result, which must come within 2 s (a reader that opened a FIFO would wait for a writer
+/// forever).
+fn within_2s(what: &str, f: impl FnOnce() -> String + Send + 'static) -> String {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(2))
+        .unwrap_or_else(|_| panic!("{what}: the reader hung (on a FIFO?)"))
+}
+
+fn mkfifo(path: &Path) {
+    assert!(std::process::Command::new("mkfifo").arg(path).status().unwrap().success());
+}
+
+/// UTF-16 (little-endian, without a byte-order mark) of `text`.
+fn utf16(text: &str) -> Vec<u8> {
+    text.encode_utf16().flat_map(u16::to_le_bytes).collect()
+}
+
+const NOT_REGULAR: &str = "not a regular file (a directory, FIFO or device)";
+const UTF16: &str = "the file is UTF-16 encoded; save it as UTF-8 (e.g. `iconv -f UTF-16 -t UTF-8`)";
+
+#[test]
+fn every_reader_refuses_fifos_without_hanging_and_hints_at_utf16() {
+    use ace_models::dataset::MotionSet;
+    use ace_models::human::JointMapping;
+    use ace_models::morphology::Profile;
+    use ace_models::runtime::Retargeter;
+    use ace_models::urdf::read_urdf_file;
+    let dir = scratch("readers");
+
+    // The joint mapping, given or read beside a clip.
+    let fifo = dir.join("walk.mapping.toml");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("mapping", move || JointMapping::from_file(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    std::fs::copy(asset("assets/motions/walk.bvh"), dir.join("walk.bvh")).unwrap();
+    let clip = dir.join("walk.bvh");
+    let e = within_2s("clip with a mapping beside", move || {
+        HumanClip::from_bvh_file(&clip, &ImportOptions::default()).map(|_| ()).unwrap_err().to_string()
+    });
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    let mapping16 = dir.join("rig16.toml");
+    std::fs::write(&mapping16, utf16("pelvis = \"Hips\"\n")).unwrap();
+    let e = JointMapping::from_file(&mapping16).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: {UTF16}", mapping16.display()));
+
+    // The profile, read directly or beside its URDF (one that is there is never skipped).
+    let urdf = dir.join("stretch.urdf");
+    std::fs::copy(asset("assets/characters/stretch.urdf"), &urdf).unwrap();
+    let profile = dir.join("stretch.profile.toml");
+    mkfifo(&profile);
+    let (p, u) = (profile.clone(), urdf.clone());
+    let e = within_2s("profile", move || Profile::from_file(&p).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", profile.display()));
+    let e = within_2s("profile beside", move || Profile::beside(&u).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", profile.display()));
+    std::fs::remove_file(&profile).unwrap();
+    std::fs::write(&profile, utf16("head = \"\"\n")).unwrap();
+    let e = Profile::beside(&urdf).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: cannot read the file: {UTF16}", profile.display()));
+    std::fs::remove_file(&profile).unwrap();
+
+    // The URDF: a FIFO, and UTF-16 without a byte-order mark (it used to pass as UTF-8, NULs and all,
+    // and fail as malformed XML).
+    let fifo = dir.join("robot.urdf");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("urdf", move || read_urdf_file(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", fifo.display()));
+    let urdf16 = dir.join("stretch16.urdf");
+    std::fs::write(&urdf16, utf16(&std::fs::read_to_string(&urdf).unwrap())).unwrap();
+    let e = read_urdf_file(&urdf16).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: cannot read the file: {UTF16}", urdf16.display()));
+
+    // Datasets (`ace metrics`, `--dataset`, `--reference`): binary, so a FIFO or a directory.
+    let fifo = dir.join("set.safetensors");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("dataset", move || MotionSet::load(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    let e = MotionSet::load(&dir).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", dir.display()));
+
+    // Checkpoints, through the pure-Rust loader (the plugin's and `ace retarget`'s): each file a FIFO
+    // in turn, and the JSON files in UTF-16.
+    for name in ["config.json", "ace.json", "prior.safetensors", "generator.safetensors"] {
+        let ck = dir.join(format!("ck-{name}"));
+        std::fs::create_dir_all(&ck).unwrap();
+        for e in std::fs::read_dir(asset("assets/checkpoints/stretch")).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, ck.join(p.file_name().unwrap())).unwrap();
+        }
+        let file = ck.join(name);
+        std::fs::remove_file(&file).unwrap();
+        mkfifo(&file);
+        let c = ck.clone();
+        let e = within_2s(name, move || Retargeter::load(&c).map(|_| ()).unwrap_err().to_string());
+        assert_eq!(e, format!("{}: {NOT_REGULAR}", file.display()));
+        if name.ends_with(".json") {
+            std::fs::remove_file(&file).unwrap();
+            let text = std::fs::read_to_string(asset(&format!("assets/checkpoints/stretch/{name}"))).unwrap();
+            std::fs::write(&file, utf16(&text)).unwrap();
+            let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+            assert_eq!(e, format!("{}: {UTF16}", file.display()));
+        }
+    }
+}
