@@ -1058,3 +1058,53 @@ fn every_input_file_refuses_a_fifo_and_utf16_from_the_command_line() {
     // Nothing was written.
     assert_eq!(names(&dir), ["ck", "f.safetensors", "f.toml", "f.urdf", "good.safetensors", "u16.toml", "u16.urdf"]);
 }
+
+fn ace_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ace")).args(args).current_dir(dir).output().expect("running ace")
+}
+
+#[test]
+fn metrics_finds_a_character_given_by_a_relative_path_from_any_folder() {
+    use ace::models::dataset::MotionSet;
+    let dir = scratch("metrics-relative");
+    let (work, robots, elsewhere) = (dir.join("work"), dir.join("robots"), dir.join("elsewhere/deeper"));
+    for d in [&work, &robots, &elsewhere] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    // Not a bundled character's name, so that `ace metrics` needs the recorded file.
+    let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    std::fs::write(robots.join("stretchy.urdf"), text.replacen("<robot name=\"stretch\">", "<robot name=\"stretchy\">", 1))
+        .unwrap();
+    let o = ace_in(&work, &["dataset", "--character", "../robots/stretchy.urdf", "--frames", "300", "--out", "d.safetensors"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The dataset records the file's absolute path …
+    let set = MotionSet::load(&work.join("d.safetensors")).unwrap();
+    let canonical = std::fs::canonicalize(robots.join("stretchy.urdf")).unwrap();
+    assert_eq!(set.character_source.as_deref(), Some(&*s(&canonical)));
+    // … so that it is scored from another folder.
+    let frames = |o: &Output| -> Value {
+        assert!(o.status.success(), "{}", stderr(o));
+        serde_json::from_slice::<Value>(&o.stdout).unwrap()["frames"].clone()
+    };
+    assert_eq!(frames(&ace_in(&elsewhere, &["metrics", "../../work/d.safetensors", "--json"])), 300);
+    // A dataset of before, which recorded the path as it was given (relative to where `ace dataset`
+    // ran, here the dataset's folder), is read from any folder too: from here, else from its folder
+    // (`../robots` is nothing from `elsewhere/deeper` or from `dir`).
+    let mut old = set.clone();
+    old.character_source = Some("../robots/stretchy.urdf".into());
+    old.save(&work.join("old.safetensors")).unwrap();
+    assert_eq!(frames(&ace_in(&work, &["metrics", "old.safetensors", "--json"])), 300);
+    assert_eq!(frames(&ace_in(&elsewhere, &["metrics", "../../work/old.safetensors", "--json"])), 300);
+    assert_eq!(frames(&ace_in(&dir, &["metrics", &s(&work.join("old.safetensors")), "--json"])), 300);
+    // Where neither exists, the error says both and what to do.
+    std::fs::rename(&robots, dir.join("moved")).unwrap();
+    let o = ace_in(&elsewhere, &["metrics", "../../work/old.safetensors"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).lines().any(|l| l
+            == "error: the motion file was made for `stretchy` from ../robots/stretchy.urdf, which is not a file from \
+                here nor from the motion file's folder (../../work/../robots/stretchy.urdf); pass --character URDF"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -27,7 +27,7 @@
 //! | `contacts` | U8    | `[N, F]` | 1 when the foot is in stance, in [`Morphology::feet`] order     |
 //!
 //! `__metadata__` (all values strings): `format` = `ace_motion_set`, `format_version` = `1`,
-//! `character` (robot name), optionally `character_source` (the URDF path it was read from), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
+//! `character` (robot name), optionally `character_source` (the absolute path of the character file it was read from; older files: the path as given), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
 //! (`{"dof", "end_effectors", "dim"}` as JSON), `dof_names` and `end_effector_links` (JSON arrays; the
 //! first `n_feet` end effectors are the feet), `n_feet`.
 //!
@@ -141,8 +141,8 @@ fn file_error(path: &Path, problem: impl Into<String>) -> DatasetError {
 pub struct MotionSet {
     /// Robot name.
     pub character: String,
-    /// The URDF the character was read from, as it was given, when it came from a file (so that the
-    /// dataset can be scored without naming the character again).
+    /// The file the character was read from, as an absolute path (older datasets: as it was given),
+    /// when it came from a file, so that the dataset can be scored without naming the character again.
     pub character_source: Option<String>,
     /// Frame rate.
     pub fps: f32,
@@ -208,7 +208,11 @@ pub fn generate(
 
     let mut set = MotionSet {
         character: tree.name.clone(),
-        character_source: tree.source.as_ref().map(|p| p.display().to_string()),
+        // Absolute, so that the dataset can be scored from any folder.
+        character_source: tree
+            .source
+            .as_ref()
+            .map(|p| fs::canonicalize(p).unwrap_or_else(|_| p.clone()).display().to_string()),
         fps: cfg.fps,
         seed: cfg.seed,
         config: cfg.clone(),
