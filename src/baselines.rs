@@ -68,7 +68,7 @@ fn nkn_config(ace: &AceConfig, quick: bool) -> NknConfig {
 /// Steps a run directory holds, from its record (0 when there is none yet).
 fn steps_done(dir: &Path, slug: &str) -> usize {
     if slug == "nkn" {
-        std::fs::read_to_string(dir.join(NKN_FILE))
+        ace::models::input::read_text(&dir.join(NKN_FILE))
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
             .and_then(|v| v["step"].as_u64())

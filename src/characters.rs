@@ -26,10 +26,13 @@ pub fn assets_dir() -> PathBuf {
     }
 }
 
-/// The URDF a `--character` value names: an existing path as given, else a bundled character's name.
+/// The URDF a `--character` value names: an existing path (not a directory) as given, else a bundled
+/// character's name.
 pub fn character_path(arg: &str) -> Result<PathBuf> {
     let path = Path::new(arg);
-    if path.is_file() {
+    // A FIFO or a device goes to the reader, which refuses it by name (a directory may be a
+    // checkpoint folder named after a bundled character).
+    if path.is_file() || (path.exists() && !path.is_dir()) {
         return Ok(path.to_path_buf());
     }
     if let Some(k) = BUNDLED.iter().position(|b| *b == arg) {

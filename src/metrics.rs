@@ -17,7 +17,7 @@ use crate::characters;
 /// Runs `ace metrics FILE [--character C] [--reference DATASET] [--json]`.
 pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json: bool) -> Result<()> {
     let set = MotionSet::load(file)?;
-    let (urdf, tree, morph) = characters::load(&character_of(&set, character)?)?;
+    let (urdf, tree, morph) = characters::load(&character_of(&set, file, character)?)?;
     characters::check_dataset(&set, file, &tree, &urdf)?;
     let reference = match reference {
         Some(r) => {
@@ -36,9 +36,11 @@ pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json:
     Ok(())
 }
 
-/// The `--character` value for a motion set: the one given, else the bundled character of its name,
-/// else the URDF it recorded being made from.
-pub fn character_of(set: &MotionSet, given: Option<&str>) -> Result<String> {
+/// The `--character` value for the motion set read from `file`: the one given, else the bundled
+/// character of its name, else the character file it recorded being made from. Datasets record that
+/// file's absolute path; older ones recorded it as it was given, relative to the folder `ace dataset`
+/// ran in: such a path is tried from here, then from the dataset's folder (where `--out FILE` put it).
+pub fn character_of(set: &MotionSet, file: &Path, given: Option<&str>) -> Result<String> {
     if let Some(c) = given {
         return Ok(c.to_string());
     }
@@ -47,6 +49,18 @@ pub fn character_of(set: &MotionSet, given: Option<&str>) -> Result<String> {
     }
     match &set.character_source {
         Some(urdf) if Path::new(urdf).is_file() => Ok(urdf.clone()),
+        Some(urdf) if Path::new(urdf).is_relative() => {
+            let beside = file.parent().unwrap_or(Path::new("")).join(urdf);
+            if beside.is_file() {
+                return Ok(beside.display().to_string());
+            }
+            bail!(
+                "the motion file was made for `{}` from {urdf}, which is not a file from here nor from the motion \
+                 file's folder ({}); pass --character URDF",
+                set.character,
+                beside.display()
+            )
+        }
         Some(urdf) => bail!(
             "the motion file was made for `{}` from {urdf}, which is not a file from here; pass --character URDF",
             set.character

@@ -148,7 +148,8 @@ pub fn import_options(mapping: Option<&Path>) -> Result<ImportOptions> {
 /// same joints and size, other content: [`AceRecord::character_file_difference`]); `None` when it is,
 /// or when the checkpoint does not record its character file.
 pub fn character_file_warning(record: &AceRecord, character: &Path) -> Result<Option<String>> {
-    let bytes = std::fs::read(character).with_context(|| format!("{}: cannot read the character file", character.display()))?;
+    let bytes = ace::models::input::read_regular(character)
+        .with_context(|| format!("{}: cannot read the character file", character.display()))?;
     Ok(record.character_file_difference(&FileRecord::of(&character.display().to_string(), &bytes)))
 }
 

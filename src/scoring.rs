@@ -66,8 +66,9 @@ impl Scorer {
     /// left out when the directory has no `reference.json`.
     pub fn new(record: &AceRecord, character: &CharacterInfo, dir: &Path) -> Result<Scorer> {
         let path = dir.join(REFERENCE_FILE);
-        let reference = if path.is_file() {
-            let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+        // One that is there but is not a regular file (a FIFO, a directory) is an error, not skipped.
+        let reference = if path.exists() {
+            let text = ace::models::input::read_text(&path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
             let v: serde_json::Value =
                 serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
             Some(serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", path.display()))?)

@@ -53,15 +53,7 @@ pub fn default_dir(character_arg: &str, tree: &KinematicTree) -> PathBuf {
 
 /// The text of a configuration file: a regular file, UTF-8 (a UTF-16 file gets a hint).
 pub fn read_text(path: &Path) -> Result<String> {
-    let meta = std::fs::metadata(path).with_context(|| format!("reading {}", path.display()))?;
-    if !meta.is_file() {
-        bail!("{}: not a regular file (a directory, FIFO or device)", path.display());
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
-        bail!("{}: the file is UTF-16 encoded; save it as UTF-8", path.display());
-    }
-    String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{}: not UTF-8 text ({e}); save it as UTF-8", path.display()))
+    ace::models::input::read_text(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 /// The configuration `--config` gives (over the defaults, or the paper's with `--paper`), checked
@@ -117,7 +109,7 @@ pub fn generate_dataset(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetC
 
 /// The character file's path, size and FNV-1a 64 checksum, for the checkpoint's provenance.
 pub fn character_record(path: &Path) -> Result<Value> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the character file", path.display()))?;
+    let bytes = ace::models::input::read_regular(path).with_context(|| format!("{}: cannot read the character file", path.display()))?;
     Ok(serde_json::to_value(ace::models::learn::files::FileRecord::of(&path.display().to_string(), &bytes))?)
 }
 

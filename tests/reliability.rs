@@ -949,3 +949,162 @@ fn a_failed_train_leaves_the_checkpoint_as_it_was() {
     // training succeeds.
     assert_eq!(snapshot_with_times(&ck), before);
 }
+
+include!("../models/tests/data/bad_dataset_configs.rs");
+
+#[test]
+fn every_dataset_configuration_field_is_bounded_naming_the_file_and_field() {
+    let dir = scratch("dataset-config-bounds");
+    let cfg = dir.join("data.toml");
+    for (text, problem) in BAD_DATASET_CONFIGS {
+        std::fs::write(&cfg, format!("frames = 300\n{text}\n")).unwrap();
+        refused_up_front(
+            &[
+                "dataset",
+                "--character",
+                "stretch",
+                "--config",
+                &s(&cfg),
+                "--out",
+                &s(&dir.join("d.safetensors")),
+                "--report",
+                &s(&dir.join("report")),
+            ],
+            &format!(
+                "{} (with the command-line options): invalid dataset configuration: {problem}",
+                cfg.display()
+            ),
+        );
+        assert_eq!(names(&dir), ["data.toml"], "{text}: nothing is written");
+    }
+}
+
+/// Runs `ace`, killing it after 10 s (a reader that opened a FIFO would wait for a writer forever),
+/// and checks that it failed with status 1 and the error line `expected`.
+fn refused_without_hanging(args: &[&str], expected: &str) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(args)
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("ace {args:?} hung");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.lines().any(|l| l == format!("error: {expected}")), "{args:?}:\n{e}\nexpected: error: {expected}");
+}
+
+#[test]
+fn every_input_file_refuses_a_fifo_and_utf16_from_the_command_line() {
+    let dir = scratch("input-files");
+    let not_regular = "not a regular file (a directory, FIFO or device)";
+    let utf16_hint = "the file is UTF-16 encoded; save it as UTF-8 (e.g. `iconv -f UTF-16 -t UTF-8`)";
+    let (toml, set, urdf) = (dir.join("f.toml"), dir.join("f.safetensors"), dir.join("f.urdf"));
+    for f in [&toml, &set, &urdf] {
+        assert!(Command::new("mkfifo").arg(f).status().unwrap().success());
+    }
+    let good = dir.join("good.safetensors");
+    run_ok(&["dataset", "--character", "stretch", "--frames", "300", "--out", &s(&good)]);
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    std::fs::remove_file(ck.join("ace.json")).unwrap();
+    assert!(Command::new("mkfifo").arg(ck.join("ace.json")).status().unwrap().success());
+    let walk = "assets/motions/walk.bvh";
+    let (x, ck2) = (s(&dir.join("x.safetensors")), s(&dir.join("ck2")));
+    let fifo = |p: &Path| format!("{}: {not_regular}", p.display());
+    for (args, expected) in [
+        (vec!["inspect", walk, "--mapping", &s(&toml)], fifo(&toml)),
+        (vec!["metrics", &s(&set)], fifo(&set)),
+        (vec!["metrics", &s(&good), "--reference", &s(&set)], fifo(&set)),
+        (vec!["dataset", "--character", "stretch", "--config", &s(&toml), "--out", &x], fifo(&toml)),
+        (vec!["train-prior", "--character", "stretch", "--config", &s(&toml), "--checkpoint", &ck2], fifo(&toml)),
+        (vec!["train-prior", "--character", "stretch", "--dataset", &s(&set), "--checkpoint", &ck2], fifo(&set)),
+        (
+            vec!["retarget", walk, "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))],
+            fifo(&ck.join("ace.json")),
+        ),
+        (vec!["inspect", &s(&urdf)], format!("{}: cannot read the file: {not_regular}", urdf.display())),
+        (
+            vec!["dataset", "--character", &s(&urdf), "--out", &x],
+            format!("{}: cannot read the file: {not_regular}", urdf.display()),
+        ),
+    ] {
+        refused_without_hanging(&args, &expected);
+    }
+    // UTF-16 without a byte-order mark: a hint, not a TOML or XML syntax error.
+    let utf16 = |text: &str| -> Vec<u8> { text.encode_utf16().flat_map(u16::to_le_bytes).collect() };
+    let (toml16, urdf16) = (dir.join("u16.toml"), dir.join("u16.urdf"));
+    std::fs::write(&toml16, utf16("frames = 300\n")).unwrap();
+    let stretch = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    std::fs::write(&urdf16, utf16(&stretch)).unwrap();
+    let hint = |p: &Path| format!("{}: {utf16_hint}", p.display());
+    for (args, expected) in [
+        (vec!["inspect", walk, "--mapping", &s(&toml16)], hint(&toml16)),
+        (vec!["dataset", "--character", "stretch", "--config", &s(&toml16), "--out", &x], hint(&toml16)),
+        (vec!["train-prior", "--character", "stretch", "--config", &s(&toml16), "--checkpoint", &ck2], hint(&toml16)),
+        (vec!["inspect", &s(&urdf16)], format!("{}: cannot read the file: {utf16_hint}", urdf16.display())),
+    ] {
+        refused_without_hanging(&args, &expected);
+    }
+    // Nothing was written.
+    assert_eq!(names(&dir), ["ck", "f.safetensors", "f.toml", "f.urdf", "good.safetensors", "u16.toml", "u16.urdf"]);
+}
+
+fn ace_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ace")).args(args).current_dir(dir).output().expect("running ace")
+}
+
+#[test]
+fn metrics_finds_a_character_given_by_a_relative_path_from_any_folder() {
+    use ace::models::dataset::MotionSet;
+    let dir = scratch("metrics-relative");
+    let (work, robots, elsewhere) = (dir.join("work"), dir.join("robots"), dir.join("elsewhere/deeper"));
+    for d in [&work, &robots, &elsewhere] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    // Not a bundled character's name, so that `ace metrics` needs the recorded file.
+    let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    std::fs::write(robots.join("stretchy.urdf"), text.replacen("<robot name=\"stretch\">", "<robot name=\"stretchy\">", 1))
+        .unwrap();
+    let o = ace_in(&work, &["dataset", "--character", "../robots/stretchy.urdf", "--frames", "300", "--out", "d.safetensors"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The dataset records the file's absolute path …
+    let set = MotionSet::load(&work.join("d.safetensors")).unwrap();
+    let canonical = std::fs::canonicalize(robots.join("stretchy.urdf")).unwrap();
+    assert_eq!(set.character_source.as_deref(), Some(&*s(&canonical)));
+    // … so that it is scored from another folder.
+    let frames = |o: &Output| -> Value {
+        assert!(o.status.success(), "{}", stderr(o));
+        serde_json::from_slice::<Value>(&o.stdout).unwrap()["frames"].clone()
+    };
+    assert_eq!(frames(&ace_in(&elsewhere, &["metrics", "../../work/d.safetensors", "--json"])), 300);
+    // A dataset of before, which recorded the path as it was given (relative to where `ace dataset`
+    // ran, here the dataset's folder), is read from any folder too: from here, else from its folder
+    // (`../robots` is nothing from `elsewhere/deeper` or from `dir`).
+    let mut old = set.clone();
+    old.character_source = Some("../robots/stretchy.urdf".into());
+    old.save(&work.join("old.safetensors")).unwrap();
+    assert_eq!(frames(&ace_in(&work, &["metrics", "old.safetensors", "--json"])), 300);
+    assert_eq!(frames(&ace_in(&elsewhere, &["metrics", "../../work/old.safetensors", "--json"])), 300);
+    assert_eq!(frames(&ace_in(&dir, &["metrics", &s(&work.join("old.safetensors")), "--json"])), 300);
+    // Where neither exists, the error says both and what to do.
+    std::fs::rename(&robots, dir.join("moved")).unwrap();
+    let o = ace_in(&elsewhere, &["metrics", "../../work/old.safetensors"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).lines().any(|l| l
+            == "error: the motion file was made for `stretchy` from ../robots/stretchy.urdf, which is not a file from \
+                here nor from the motion file's folder (../../work/../robots/stretchy.urdf); pass --character URDF"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -27,13 +27,14 @@
 //! | `contacts` | U8    | `[N, F]` | 1 when the foot is in stance, in [`Morphology::feet`] order     |
 //!
 //! `__metadata__` (all values strings): `format` = `ace_motion_set`, `format_version` = `1`,
-//! `character` (robot name), optionally `character_source` (the URDF path it was read from), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
+//! `character` (robot name), optionally `character_source` (the absolute path of the character file it was read from; older files: the path as given), `fps`, `seed`, `config` ([`DatasetConfig`] as JSON), `layout`
 //! (`{"dof", "end_effectors", "dim"}` as JSON), `dof_names` and `end_effector_links` (JSON arrays; the
 //! first `n_feet` end effectors are the feet), `n_feet`.
 //!
 //! Files are written to a temporary file in the same directory and renamed into place, so a crash
 //! never leaves a half-written dataset. [`MotionSet::load`] checks the format, version, every tensor's
-//! dtype and shape and the episode ranges, and names the file and the problem when something is off.
+//! dtype and shape, the episode ranges and that every value is finite, and names the file and the
+//! problem when something is off; [`MotionSet::save`] refuses a dataset with a NaN or an infinity.
 
 use std::fs;
 use std::io::Write;
@@ -140,8 +141,8 @@ fn file_error(path: &Path, problem: impl Into<String>) -> DatasetError {
 pub struct MotionSet {
     /// Robot name.
     pub character: String,
-    /// The URDF the character was read from, as it was given, when it came from a file (so that the
-    /// dataset can be scored without naming the character again).
+    /// The file the character was read from, as an absolute path (older datasets: as it was given),
+    /// when it came from a file, so that the dataset can be scored without naming the character again.
     pub character_source: Option<String>,
     /// Frame rate.
     pub fps: f32,
@@ -207,7 +208,11 @@ pub fn generate(
 
     let mut set = MotionSet {
         character: tree.name.clone(),
-        character_source: tree.source.as_ref().map(|p| p.display().to_string()),
+        // Absolute, so that the dataset can be scored from any folder.
+        character_source: tree
+            .source
+            .as_ref()
+            .map(|p| fs::canonicalize(p).unwrap_or_else(|_| p.clone()).display().to_string()),
         fps: cfg.fps,
         seed: cfg.seed,
         config: cfg.clone(),
@@ -263,6 +268,12 @@ pub fn generate(
     }
     progress(done);
     (set.mean, set.std) = statistics(&set.states, dim);
+    if let Some(problem) = set.non_finite() {
+        return Err(DatasetError::Config(format!(
+            "the controllers of `{}` produced a dataset that {problem}; nothing was written",
+            tree.name
+        )));
+    }
     Ok(set)
 }
 
@@ -293,7 +304,12 @@ pub fn check_budget(cfg: &DatasetConfig, tree: &KinematicTree, morph: &Morpholog
     )))
 }
 
-/// Checks that every value of `cfg` is in range; errors name the field and the valid range.
+/// Checks that every value of `cfg` is in range, the controllers' included, before anything is
+/// generated; errors name the field (as the TOML file spells it) and the valid range. Probabilities
+/// lie in 0 to 1, durations, time constants, lengths and speeds are positive and bounded, and
+/// `[low, high]` ranges are finite and in order: a value outside these would make the controllers'
+/// speeds or filters infinite or NaN (`human_leg_length = 0` made the speed scale infinite) or their
+/// draws meaningless.
 pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
     let bad = |m: String| Err(DatasetError::Config(m));
     if !(1..=MAX_FRAMES).contains(&cfg.frames) {
@@ -305,19 +321,117 @@ pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
     if !(cfg.fps.is_finite() && (1.0..=1000.0).contains(&cfg.fps)) {
         return bad(format!("`fps` = {} is out of range: expected 1 to 1000", cfg.fps));
     }
-    if let Some(k) = cfg.controller.legs.cadence_limit
-        && !(k.is_finite() && (1.0..=10.0).contains(&k))
-    {
-        return bad(format!(
-            "`controller.legs.cadence_limit` = {k} is out of range: expected 1 to 10 (times the law's stride frequency)"
-        ));
-    }
     let [a, b] = cfg.episode_seconds;
     if !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b) {
         return bad(format!(
             "episode_seconds must be an increasing pair of positive numbers, not [{a}, {b}]"
         ));
     }
+    check_controller(&cfg.controller).map_err(DatasetError::Config)
+}
+
+/// A value in `lo..=hi` (finite), or the error naming `field`, the value and the range (`unit` after
+/// the range, e.g. " s").
+fn in_range(field: &str, v: f32, lo: f32, hi: f32, unit: &str) -> Result<(), String> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        return Ok(());
+    }
+    Err(format!("`{field}` = {v} is out of range: expected {lo} to {hi}{unit}"))
+}
+
+/// A `[low, high]` pair with `lo ≤ low ≤ high ≤ hi`, or the error naming `field`, the pair and the range.
+fn pair_in_range(field: &str, [a, b]: [f32; 2], lo: f32, hi: f32, unit: &str) -> Result<(), String> {
+    if a.is_finite() && b.is_finite() && lo <= a && a <= b && b <= hi {
+        return Ok(());
+    }
+    Err(format!(
+        "`{field}` = [{a}, {b}] is out of range: expected [low, high] with {lo} ≤ low ≤ high ≤ {hi}{unit}"
+    ))
+}
+
+/// A probability (0 to 1).
+fn probability(field: &str, v: f32) -> Result<(), String> {
+    in_range(field, v, 0.0, 1.0, " (a probability)")
+}
+
+/// The bounds of every `controller.*` field (see [`check_config`]).
+fn check_controller(c: &ControllerConfig) -> Result<(), String> {
+    // Speeds in human-equivalent m/s (the paper's forward range is −1.5 to 5), durations in s.
+    const SPEED: f32 = 20.0;
+    const HOLD: [f32; 2] = [0.01, 3600.0];
+    const TAU: [f32; 2] = [0.001, 60.0];
+    let m = &c.commands;
+    let f = |name: &str| format!("controller.commands.{name}");
+    pair_in_range(&f("forward"), m.forward, -SPEED, SPEED, " (human-equivalent m/s)")?;
+    pair_in_range(&f("lateral"), m.lateral, -SPEED, SPEED, " (human-equivalent m/s)")?;
+    pair_in_range(&f("slow"), m.slow, -SPEED, SPEED, " (human-equivalent m/s)")?;
+    pair_in_range(&f("yaw_rate"), m.yaw_rate, -10.0, 10.0, " (rad/s)")?;
+    pair_in_range(&f("hold_seconds"), m.hold_seconds, HOLD[0], HOLD[1], " (s)")?;
+    in_range(&f("time_constant"), m.time_constant, TAU[0], TAU[1], " (s)")?;
+    probability(&f("p_stand"), m.p_stand)?;
+    probability(&f("p_turn"), m.p_turn)?;
+    probability(&f("p_lateral"), m.p_lateral)?;
+    probability(&f("p_slow"), m.p_slow)?;
+    if m.p_stand + m.p_turn > 1.0 {
+        return Err(format!(
+            "`controller.commands.p_stand` + `controller.commands.p_turn` = {} + {} is more than 1: they are \
+             probabilities of one draw",
+            m.p_stand, m.p_turn
+        ));
+    }
+
+    let s = &c.scaling;
+    in_range("controller.scaling.human_leg_length", s.human_leg_length, 0.1, 10.0, " (m)")?;
+    in_range("controller.scaling.human_height", s.human_height, 0.1, 10.0, " (m)")?;
+    if let Some(k) = s.speed_scale {
+        in_range("controller.scaling.speed_scale", k, 0.001, 100.0, " (character m/s per human-equivalent m/s)")?;
+    }
+
+    let p = &c.posture;
+    let f = |name: &str| format!("controller.posture.{name}");
+    pair_in_range(&f("height"), p.height, -0.9, 1.0, " (fractions of the nominal height)")?;
+    in_range(&f("pitch"), p.pitch, 0.0, 1.5, " (rad)")?;
+    in_range(&f("roll"), p.roll, 0.0, 1.5, " (rad)")?;
+    pair_in_range(&f("hold_seconds"), p.hold_seconds, HOLD[0], HOLD[1], " (s)")?;
+    in_range(&f("time_constant"), p.time_constant, TAU[0], TAU[1], " (s)")?;
+
+    let l = &c.legs;
+    let f = |name: &str| format!("controller.legs.{name}");
+    in_range(&f("max_extension"), l.max_extension, 0.05, 1.0, " (a fraction of the leg's reach)")?;
+    in_range(&f("swing_height"), l.swing_height, 0.01, 1.0, " (a fraction of the leg length)")?;
+    for (name, n) in [
+        ("min_swing_frames", l.min_swing_frames),
+        ("walking_min_swing_frames", l.walking_min_swing_frames),
+    ] {
+        if !(1..=1000).contains(&n) {
+            return Err(format!("`{}` = {n} is out of range: expected 1 to 1000 (frames)", f(name)));
+        }
+    }
+    probability(&f("bound_probability"), l.bound_probability)?;
+    in_range(&f("frequency_time_constant"), l.frequency_time_constant, TAU[0], TAU[1], " (s)")?;
+    if let Some(k) = l.cadence_limit {
+        in_range(&f("cadence_limit"), k, 1.0, 10.0, " (times the law's stride frequency)")?;
+    }
+
+    let r = &c.reach;
+    let f = |name: &str| format!("controller.reach.{name}");
+    probability(&f("stow_probability"), r.stow_probability)?;
+    pair_in_range(&f("hold_seconds"), r.hold_seconds, HOLD[0], HOLD[1], " (s)")?;
+    in_range(&f("speed_fraction"), r.speed_fraction, 0.001, 1.0, " (a fraction of the velocity limit)")?;
+    in_range(&f("max_speed_fraction"), r.max_speed_fraction, 0.001, 1.0, " (a fraction of the velocity limit)")?;
+    if r.speed_fraction > r.max_speed_fraction {
+        return Err(format!(
+            "`controller.reach.speed_fraction` = {} is more than `controller.reach.max_speed_fraction` = {}: they are \
+             the low and high ends of one range",
+            r.speed_fraction, r.max_speed_fraction
+        ));
+    }
+    probability(&f("local_probability"), r.local_probability)?;
+    in_range(&f("local_fraction"), r.local_fraction, 0.0, 1.0, " (a fraction of each DoF's range)")?;
+    in_range(&f("default_angular_speed"), r.default_angular_speed, 0.01, 100.0, " (rad/s)")?;
+    in_range(&f("default_linear_speed"), r.default_linear_speed, 0.001, 10.0, " (m/s)")?;
+    in_range(&f("min_duration"), r.min_duration, 0.01, 60.0, " (s)")?;
+    in_range(&f("margin"), r.margin, 0.0, 1.0, " (m)")?;
     Ok(())
 }
 
@@ -387,9 +501,39 @@ impl MotionSet {
         self.episodes[episode].clone().map(|i| self.pose(i)).collect()
     }
 
+    /// What is not finite in the dataset's values (x^r, joint positions, root poses, commands and
+    /// statistics): the first tensor that holds a NaN or an infinity, how many it holds and the first
+    /// frame (or entry); `None` when every value is finite.
+    pub fn non_finite(&self) -> Option<String> {
+        let roots: Vec<f32> = self
+            .roots
+            .iter()
+            .flat_map(|r| {
+                let (t, q) = (r.translation.vector, r.rotation.quaternion());
+                [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
+            })
+            .collect();
+        let commands: Vec<f32> = self.commands.iter().flatten().copied().collect();
+        let dim = self.layout.dim();
+        [
+            ("states", &self.states[..], dim),
+            ("q", &self.q[..], self.dof()),
+            ("roots", &roots[..], 7),
+            ("commands", &commands[..], 3),
+            ("mean", &self.mean[..], 0),
+            ("std", &self.std[..], 0),
+        ]
+        .into_iter()
+        .find_map(|(name, values, width)| non_finite_in(name, values, width))
+    }
+
     /// Writes the dataset (see the module docs), atomically: a temporary file in the same directory is
-    /// renamed into place.
+    /// renamed into place. A dataset with a non-finite value ([`MotionSet::non_finite`]) is refused,
+    /// naming the file, and nothing is written.
     pub fn save(&self, path: &Path) -> Result<(), DatasetError> {
+        if let Some(problem) = self.non_finite() {
+            return Err(file_error(path, format!("refusing to write a dataset that {problem}")));
+        }
         let bytes = self.to_bytes()?;
         let dir = path
             .parent()
@@ -483,9 +627,13 @@ impl MotionSet {
         Ok(out)
     }
 
-    /// Reads a dataset written by [`MotionSet::save`], checking it (see the module docs).
+    /// Reads a dataset written by [`MotionSet::save`] from a regular file ([`crate::input::read_regular`]),
+    /// checking it (see the module docs).
     pub fn load(path: &Path) -> Result<MotionSet, DatasetError> {
-        let bytes = fs::read(path).map_err(|e| file_error(path, format!("cannot read the file: {e}")))?;
+        let bytes = crate::input::read_regular(path).map_err(|e| match e {
+            crate::input::ReadError::Io(e) => file_error(path, format!("cannot read the file: {e}")),
+            other => file_error(path, other.to_string()),
+        })?;
         MotionSet::from_bytes(&bytes).map_err(|p| file_error(path, p))
     }
 
@@ -625,7 +773,7 @@ impl MotionSet {
                 )
             })
             .collect();
-        Ok(MotionSet {
+        let set = MotionSet {
             character: get("character")?.clone(),
             character_source: meta.get("character_source").cloned(),
             fps: number("fps")? as f32,
@@ -645,8 +793,27 @@ impl MotionSet {
             std: floats(std),
             commands: floats(commands).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             contacts: contacts.to_vec(),
-        })
+        };
+        match set.non_finite() {
+            Some(problem) => Err(format!("the dataset {problem}")),
+            None => Ok(set),
+        }
     }
+}
+
+/// "holds N non-finite value(s) …" for the tensor `name` (rows of `width` values; 0: a vector), or
+/// `None` when all its values are finite.
+fn non_finite_in(name: &str, values: &[f32], width: usize) -> Option<String> {
+    let first = values.iter().position(|x| !x.is_finite())?;
+    let count = values.iter().filter(|x| !x.is_finite()).count();
+    let at = if width == 0 {
+        format!("entry {first}")
+    } else {
+        format!("frame {} (column {})", first / width, first % width)
+    };
+    Some(format!(
+        "holds {count} non-finite value(s) (NaN or infinity) in `{name}`, the first at {at}"
+    ))
 }
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {

@@ -28,6 +28,7 @@ pub mod frame;
 pub mod geometry;
 pub mod human;
 pub mod human_set;
+pub mod input;
 pub mod kinematics;
 pub mod mesh_file;
 #[cfg(feature = "learn")]

@@ -150,7 +150,7 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
             "unsupported mesh format `.{ext}` (STL, OBJ and Collada `.dae` are read)"
         )));
     }
-    let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
+    let bytes = crate::input::read_regular(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
     let mut warnings = Vec::new();
     let loader = Loader::default();
     // The Collada reader panics on some malformed files (an index past its array): caught, so that

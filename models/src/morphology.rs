@@ -259,10 +259,10 @@ impl Profile {
         Ok(p)
     }
 
-    /// Reads a profile file.
+    /// Reads a profile file (a regular file of UTF-8 text: [`crate::input::read_text`]).
     pub fn from_file(path: &Path) -> Result<Profile, ProfileError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ProfileError {
+        let text = crate::input::read_text(path).map_err(|e| ProfileError {
             file: file.clone(),
             problem: ProfileProblem::Io(e.to_string()),
         })?;
@@ -281,7 +281,8 @@ impl Profile {
     /// Reads the profile beside `urdf_path` if there is one.
     pub fn beside(urdf_path: &Path) -> Result<Option<Profile>, ProfileError> {
         let p = Profile::path_beside(urdf_path);
-        if p.is_file() {
+        // One that is there but is not a regular file (a FIFO, a directory) is an error, not skipped.
+        if p.exists() {
             Profile::from_file(&p).map(Some)
         } else {
             Ok(None)

@@ -124,25 +124,11 @@ pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<Kine
     Ok(tree)
 }
 
-/// Reads and converts a URDF file; errors name the file.
+/// Reads and converts a URDF file (a regular file of UTF-8 text: [`crate::input::read_text`]);
+/// errors name the file.
 pub fn read_urdf_file(path: &Path) -> Result<KinematicTree, UrdfError> {
     let file = path.display().to_string();
-    let io = |e: std::io::Error| UrdfProblem::Io(e.to_string()).in_file(&file);
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if !meta.is_file() {
-        return Err(UrdfProblem::Io("not a regular file (a directory, FIFO or device)".into()).in_file(&file));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
-    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
-        return Err(UrdfProblem::Io("the file is UTF-16 encoded; save it as UTF-8".into()).in_file(&file));
-    }
-    let xml = String::from_utf8(bytes).map_err(|e| {
-        let at = e.utf8_error().valid_up_to();
-        let bytes = e.as_bytes();
-        let line = bytes[..at].iter().filter(|&&b| b == b'\n').count() + 1;
-        UrdfProblem::Io(format!("not UTF-8 text (invalid byte at line {line}, byte offset {at}); save it as UTF-8"))
-            .in_file(&file)
-    })?;
+    let xml = crate::input::read_text(path).map_err(|e| UrdfProblem::Io(e.to_string()).in_file(&file))?;
     let mut tree = parse_urdf(&xml, &file, path.parent())?;
     tree.source = Some(path.to_path_buf());
     Ok(tree)

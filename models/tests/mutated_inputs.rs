@@ -211,3 +211,221 @@ proptest! {
         }
     }
 }
+
+// The pure-Rust checkpoint loader (`ace_models::runtime`), the one the plugin and `ace retarget` use
+// by default: no libtorch and no networks built in libtorch, so hundreds of cases run in seconds.
+// Metadata files get text edits and byte flips anywhere; weights files get their safetensors header
+// edited (tensors renamed or removed, other dtypes, shapes and offsets) and mangled as text, byte
+// flips anywhere in the file (the header and the tensor data well beyond the first 4 KB) and
+// truncation, with the metadata recording the mutated file's checksum in half the cases (so that the
+// checks behind it are reached too). A load that fails names a file of the checkpoint; one that
+// succeeds gives a retargeter that starts on its character.
+
+const CHECKPOINT_FILES: [&str; 4] = ["config.json", "prior.safetensors", "ace.json", "generator.safetensors"];
+
+/// The error of a runtime load of `files`, which must name a file of the mutated checkpoint; `None`
+/// when it loaded (and then it must start on the Stretch).
+fn runtime_load(files: BTreeMap<String, Vec<u8>>) -> Option<String> {
+    let dir = Path::new("mutated-checkpoint");
+    match ace_models::runtime::Retargeter::load_files(&ace_models::checkpoint::CheckpointFiles::in_memory(dir, files)) {
+        Err(e) => Some(e.to_string()),
+        Ok(r) => {
+            static STRETCH: std::sync::OnceLock<(ace_models::kinematics::KinematicTree, ace_models::morphology::Morphology)> =
+                std::sync::OnceLock::new();
+            let (tree, morph) = STRETCH.get_or_init(|| {
+                ace_models::morphology::load_character(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/stretch.urdf"))
+                    .unwrap()
+            });
+            // A checkpoint that loads is usable: it accepts its character or refuses it with an error.
+            if r.check_character(tree, morph).is_ok() {
+                let _ = r.start_state(tree, morph);
+            }
+            None
+        }
+    }
+}
+
+/// Whether `e` names a file of the mutated checkpoint.
+fn names_a_checkpoint_file(e: &str) -> bool {
+    CHECKPOINT_FILES.iter().any(|f| e.contains(&format!("mutated-checkpoint/{f}")))
+}
+
+proptest! {
+    #![proptest_config(cases(500))]
+    #[test]
+    fn runtime_checkpoint_metadata_mutations_are_errors_naming_the_file(
+        file in 0..2usize,
+        edits in prop::collection::vec(edit(), 0..5),
+        flips in prop::collection::vec((any::<usize>(), any::<u8>()), 0..4),
+    ) {
+        let mut files = checkpoint_files().clone();
+        let name = ["config.json", "ace.json"][file];
+        let text = String::from_utf8(files[name].clone()).unwrap();
+        let mut bytes = apply(&text, &edits).into_bytes();
+        for (at, v) in &flips {
+            let n = bytes.len();
+            if n > 0 {
+                bytes[at % n] = *v;
+            }
+        }
+        files.insert(name.to_string(), bytes);
+        if let Some(e) = runtime_load(files) {
+            prop_assert!(names_a_checkpoint_file(&e), "{}", e);
+        }
+    }
+}
+
+/// A structural edit of a safetensors header (the JSON map from tensor name to dtype, shape and
+/// offsets), on tensor `k` (modulo their number): what a text edit rarely reaches without breaking the
+/// JSON.
+#[derive(Clone, Debug)]
+enum HeaderEdit {
+    /// Another name (a variable the network does not have, and one it misses).
+    Rename(usize, &'static str),
+    /// Another dtype; I32 and U32 keep the byte size, so the file still parses.
+    Dtype(usize, &'static str),
+    /// The dimensions reversed or flattened (same element count), or replaced.
+    Shape(usize, Option<Vec<u64>>),
+    /// Other data offsets.
+    Offsets(usize, u64, u64),
+    /// The tensor removed.
+    Remove(usize),
+}
+
+fn header_edit() -> impl Strategy<Value = HeaderEdit> {
+    prop_oneof![
+        (any::<usize>(), prop::sample::select(&["x", "generator.layer9.weight", "decoder.gate", "", "\u{0}"][..]))
+            .prop_map(|(k, n)| HeaderEdit::Rename(k, n)),
+        (any::<usize>(), prop::sample::select(&["I32", "U32", "F16", "F64", "BOOL", "X"][..]))
+            .prop_map(|(k, d)| HeaderEdit::Dtype(k, d)),
+        (any::<usize>(), prop::option::of(prop::collection::vec(prop::sample::select(&[0u64, 1, 3, 256, 1 << 40, u64::MAX][..]), 0..4)))
+            .prop_map(|(k, s)| HeaderEdit::Shape(k, s)),
+        (any::<usize>(), any::<u64>(), any::<u64>()).prop_map(|(k, a, b)| HeaderEdit::Offsets(k, a % 1_000_000, b % 1_000_000)),
+        any::<usize>().prop_map(HeaderEdit::Remove),
+    ]
+}
+
+/// `header` (safetensors JSON) with `edits` applied.
+fn apply_header(header: &str, edits: &[HeaderEdit]) -> String {
+    let mut map: serde_json::Map<String, serde_json::Value> = serde_json::from_str(header).unwrap();
+    for e in edits {
+        let names: Vec<String> = map.keys().filter(|k| *k != "__metadata__").cloned().collect();
+        if names.is_empty() {
+            break;
+        }
+        let pick = |k: usize| names[k % names.len()].clone();
+        match e {
+            HeaderEdit::Rename(k, to) => {
+                let v = map.remove(&pick(*k)).unwrap();
+                map.insert(to.to_string(), v);
+            }
+            HeaderEdit::Dtype(k, d) => map[&pick(*k)]["dtype"] = (*d).into(),
+            HeaderEdit::Shape(k, shape) => {
+                let t = &mut map[&pick(*k)];
+                let dims: Vec<u64> = t["shape"].as_array().unwrap().iter().map(|d| d.as_u64().unwrap()).collect();
+                let new = match shape {
+                    Some(s) => s.clone(),
+                    None if dims.len() > 1 => dims.iter().rev().copied().collect(),
+                    None => vec![dims.iter().product()],
+                };
+                t["shape"] = new.into();
+            }
+            HeaderEdit::Offsets(k, a, b) => map[&pick(*k)]["data_offsets"] = vec![*a, *b].into(),
+            HeaderEdit::Remove(k) => {
+                map.remove(&pick(*k));
+            }
+        }
+    }
+    serde_json::Value::Object(map).to_string()
+}
+
+/// One kind of damage to a weights file per case, so that each is tried often on its own.
+#[derive(Clone, Debug)]
+enum WeightsMutation {
+    /// Structural edits of the header ([`HeaderEdit`]).
+    Header(Vec<HeaderEdit>),
+    /// Text edits of the header.
+    HeaderText(Vec<Edit>),
+    /// Byte flips in the length prefix and the header.
+    HeaderFlips(Vec<(usize, u8)>),
+    /// Byte flips in the tensor data, past the first 4 KB.
+    DataFlips(Vec<(usize, u8)>),
+    /// The file cut short.
+    Cut(usize),
+}
+
+fn weights_mutation() -> impl Strategy<Value = WeightsMutation> {
+    let flips = || prop::collection::vec((any::<usize>(), any::<u8>()), 1..6);
+    prop_oneof![
+        prop::collection::vec(header_edit(), 1..3).prop_map(WeightsMutation::Header),
+        prop::collection::vec(edit(), 1..4).prop_map(WeightsMutation::HeaderText),
+        flips().prop_map(WeightsMutation::HeaderFlips),
+        flips().prop_map(WeightsMutation::DataFlips),
+        any::<usize>().prop_map(WeightsMutation::Cut),
+    ]
+}
+
+proptest! {
+    #![proptest_config(cases(600))]
+    #[test]
+    fn runtime_checkpoint_weights_mutations_are_errors_naming_the_file(
+        file in 0..2usize,
+        mutation in weights_mutation(),
+        rerecord in any::<bool>(),
+    ) {
+        let mut files = checkpoint_files().clone();
+        let name = ["prior.safetensors", "generator.safetensors"][file];
+        let mut bytes = files[name].clone();
+        let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+        let header = String::from_utf8(bytes[8..8 + n].to_vec()).unwrap();
+        // The header edited, with its length prefix rewritten.
+        let rewrite = |edited: String| {
+            let mut out = (edited.len() as u64).to_le_bytes().to_vec();
+            out.extend_from_slice(edited.as_bytes());
+            out.extend_from_slice(&bytes[8 + n..]);
+            out
+        };
+        let len = bytes.len();
+        let mutated = match &mutation {
+            WeightsMutation::Header(edits) => rewrite(apply_header(&header, edits)),
+            WeightsMutation::HeaderText(edits) => rewrite(apply(&header, edits)),
+            WeightsMutation::HeaderFlips(flips) => {
+                for (at, v) in flips {
+                    bytes[at % (8 + n)] = *v;
+                }
+                bytes
+            }
+            // The whole file is checksummed and every value checked for NaN and infinity.
+            WeightsMutation::DataFlips(flips) => {
+                for (at, v) in flips {
+                    bytes[4096 + at % (len - 4096)] = *v;
+                }
+                bytes
+            }
+            WeightsMutation::Cut(c) => {
+                bytes.truncate(c % len);
+                bytes
+            }
+        };
+        let unchanged = mutated == files[name];
+        if rerecord {
+            // The metadata records the mutated file's size and checksum, as if it had been saved so:
+            // the structure and value checks behind the checksum are reached.
+            let record = serde_json::to_value(ace_models::checkpoint::FileRecord::of(name, &mutated)).unwrap();
+            for (meta, key) in [("config.json", "weights"), ("ace.json", "prior"), ("ace.json", "generator")] {
+                let mut v: serde_json::Value = serde_json::from_slice(&files[meta]).unwrap();
+                if v[key]["file"] == name {
+                    v[key] = record.clone();
+                    files.insert(meta.to_string(), serde_json::to_vec(&v).unwrap());
+                }
+            }
+        }
+        files.insert(name.to_string(), mutated);
+        match runtime_load(files) {
+            Some(e) => prop_assert!(names_a_checkpoint_file(&e), "{}", e),
+            // Every byte of a weights file is recorded by its checksum: only the file itself loads,
+            // unless the metadata records the change.
+            None => prop_assert!(unchanged || rerecord, "a changed {} loaded", name),
+        }
+    }
+}

@@ -580,3 +580,192 @@ fn a_dataset_too_large_for_its_character_is_refused_before_allocation() {
         check_budget(&cfg, &tree, &morph).unwrap();
     }
 }
+
+include!("data/bad_dataset_configs.rs");
+
+#[test]
+fn every_dataset_configuration_field_is_bounded_before_generation() {
+    use ace_models::dataset::{DatasetConfig, check_config, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    for (text, problem) in BAD_DATASET_CONFIGS {
+        let cfg: DatasetConfig = toml::from_str(&format!("frames = 300\n{text}\n")).unwrap();
+        let expected = format!("invalid dataset configuration: {problem}");
+        assert_eq!(check_config(&cfg).unwrap_err().to_string(), expected, "{text}");
+        // `generate` refuses it before its first frame.
+        let mut reported = false;
+        let e = generate(&tree, &morph, &cfg, &mut |_| reported = true).unwrap_err().to_string();
+        assert_eq!(e, expected, "{text}");
+        assert!(!reported, "{text}: generated before checking");
+    }
+    // The defaults, and the configurations the bundled checkpoints' datasets were generated with (which
+    // `ace train` regenerates), are within the bounds.
+    check_config(&DatasetConfig::default()).unwrap();
+    for name in ["spot", "crab", "stretch", "hound"] {
+        let text = std::fs::read_to_string(asset(&format!("assets/checkpoints/{name}/config.json"))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let cfg = DatasetConfig::from_record(v["provenance"]["dataset"]["config"].clone()).unwrap();
+        check_config(&cfg).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
+
+#[test]
+fn a_dataset_with_non_finite_values_is_neither_written_nor_read() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let cfg = DatasetConfig {
+        frames: 120,
+        ..DatasetConfig::default()
+    };
+    let good = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+    assert_eq!(good.non_finite(), None);
+    let dir = scratch("non-finite-dataset");
+    let dim = good.layout.dim();
+    // An infinity in frame 7's x^r (what `human_leg_length = 0` gave), then a NaN in a joint position.
+    let mut bad = good.clone();
+    bad.states[7 * dim + 2] = f32::INFINITY;
+    bad.states[9 * dim] = f32::NAN;
+    let path = dir.join("bad.safetensors");
+    assert_eq!(
+        bad.save(&path).unwrap_err().to_string(),
+        format!(
+            "{}: refusing to write a dataset that holds 2 non-finite value(s) (NaN or infinity) in `states`, the first \
+             at frame 7 (column 2)",
+            path.display()
+        )
+    );
+    let mut bad_q = good.clone();
+    bad_q.q[3 * good.dof() + 1] = f32::NAN;
+    assert_eq!(
+        bad_q.save(&path).unwrap_err().to_string(),
+        format!(
+            "{}: refusing to write a dataset that holds 1 non-finite value(s) (NaN or infinity) in `q`, the first at \
+             frame 3 (column 1)",
+            path.display()
+        )
+    );
+    // Nothing was written, not even a temporary.
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    // Such a file written by other means is refused by the reader, naming it.
+    std::fs::write(&path, bad.to_bytes().unwrap()).unwrap();
+    assert_eq!(
+        MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string(),
+        format!(
+            "{}: the dataset holds 2 non-finite value(s) (NaN or infinity) in `states`, the first at frame 7 (column 2)",
+            path.display()
+        )
+    );
+    // A finite one round-trips.
+    good.save(&path).unwrap();
+    assert_eq!(MotionSet::load(&path).unwrap(), good);
+}
+
+/// `f()`'s result, which must come within 2 s (a reader that opened a FIFO would wait for a writer
+/// forever).
+fn within_2s(what: &str, f: impl FnOnce() -> String + Send + 'static) -> String {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(2))
+        .unwrap_or_else(|_| panic!("{what}: the reader hung (on a FIFO?)"))
+}
+
+fn mkfifo(path: &Path) {
+    assert!(std::process::Command::new("mkfifo").arg(path).status().unwrap().success());
+}
+
+/// UTF-16 (little-endian, without a byte-order mark) of `text`.
+fn utf16(text: &str) -> Vec<u8> {
+    text.encode_utf16().flat_map(u16::to_le_bytes).collect()
+}
+
+const NOT_REGULAR: &str = "not a regular file (a directory, FIFO or device)";
+const UTF16: &str = "the file is UTF-16 encoded; save it as UTF-8 (e.g. `iconv -f UTF-16 -t UTF-8`)";
+
+#[test]
+fn every_reader_refuses_fifos_without_hanging_and_hints_at_utf16() {
+    use ace_models::dataset::MotionSet;
+    use ace_models::human::JointMapping;
+    use ace_models::morphology::Profile;
+    use ace_models::runtime::Retargeter;
+    use ace_models::urdf::read_urdf_file;
+    let dir = scratch("readers");
+
+    // The joint mapping, given or read beside a clip.
+    let fifo = dir.join("walk.mapping.toml");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("mapping", move || JointMapping::from_file(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    std::fs::copy(asset("assets/motions/walk.bvh"), dir.join("walk.bvh")).unwrap();
+    let clip = dir.join("walk.bvh");
+    let e = within_2s("clip with a mapping beside", move || {
+        HumanClip::from_bvh_file(&clip, &ImportOptions::default()).map(|_| ()).unwrap_err().to_string()
+    });
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    let mapping16 = dir.join("rig16.toml");
+    std::fs::write(&mapping16, utf16("pelvis = \"Hips\"\n")).unwrap();
+    let e = JointMapping::from_file(&mapping16).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: {UTF16}", mapping16.display()));
+
+    // The profile, read directly or beside its URDF (one that is there is never skipped).
+    let urdf = dir.join("stretch.urdf");
+    std::fs::copy(asset("assets/characters/stretch.urdf"), &urdf).unwrap();
+    let profile = dir.join("stretch.profile.toml");
+    mkfifo(&profile);
+    let (p, u) = (profile.clone(), urdf.clone());
+    let e = within_2s("profile", move || Profile::from_file(&p).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", profile.display()));
+    let e = within_2s("profile beside", move || Profile::beside(&u).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", profile.display()));
+    std::fs::remove_file(&profile).unwrap();
+    std::fs::write(&profile, utf16("head = \"\"\n")).unwrap();
+    let e = Profile::beside(&urdf).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: cannot read the file: {UTF16}", profile.display()));
+    std::fs::remove_file(&profile).unwrap();
+
+    // The URDF: a FIFO, and UTF-16 without a byte-order mark (it used to pass as UTF-8, NULs and all,
+    // and fail as malformed XML).
+    let fifo = dir.join("robot.urdf");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("urdf", move || read_urdf_file(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: cannot read the file: {NOT_REGULAR}", fifo.display()));
+    let urdf16 = dir.join("stretch16.urdf");
+    std::fs::write(&urdf16, utf16(&std::fs::read_to_string(&urdf).unwrap())).unwrap();
+    let e = read_urdf_file(&urdf16).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: cannot read the file: {UTF16}", urdf16.display()));
+
+    // Datasets (`ace metrics`, `--dataset`, `--reference`): binary, so a FIFO or a directory.
+    let fifo = dir.join("set.safetensors");
+    mkfifo(&fifo);
+    let f = fifo.clone();
+    let e = within_2s("dataset", move || MotionSet::load(&f).map(|_| ()).unwrap_err().to_string());
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", fifo.display()));
+    let e = MotionSet::load(&dir).map(|_| ()).unwrap_err().to_string();
+    assert_eq!(e, format!("{}: {NOT_REGULAR}", dir.display()));
+
+    // Checkpoints, through the pure-Rust loader (the plugin's and `ace retarget`'s): each file a FIFO
+    // in turn, and the JSON files in UTF-16.
+    for name in ["config.json", "ace.json", "prior.safetensors", "generator.safetensors"] {
+        let ck = dir.join(format!("ck-{name}"));
+        std::fs::create_dir_all(&ck).unwrap();
+        for e in std::fs::read_dir(asset("assets/checkpoints/stretch")).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, ck.join(p.file_name().unwrap())).unwrap();
+        }
+        let file = ck.join(name);
+        std::fs::remove_file(&file).unwrap();
+        mkfifo(&file);
+        let c = ck.clone();
+        let e = within_2s(name, move || Retargeter::load(&c).map(|_| ()).unwrap_err().to_string());
+        assert_eq!(e, format!("{}: {NOT_REGULAR}", file.display()));
+        if name.ends_with(".json") {
+            std::fs::remove_file(&file).unwrap();
+            let text = std::fs::read_to_string(asset(&format!("assets/checkpoints/stretch/{name}"))).unwrap();
+            std::fs::write(&file, utf16(&text)).unwrap();
+            let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+            assert_eq!(e, format!("{}: {UTF16}", file.display()));
+        }
+    }
+}

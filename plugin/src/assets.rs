@@ -54,9 +54,9 @@ pub enum AceAssetError {
     /// The file could not be read.
     #[error("could not read {path}: {source}")]
     Io { path: String, source: std::io::Error },
-    /// The file is not UTF-8 text.
-    #[error("{path} is not UTF-8 text")]
-    NotText { path: String },
+    /// The file is not UTF-8 text (UTF-16, or invalid bytes): what it is instead.
+    #[error("{path}: {problem}")]
+    NotText { path: String, problem: String },
     /// The file's content was rejected by the importer.
     #[error("{path}: {message}")]
     Import { path: String, message: String },
@@ -73,7 +73,7 @@ async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<Str
     let path = ctx.path().to_string();
     let mut bytes = Vec::new();
     reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
-    String::from_utf8(bytes).map_err(|_| AceAssetError::NotText { path })
+    ace_models::input::text_from_bytes(bytes).map_err(|e| AceAssetError::NotText { path, problem: e.to_string() })
 }
 
 /// Loads `.urdf` files, and `.glb`/`.gltf` files when a [`CharacterAsset`] is asked for (see the module
@@ -98,8 +98,8 @@ impl AssetLoader for CharacterLoader {
         let profile_asset = beside(ctx, profile_path.clone());
         let profile = match ctx.read_asset_bytes(profile_asset).await {
             Ok(bytes) => {
-                let text = String::from_utf8(bytes)
-                    .map_err(|_| import(format!("profile {} is not UTF-8 text", profile_path.display())))?;
+                let text = ace_models::input::text_from_bytes(bytes)
+                    .map_err(|e| import(format!("profile {}: {e}", profile_path.display())))?;
                 Some(Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?)
             }
             Err(_) => None,

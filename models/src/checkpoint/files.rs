@@ -3,7 +3,6 @@
 //! weights checked against the shapes a configuration gives ([`read_weights`]).
 
 use std::collections::BTreeMap;
-use std::fs;
 use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors};
@@ -63,15 +62,18 @@ pub(crate) fn fnv1a64(bytes: &[u8]) -> u64 {
     })
 }
 
-/// Reads a whole file; a missing one is [`LearnError::MissingFile`].
+/// Reads a whole regular file ([`crate::input::read_regular`]: a FIFO or a directory is refused
+/// without being opened); a missing one is [`LearnError::MissingFile`].
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
-    match fs::read(path) {
-        Ok(b) => Ok(b),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Err(LearnError::MissingFile { path: path.into() })
-        }
-        Err(e) => Err(LearnError::io(path, e)),
-    }
+    use crate::input::ReadError;
+    crate::input::read_regular(path).map_err(|e| match e {
+        e if e.is_not_found() => LearnError::MissingFile { path: path.into() },
+        ReadError::Io(e) => LearnError::io(path, e),
+        other => LearnError::Format {
+            path: path.into(),
+            problem: other.to_string(),
+        },
+    })
 }
 
 /// The files of a checkpoint directory, read from disk or handed over in memory (by an asset reader,
@@ -138,11 +140,13 @@ pub(crate) fn read_json<T: DeserializeOwned>(
         path: path.into(),
         problem,
     };
-    let value: Value = serde_json::from_slice(&bytes).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
     let format = |problem: String| LearnError::Format {
         path: path.into(),
         problem,
     };
+    // UTF-16 JSON would be "not valid JSON" at its first byte: say what it is.
+    let text = crate::input::text_from_bytes(bytes).map_err(|e| format(e.to_string()))?;
+    let value: Value = serde_json::from_str(&text).map_err(|e| corrupt(format!("not valid JSON: {e}")))?;
     match value.get("kind").and_then(Value::as_str) {
         Some(k) if k == kind => {}
         other => {

@@ -543,8 +543,7 @@ fn box_part(b: &Aabb, scale: &Vector3<f32>) -> MeshPart {
 /// top level or in another visual.
 fn urdf_visual_colors(path: &Path) -> Result<VisualColors, String> {
     let file = path.display();
-    let xml = std::fs::read_to_string(path)
-        .map_err(|e| format!("{file}: cannot read the URDF for colours: {e}"))?;
+    let xml = crate::input::read_text(path).map_err(|e| format!("{file}: cannot read the URDF for colours: {e}"))?;
     let robot = urdf_rs::read_from_string(&xml)
         .map_err(|e| format!("{file}: cannot parse the URDF for colours: {e}"))?;
     let rgba = |c: &urdf_rs::Color| {

@@ -81,14 +81,15 @@ pub struct HumanClip {
 
 impl HumanClip {
     /// Import a BVH file. The clip is named after the file stem. Without a mapping in `opts`, a
-    /// joint-mapping file beside the clip ([`mapping_path_beside`]) is used when there is one.
+    /// joint-mapping file beside the clip ([`mapping_path_beside`]) is used when there is one (one
+    /// that is there but is not a regular file, such as a FIFO, is an error naming it, not skipped).
     pub fn from_bvh_file(path: &Path, opts: &ImportOptions) -> Result<HumanClip, HumanImportError> {
         let file = path.display().to_string();
         let bytes = read_regular_file(path)?;
         let text = decode_text(&bytes, &file)?;
         let beside;
         let opts = match &opts.mapping {
-            None if mapping_path_beside(path).is_file() => {
+            None if mapping_path_beside(path).exists() => {
                 beside = ImportOptions {
                     fps: opts.fps,
                     mapping: Some(JointMapping::from_file(&mapping_path_beside(path))?),
@@ -199,40 +200,37 @@ pub fn mapping_path_beside(clip: &Path) -> std::path::PathBuf {
 }
 
 /// The bytes of `path`, which must be a regular file (a FIFO or device named `.bvh` would block the
-/// reader or never end).
+/// reader or never end): [`crate::input::read_regular`].
 pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, HumanImportError> {
-    let file = path.display().to_string();
-    let io = |source| HumanImportError::Io {
-        file: file.clone(),
-        source,
-    };
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if !meta.is_file() {
-        return Err(HumanImportError::Skeleton {
-            file: file.clone(),
-            message: "not a regular file (a directory, FIFO or device); give a BVH file".into(),
-        });
+    crate::input::read_regular(path).map_err(|e| read_error(&path.display().to_string(), e))
+}
+
+/// A [`crate::input::ReadError`] of the human-motion file `file` (a clip or a joint mapping).
+pub(crate) fn read_error(file: &str, e: crate::input::ReadError) -> HumanImportError {
+    match e {
+        crate::input::ReadError::Io(source) => HumanImportError::Io {
+            file: file.to_string(),
+            source,
+        },
+        other => HumanImportError::Skeleton {
+            file: file.to_string(),
+            message: other.to_string(),
+        },
     }
-    std::fs::read(path).map_err(io)
 }
 
 /// BVH text from file bytes: UTF-8 (invalid bytes replaced, as in names from Latin-1 exporters),
-/// but UTF-16 is refused with a hint rather than read as NUL-riddled garbage.
+/// but UTF-16 ([`crate::input::looks_utf16`]) is refused with a hint rather than read as NUL-riddled
+/// garbage.
 pub fn decode_text<'a>(
     bytes: &'a [u8],
     file: &str,
 ) -> Result<std::borrow::Cow<'a, str>, HumanImportError> {
-    let utf16_bom = bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]);
-    let head = &bytes[..bytes.len().min(64)];
-    let nul_every_other = head.len() >= 4
-        && (head.iter().step_by(2).all(|&b| b == 0)
-            || head.iter().skip(1).step_by(2).all(|&b| b == 0));
-    if utf16_bom || nul_every_other {
+    if crate::input::looks_utf16(bytes) {
         return Err(HumanImportError::Parse {
             file: file.to_string(),
             line: 1,
-            message: "the file is UTF-16 encoded; save it as UTF-8 or ASCII (e.g. `iconv -f UTF-16 -t UTF-8`)"
-                .into(),
+            message: crate::input::ReadError::Utf16.to_string(),
         });
     }
     Ok(String::from_utf8_lossy(bytes))

@@ -29,13 +29,10 @@ pub struct JointMapping {
 }
 
 impl JointMapping {
-    /// Read a mapping file.
+    /// Read a mapping file (a regular file of UTF-8 text: [`crate::input::read_text`]).
     pub fn from_file(path: &Path) -> Result<JointMapping, HumanImportError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| HumanImportError::Io {
-            file: file.clone(),
-            source,
-        })?;
+        let text = crate::input::read_text(path).map_err(|e| super::clip::read_error(&file, e))?;
         Self::parse(&text, &file)
     }
 

@@ -68,6 +68,13 @@ pub(crate) fn open_losses(
     let mut kept = vec![header.to_string()];
     let mut seconds = 0.0;
     if step > 0 && path.exists() {
+        // A FIFO would block the resume forever.
+        if !fs::metadata(path).map_err(|e| LearnError::io(path, e))?.is_file() {
+            return Err(LearnError::Format {
+                path: path.into(),
+                problem: crate::input::ReadError::NotRegular.to_string(),
+            });
+        }
         let f = fs::File::open(path).map_err(|e| LearnError::io(path, e))?;
         for line in BufReader::new(f).lines().skip(1) {
             let line = line.map_err(|e| LearnError::io(path, e))?;
