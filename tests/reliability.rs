@@ -1212,3 +1212,50 @@ fn eval_never_trains_its_baselines_into_the_checkpoint_it_reads() {
         assert_eq!(snapshot_with_times(&dir), before, "--runs {}", runs_arg.display());
     }
 }
+
+/// `walk.bvh` lying on its back: the pelvis turned 90° about the horizontal x axis in every frame (the
+/// root's rotation order is Y X Z, so this holds whatever the heading), 15 cm above the floor.
+fn lying_walk() -> String {
+    let text = std::fs::read_to_string(root().join("assets/motions/walk.bvh")).unwrap();
+    let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+    let lines: Vec<String> = motion
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let mut v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            v[1] = 15.0; // Yposition (cm)
+            v[4] += 90.0; // Xrotation
+            v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    format!("{head}Frame Time: 0.033333\n{}\n", lines.join("\n"))
+}
+
+#[test]
+fn retarget_warns_that_a_lying_clip_is_far_from_upright() {
+    let dir = scratch("lying");
+    let clip = dir.join("lying.bvh");
+    std::fs::write(&clip, lying_walk()).unwrap();
+    // The issue's case: a person lying throughout. The up axis taken from the posture is then the
+    // horizontal feet-to-head one and the frames look upright; the skeleton's rest pose tells.
+    let warning = "warning: lying: the person seems to lie or crawl through most of the clip: the skeleton stands \
+                   along the file's y axis in its rest pose, but the frames' feet-to-head direction is along its z \
+                   axis, which was taken as up. ACE is trained on upright humans, so a lying or crawling clip may drive the character \
+                   in unintended ways (e.g. walking backwards); to import it as lying, give `up = \"y\"` in a \
+                   joint-mapping file (--mapping FILE or lying.mapping.toml)";
+    let o = ace(&["--threads", "1", "retarget", &s(&clip), "--character", "spot", "--out", &s(&dir.join("lying.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).lines().any(|l| l == warning), "{}", stderr(&o));
+    // Imported as lying, as the warning suggests: the pelvis is upright in none of the frames.
+    std::fs::write(dir.join("lying.mapping.toml"), "up = \"y\"\n").unwrap();
+    let warning = "warning: lying: the pelvis is upright (within 60° of vertical) in only 0 % of the frames; ACE is \
+                   trained on upright humans, so a lying or crawling clip may drive the character in unintended ways \
+                   (e.g. walking backwards)";
+    let o = ace(&["--threads", "1", "retarget", &s(&clip), "--character", "spot", "--out", &s(&dir.join("lying.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).lines().any(|l| l == warning), "{}", stderr(&o));
+    // An upright clip gets none.
+    let o = ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot", "--out", &s(&dir.join("walk.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("upright"), "{}", stderr(&o));
+}
