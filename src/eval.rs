@@ -142,13 +142,20 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     for f in ["eval.md", "eval.csv", "eval.json", "eval.png"] {
         outputs.check(&out.join(f))?;
     }
+    // The baselines train into `<runs>/<system>`: never the checkpoint directory or a folder inside
+    // it, nor a file of the character, checked before any work.
+    let runs = args.runs.clone().unwrap_or_else(|| baselines::default_runs(&tree.name, args.quick));
+    if args.baselines {
+        for (_, slug) in baselines::BASELINES {
+            outputs.check_dir(&runs.join(slug))?;
+        }
+    }
     let mut args = args.clone();
     if args.quick {
         args.max_clips = Some(args.max_clips.unwrap_or(QUICK_CLIPS));
         args.seconds = args.seconds.min(QUICK_SECONDS);
     }
     let systems = if args.baselines {
-        let runs = args.runs.clone().unwrap_or_else(|| baselines::default_runs(&tree.name, args.quick));
         baselines::train_missing(&tree, &morph, &dir, &runs, args.humans.as_deref(), args.quick)?
     } else {
         Vec::new()

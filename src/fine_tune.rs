@@ -76,6 +76,7 @@ pub fn fine_tune(ft: &FineTune, report: &mut dyn FnMut(Stage)) -> Result<()> {
     cfg.w_fea = ft.w_fea;
     cfg.feature_weights = ft.feature_weights;
     cfg.end_effector_mapping = ft.end_effector_mapping.clone();
+    cfg.check_mapping_links(&morph.end_effector_links(&tree))?;
     // A checkpoint from before speed matching keeps comparing body lengths per second.
     cfg.match_speed_scale = stored.record.speed_scale.is_some();
 

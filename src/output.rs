@@ -3,7 +3,7 @@
 //! - [`Outputs::input`] records each file or directory a command reads (the clip, the checkpoint
 //!   directory, the config, the character), and also those read implicitly ([`Outputs::input_clip`]:
 //!   the joint-mapping file beside a clip; [`Outputs::input_character`]: the profile beside a
-//!   character, a `.gltf` creature's buffers and images); [`Outputs::check`] refuses an output path
+//!   character, a URDF's mesh files, a `.gltf` creature's buffers and images); [`Outputs::check`] refuses an output path
 //!   that is one of them (same file, also through a symlink or a hard link) or lies inside an input
 //!   directory, or that is a directory where a file is written.
 //! - [`Planned`] gathers every output path of a command with what writes it, before any work: two
@@ -190,8 +190,8 @@ impl Outputs {
     }
 
     /// Records a character file (`--character`: a URDF or a glTF creature) and the files read with
-    /// it: the profile beside it (`<name>.profile.toml`) and a `.gltf` creature's external buffers and
-    /// images.
+    /// it: the profile beside it (`<name>.profile.toml`), a URDF's mesh files and a `.gltf` creature's
+    /// external buffers and images.
     pub fn input_character(&mut self, path: &Path) -> &mut Outputs {
         self.input(path, "the character file");
         let profile = ace::models::morphology::Profile::path_beside(path);
@@ -201,6 +201,10 @@ impl Outputs {
             // again would fail before anything is written.
             for f in ace::models::character::gltf::external_files(path).unwrap_or_default() {
                 self.input(&f, "a file of the character's model (buffer or image)");
+            }
+        } else {
+            for f in ace::models::urdf::mesh_files(path) {
+                self.input(&f, "a mesh file of the character");
             }
         }
         self

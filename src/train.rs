@@ -195,7 +195,10 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&args.character, &tree));
     let cfg: AceConfig = read_config(args.config.as_deref(), AceConfig::paper, args.paper, |c: &AceConfig| {
         c.check()?;
-        c.device.check_available()
+        c.device.check_available()?;
+        // The manual mapping's link names need only the character: checked before the dataset and
+        // the human clips are loaded.
+        c.check_mapping_links(&morph.end_effector_links(&tree))
     })?;
     check_outputs(
         &dir,

@@ -979,9 +979,10 @@ fn every_dataset_configuration_field_is_bounded_naming_the_file_and_field() {
     }
 }
 
-/// Runs `ace`, killing it after 10 s (a reader that opened a FIFO would wait for a writer forever),
-/// and checks that it failed with status 1 and the error line `expected`.
-fn refused_without_hanging(args: &[&str], expected: &str) {
+/// Runs `ace`, killing it after 10 s (a reader that opened a FIFO would wait for a writer forever; a
+/// command that did not check first would be working), and checks that it failed with status 1 and
+/// the error line `expected`; returns its standard error.
+fn refused_without_hanging(args: &[&str], expected: &str) -> String {
     let mut child = Command::new(env!("CARGO_BIN_EXE_ace"))
         .args(args)
         .current_dir(root())
@@ -993,7 +994,7 @@ fn refused_without_hanging(args: &[&str], expected: &str) {
     while child.try_wait().unwrap().is_none() {
         if Instant::now() > deadline {
             let _ = child.kill();
-            panic!("ace {args:?} hung");
+            panic!("ace {args:?} did not finish in 10 s (hung, or working before checking)");
         }
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -1001,6 +1002,7 @@ fn refused_without_hanging(args: &[&str], expected: &str) {
     assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
     let e = stderr(&o);
     assert!(e.lines().any(|l| l == format!("error: {expected}")), "{args:?}:\n{e}\nexpected: error: {expected}");
+    e
 }
 
 #[test]
@@ -1107,4 +1109,153 @@ fn metrics_finds_a_character_given_by_a_relative_path_from_any_folder() {
         "{}",
         stderr(&o)
     );
+}
+
+/// A binary STL of one triangle.
+fn tiny_stl() -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b.extend(1u32.to_le_bytes());
+    for v in [0.0f32, 0.0, 1.0, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.01, 0.0] {
+        b.extend(v.to_le_bytes());
+    }
+    b.extend([0u8, 0]);
+    b
+}
+
+#[test]
+fn a_urdf_s_mesh_files_are_never_written_over() {
+    let dir = scratch("urdf-meshes");
+    let robot = dir.join("robot");
+    std::fs::create_dir_all(robot.join("meshes")).unwrap();
+    // The Stretch with two mesh visuals: one relative to the URDF, one through `package://`.
+    let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
+    let meshes = "<visual><geometry><mesh filename=\"meshes/part.stl\"/></geometry></visual>\
+                  <visual><geometry><mesh filename=\"package://robot/meshes/cover.stl\"/></geometry></visual>";
+    let at = text.find("<visual>").unwrap();
+    let urdf = robot.join("stretchy.urdf");
+    std::fs::write(&urdf, format!("{}{meshes}{}", &text[..at], &text[at..])).unwrap();
+    let (part, cover) = (robot.join("meshes/part.stl"), robot.join("meshes/cover.stl"));
+    std::fs::write(&part, tiny_stl()).unwrap();
+    std::fs::write(&cover, tiny_stl()).unwrap();
+    let o = ace(&["inspect", &s(&urdf), "--json"]);
+    assert!(o.status.success() && !stderr(&o).contains("not found"), "the meshes are read: {}", stderr(&o));
+    let before = snapshot(&dir);
+    for mesh in [&part, &cover] {
+        refused_up_front(
+            &["dataset", "--character", &s(&urdf), "--frames", "300", "--out", &s(mesh)],
+            &format!(
+                "{}: refusing to write there: it is a mesh file of the character ({}) this command reads; choose \
+                 another output path",
+                mesh.display(),
+                mesh.display()
+            ),
+        );
+        assert_eq!(snapshot(&dir), before, "{}: a file changed", mesh.display());
+    }
+}
+
+#[test]
+fn end_effector_mapping_names_are_checked_before_the_dataset_and_clips_are_loaded() {
+    let dir = scratch("mapping-names");
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    let cfg = dir.join("ace.toml");
+    std::fs::write(&cfg, "steps = 10\n[end_effector_mapping]\ngripper = \"right_hand\"\n").unwrap();
+    let before = snapshot_with_times(&ck);
+    let e = refused_without_hanging(
+        &["--threads", "1", "train", "--character", "stretch", "--config", &s(&cfg), "--checkpoint", &s(&ck)],
+        &format!(
+            "{}: invalid configuration: end_effector_mapping: `gripper` is not an end effector of the character \
+             (they are: grasp_center)",
+            cfg.display()
+        ),
+    );
+    assert!(!e.contains("generating the character dataset") && !e.contains("importing"), "{e}");
+    assert_eq!(snapshot_with_times(&ck), before);
+}
+
+#[test]
+fn eval_never_trains_its_baselines_into_the_checkpoint_it_reads() {
+    let dir = scratch("eval-runs");
+    let runs = dir.join("runs");
+    // The compared checkpoint is where a baseline run would go, or holds the runs.
+    let ck = runs.join("ace-no-feature");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    let before = snapshot_with_times(&dir);
+    for (runs_arg, expected) in [
+        (
+            &runs,
+            format!(
+                "{}: refusing to write there: it is the checkpoint directory ({}) this command reads; choose another \
+                 output path",
+                runs.join("ace-no-feature").display(),
+                ck.display()
+            ),
+        ),
+        (
+            &ck,
+            format!(
+                "{}: refusing to write there: it is inside the checkpoint directory ({}) this command reads, whose \
+                 files it would overwrite; choose an output path outside it",
+                ck.join("nkn").display(),
+                ck.display()
+            ),
+        ),
+    ] {
+        refused_without_hanging(
+            &[
+                "--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--baselines", "--quick",
+                "--runs", &s(runs_arg), "--out", &s(&dir.join("eval")),
+            ],
+            &expected,
+        );
+        assert_eq!(snapshot_with_times(&dir), before, "--runs {}", runs_arg.display());
+    }
+}
+
+/// `walk.bvh` lying on its back: the pelvis turned 90° about the horizontal x axis in every frame (the
+/// root's rotation order is Y X Z, so this holds whatever the heading), 15 cm above the floor.
+fn lying_walk() -> String {
+    let text = std::fs::read_to_string(root().join("assets/motions/walk.bvh")).unwrap();
+    let (head, motion) = text.split_once("Frame Time: 0.033333\n").unwrap();
+    let lines: Vec<String> = motion
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let mut v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            v[1] = 15.0; // Yposition (cm)
+            v[4] += 90.0; // Xrotation
+            v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    format!("{head}Frame Time: 0.033333\n{}\n", lines.join("\n"))
+}
+
+#[test]
+fn retarget_warns_that_a_lying_clip_is_far_from_upright() {
+    let dir = scratch("lying");
+    let clip = dir.join("lying.bvh");
+    std::fs::write(&clip, lying_walk()).unwrap();
+    // The issue's case: a person lying throughout. The up axis taken from the posture is then the
+    // horizontal feet-to-head one and the frames look upright; the skeleton's rest pose tells.
+    let warning = "warning: lying: the person seems to lie or crawl through most of the clip: the skeleton stands \
+                   along the file's y axis in its rest pose, but the frames' feet-to-head direction is along its z \
+                   axis, which was taken as up. ACE is trained on upright humans, so a lying or crawling clip may drive the character \
+                   in unintended ways (e.g. walking backwards); to import it as lying, give `up = \"y\"` in a \
+                   joint-mapping file (--mapping FILE or lying.mapping.toml)";
+    let o = ace(&["--threads", "1", "retarget", &s(&clip), "--character", "spot", "--out", &s(&dir.join("lying.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).lines().any(|l| l == warning), "{}", stderr(&o));
+    // Imported as lying, as the warning suggests: the pelvis is upright in none of the frames.
+    std::fs::write(dir.join("lying.mapping.toml"), "up = \"y\"\n").unwrap();
+    let warning = "warning: lying: the pelvis is upright (within 60° of vertical) in only 0 % of the frames; ACE is \
+                   trained on upright humans, so a lying or crawling clip may drive the character in unintended ways \
+                   (e.g. walking backwards)";
+    let o = ace(&["--threads", "1", "retarget", &s(&clip), "--character", "spot", "--out", &s(&dir.join("lying.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).lines().any(|l| l == warning), "{}", stderr(&o));
+    // An upright clip gets none.
+    let o = ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot", "--out", &s(&dir.join("walk.glb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("upright"), "{}", stderr(&o));
 }

@@ -160,7 +160,7 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
         "dae" => loader.load_collada_from_slice(&bytes, path),
         _ => loader.load_obj_from_slice_with_reader(&bytes, path, |mtl: &Path| {
             // The crate skips an MTL file it cannot read without a word.
-            std::fs::read(mtl).inspect_err(|e| {
+            crate::input::read_regular(mtl).map_err(std::io::Error::other).inspect_err(|e| {
                 warnings.push(format!(
                     "{file}: material file {} cannot be read ({e}); its colours are not used",
                     mtl.display()

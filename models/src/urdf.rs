@@ -627,6 +627,31 @@ pub fn resolve_mesh_path(filename: &str, base_dir: &Path) -> Option<PathBuf> {
     }
 }
 
+/// The mesh files the URDF at `path` names that are found on disk ([`resolve_mesh_path`]), each once,
+/// in the order the links give them: what reading the character reads besides the URDF (commands
+/// register them as inputs, never to be written over). Empty when the URDF cannot be read.
+pub fn mesh_files(path: &Path) -> Vec<PathBuf> {
+    let Ok(xml) = crate::input::read_text(path) else {
+        return Vec::new();
+    };
+    let Ok(tree) = parse_urdf(&xml, &path.display().to_string(), None) else {
+        return Vec::new();
+    };
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut files: Vec<PathBuf> = Vec::new();
+    for link in &tree.links {
+        for g in link.visuals.iter().chain(&link.collisions) {
+            if let Shape::Mesh { filename, .. } = &g.shape
+                && let Some(p) = resolve_mesh_path(filename, base)
+                && !files.contains(&p)
+            {
+                files.push(p);
+            }
+        }
+    }
+    files
+}
+
 /// Fills in `bounds` of every mesh whose file can be found and read; warns about the others.
 fn load_mesh_bounds(tree: &mut KinematicTree, base_dir: &Path) {
     let mut cache: HashMap<String, Option<crate::geometry::Aabb>> = HashMap::new();

@@ -769,3 +769,39 @@ fn every_reader_refuses_fifos_without_hanging_and_hints_at_utf16() {
         }
     }
 }
+
+#[test]
+fn a_checkpoint_with_implausible_human_statistics_is_refused_naming_its_ace_json() {
+    use ace_models::runtime::Retargeter;
+    let dir = scratch("human-stats");
+    let original: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(asset("assets/checkpoints/stretch/ace.json")).unwrap()).unwrap();
+    // A mean 5 km up (what clips with a poisoned root gave before training refused them), and one past
+    // f32's range, which reads as infinity.
+    for (entry, value, shown) in [("mean", "5e5", "mean 500000"), ("mean", "1e39", "mean inf"), ("std", "2e3", "standard deviation 2000")] {
+        let ck = dir.join(format!("ck-{entry}-{value}"));
+        std::fs::create_dir_all(&ck).unwrap();
+        for e in std::fs::read_dir(asset("assets/checkpoints/stretch")).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, ck.join(p.file_name().unwrap())).unwrap();
+        }
+        let mut v = original.clone();
+        v["human_stats"][entry][3] = serde_json::from_str(value).unwrap();
+        std::fs::write(ck.join("ace.json"), serde_json::to_string(&v).unwrap()).unwrap();
+        let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+        let (mean, std) = (&v["human_stats"]["mean"][3], &v["human_stats"]["std"][3]);
+        let number = |x: &serde_json::Value| -> f32 { x.as_f64().unwrap() as f32 };
+        assert_eq!(
+            e,
+            format!(
+                "{}: corrupt file: `human_stats` entry 3 has mean {} and standard deviation {}: no human motion gives \
+                 more than 1000 (the clips it was trained on held absurd values); retrain with clips the importer \
+                 accepts",
+                ck.join("ace.json").display(),
+                number(mean),
+                number(std)
+            )
+        );
+        assert!(e.contains(shown), "{e}");
+    }
+}

@@ -195,6 +195,22 @@ impl AceConfig {
         neutral(self) == neutral(other)
     }
 
+    /// Fails when [`AceConfig::end_effector_mapping`] names a link that is not one of the character's
+    /// end effectors `links` ([`crate::morphology::Morphology::end_effector_links`]), listing them: a
+    /// check that needs only the character, made before the dataset and the human clips are loaded.
+    pub fn check_mapping_links(&self, links: &[String]) -> Result<(), LearnError> {
+        let Some(manual) = &self.end_effector_mapping else {
+            return Ok(());
+        };
+        match manual.keys().find(|link| !links.contains(link)) {
+            None => Ok(()),
+            Some(link) => Err(LearnError::Config(format!(
+                "end_effector_mapping: `{link}` is not an end effector of the character (they are: {})",
+                links.join(", ")
+            ))),
+        }
+    }
+
     /// Applies [`AceConfig::end_effector_mapping`] to an automatic correspondence. Unknown link
     /// names are an error that lists the character's end effectors.
     pub fn resolve_mapping(&self, automatic: Correspondence) -> Result<Correspondence, LearnError> {
@@ -286,7 +302,7 @@ pub struct AceRecord {
 impl AceRecord {
     /// Reads and checks `ace.json` for the prior beside it, of state mask `prior_mask` (one value per
     /// x^r entry): kind and version, a configuration in range, the character's state width, the x^h
-    /// statistics, and that the prior's weights file is the one G was trained against. Errors name the
+    /// statistics (positive deviations, no implausible entry: [`implausible_human_stat`]), and that the prior's weights file is the one G was trained against. Errors name the
     /// file.
     pub fn read(files: &CheckpointFiles, prior_mask: &[f32]) -> Result<AceRecord, LearnError> {
         let dir = files.dir();
@@ -327,6 +343,14 @@ impl AceRecord {
             .position(|s| !(s.is_finite() && *s > 0.0))
         {
             return Err(corrupt(format!("`human_stats.std` entry {i} is not positive")));
+        }
+        if let Some(k) = implausible_human_stat(&record.human_stats.mean, &record.human_stats.std) {
+            return Err(corrupt(format!(
+                "`human_stats` entry {k} has mean {} and standard deviation {}: no human motion gives more than \
+                 {MAX_HUMAN_STAT} (the clips it was trained on held absurd values); retrain with clips the importer \
+                 accepts",
+                record.human_stats.mean[k], record.human_stats.std[k]
+            )));
         }
         record
             .prior
@@ -378,6 +402,20 @@ pub fn other_character_file(recorded: &FileRecord, file: &FileRecord) -> Option<
             file.file, recorded.file, recorded.bytes, recorded.fnv1a64, file.bytes, file.fnv1a64
         )
     })
+}
+
+/// Largest plausible |mean| or standard deviation of an x^h entry (metres, m/s, rad/s, unit
+/// quaternion components): far above any human motion, far below what one corrupt clip produces.
+pub const MAX_HUMAN_STAT: f32 = 1e3;
+
+/// The first x^h entry whose normalisation statistics no human motion gives: a mean of more than
+/// [`MAX_HUMAN_STAT`] in magnitude, a standard deviation above it, or either not finite. Training
+/// refuses such statistics before anything is saved; [`AceRecord::read`] refuses a checkpoint that
+/// holds them (made before the check, or edited).
+pub fn implausible_human_stat(mean: &[f32], std: &[f32]) -> Option<usize> {
+    mean.iter()
+        .zip(std)
+        .position(|(m, s)| !(m.abs() <= MAX_HUMAN_STAT && *s <= MAX_HUMAN_STAT))
 }
 
 /// Reads the `ace.json` in `dir`, checking kind and version before the rest.

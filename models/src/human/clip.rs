@@ -77,6 +77,13 @@ pub struct HumanClip {
     /// The BVH joint each canonical joint came from, in [`Joint::ALL`] order
     /// (`midpoint(A, B)` where a joint was placed between two).
     pub source_joints: [String; JOINT_COUNT],
+    /// When the skeleton stands along the file's +y axis (BVH's up) in its rest pose (every rotation
+    /// zero) but the up axis taken from the clip's posture is another: `(skeleton's, taken)`, as the
+    /// file's axes (`"y"`, `"-z"`).
+    /// A person lying or crawling through most of a clip makes a horizontal axis look like up, and then
+    /// the frames look upright ([`HumanClip::posture_warning`] says so). `None` when they agree, or when a
+    /// joint mapping gives `up`.
+    pub skeleton_up: Option<(String, String)>,
 }
 
 impl HumanClip {
@@ -126,8 +133,22 @@ impl HumanClip {
 
     /// A warning when most of the clip's frames have the pelvis far from upright (a person lying or
     /// crawling): the human state is read in the pelvis' heading frame, and a character trained on
-    /// upright humans turns such a clip into motion the user did not intend.
+    /// upright humans turns such a clip into motion the user did not intend. Also when the person lies
+    /// through most of the clip, which made the up axis taken from its posture horizontal
+    /// ([`HumanClip::skeleton_up`]).
     pub fn posture_warning(&self) -> Option<String> {
+        if let Some((skeleton, taken)) = &self.skeleton_up {
+            let stem = Path::new(&self.name).file_stem().map_or(self.name.clone(), |s| s.to_string_lossy().into_owned());
+            return Some(format!(
+                "{}: the person seems to lie or crawl through most of the clip: the skeleton stands along the file's {skeleton} \
+                 axis in its rest pose, but the frames' feet-to-head direction is along its {taken} axis, which was taken \
+                 as up. ACE is \
+                 trained on upright humans, so a lying or crawling clip may drive the character in unintended ways \
+                 (e.g. walking backwards); to import it as lying, give `up = \"{skeleton}\"` in a joint-mapping file \
+                 (--mapping FILE or {stem}.mapping.toml)",
+                self.name
+            ));
+        }
         let f = self.upright_fraction();
         (f < 0.5).then(|| {
             format!(
@@ -185,6 +206,7 @@ impl HumanClip {
             height_m: self.height_m,
             mapped_joints: self.mapped_joints,
             source_joints: self.source_joints.clone(),
+            skeleton_up: self.skeleton_up.clone(),
         }
     }
 }

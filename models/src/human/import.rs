@@ -9,10 +9,10 @@ use super::conventions;
 use super::detect::{detect_translation, detect_up, leading_rest_frames, snap_fps};
 use super::error::HumanImportError;
 use super::fk::Translation;
-use super::matching::SkeletonMap;
+use super::matching::{SkeletonMap, Source};
 use super::skeleton::{JOINT_COUNT, Joint};
 use super::tracks::{leg_length, lowest_foot, percentile, track};
-use super::units::{NORMALISED_HEIGHT_M, detect_unit, parse_unit, parse_up};
+use super::units::{NORMALISED_HEIGHT_M, UpAxis, detect_unit, parse_unit, parse_up};
 
 /// Leg length (hip joint to ankle joint centre) as a fraction of standing height: hip joint at 0.530 H,
 /// ankle at 0.039 H (Drillis & Contini 1966). Standing height is estimated from the legs because their
@@ -78,6 +78,22 @@ fn root_rotation(p: &[Vector3<f32>; JOINT_COUNT]) -> UnitQuaternion<f32> {
     )))
 }
 
+/// Feet to head in the skeleton's rest pose (OFFSETs only, every rotation zero), normalised; `None`
+/// unless one file axis clearly dominates it (at least 0.9 of its length), as in a standing rest pose.
+fn rest_up(bvh: &Bvh, map: &SkeletonMap) -> Option<Vector3<f32>> {
+    let mut p: Vec<Vector3<f32>> = Vec::with_capacity(bvh.joints.len());
+    for j in &bvh.joints {
+        let base = j.parent.map_or(Vector3::zeros(), |k| p[k]);
+        p.push(base + j.offset);
+    }
+    let at = |joint: Joint| match map.sources[joint.index()] {
+        Source::Joint(i) => p[i],
+        Source::Midpoint(a, b) => (p[a] + p[b]) * 0.5,
+    };
+    let v = (at(Joint::Head) - (at(Joint::LeftFoot) + at(Joint::RightFoot)) * 0.5).try_normalize(1e-9)?;
+    (v[v.iamax()].abs() >= 0.9).then_some(v)
+}
+
 /// Import BVH text (see [`HumanClip::from_bvh_str`]), also returning what was detected.
 pub fn import_with_report(
     text: &str,
@@ -108,6 +124,17 @@ pub fn import_with_report(
             message: format!("unknown up axis `{s}`"),
         })?,
         None => detect_up(&tracks),
+    };
+    // The skeleton's own up, from its rest pose: a skeleton that stands along +y there (BVH's up, as
+    // most exporters build it) in a clip whose frames stand along another axis is a person lying or
+    // crawling through most of it. (Rest poses along other axes say nothing: Bandai Namco's stands
+    // along x, iClone's along -y, and both clips stand along y.)
+    let skeleton_up = match user.and_then(|u| u.up.as_deref()) {
+        Some(_) => None,
+        None => rest_up(&bvh, &map)
+            .map(|s| UpAxis::nearest(&s))
+            .filter(|s| s.label() == "y" && *s != up)
+            .map(|s| (s.label(), up.label())),
     };
     let leg = leg_length(&tracks);
     if leg.is_nan() || leg <= 0.0 {
@@ -168,6 +195,7 @@ pub fn import_with_report(
         height_m,
         mapped_joints: JOINT_COUNT,
         source_joints: map.source_names(&bvh),
+        skeleton_up,
     };
     if let Some(fps) = opts.fps {
         clip = clip.resampled(fps);

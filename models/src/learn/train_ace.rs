@@ -672,19 +672,13 @@ fn start_or_resume(
     Ok(ckpt)
 }
 
-/// Shared inputs of the ACE tests: the bundled clips as a human set and a small ACE run on the small
-/// Spot prior of [`super::prior::test_support`], trained once per test process.
-/// Largest plausible |mean| or standard deviation of an x^h entry (metres, m/s, rad/s, unit
-/// quaternion components): far above any human motion, far below what one corrupt clip produces.
-pub const MAX_HUMAN_STAT: f32 = 1e3;
+pub use crate::checkpoint::ace::MAX_HUMAN_STAT;
 
-/// Refuses human normalisation statistics that no human motion gives, naming the clip with the most
-/// extreme value of the offending entry, before anything is trained or saved with them.
+/// Refuses human normalisation statistics that no human motion gives
+/// ([`crate::checkpoint::ace::implausible_human_stat`]), naming the clip with the most extreme value of
+/// the offending entry, before anything is trained or saved with them.
 fn check_human_stats(humans: &HumanSet, stats: &HumanStats) -> Result<(), LearnError> {
-    let bad = (0..stats.mean.len()).find(|&k| {
-        !(stats.mean[k].abs() <= MAX_HUMAN_STAT && stats.std[k] <= MAX_HUMAN_STAT)
-    });
-    let Some(k) = bad else { return Ok(()) };
+    let Some(k) = crate::checkpoint::ace::implausible_human_stat(&stats.mean, &stats.std) else { return Ok(()) };
     let worst = humans
         .train_clips()
         .map(|c| (c, c.states.iter().map(|s| s[k].abs()).fold(0.0f32, |a, b| if b.is_nan() || b > a { b } else { a })))
@@ -698,6 +692,8 @@ fn check_human_stats(humans: &HumanSet, stats: &HumanStats) -> Result<(), LearnE
     )))
 }
 
+/// Shared inputs of the ACE tests: the bundled clips as a human set and a small ACE run on the small
+/// Spot prior of [`super::prior::test_support`], trained once per test process.
 #[cfg(test)]
 pub(crate) mod test_support {
     use std::path::PathBuf;
