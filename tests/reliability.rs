@@ -1259,3 +1259,35 @@ fn retarget_warns_that_a_lying_clip_is_far_from_upright() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("upright"), "{}", stderr(&o));
 }
+
+#[test]
+fn train_prior_never_changes_the_prior_under_an_ace_stage() {
+    let dir = scratch("prior-under-ace");
+    let ck = dir.join("ck");
+    let (prior_cfg, ace_cfg, longer) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("prior-longer.toml"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    std::fs::write(&longer, TINY_PRIOR.replace("steps = 40", "steps = 80")).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    run_ok(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    let before = snapshot_with_times(&ck);
+    // More steps would resume the prior and save new weights under ace.json, which records the old.
+    refused_up_front(
+        &["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&longer), "--checkpoint", &s(&ck)],
+        &format!(
+            "{}: holds an ACE stage (ace.json) trained against its prior (trained to step 40); training the prior to \
+             step 80 would replace the weights the generator was trained with, and the checkpoint would no longer \
+             load: use another --checkpoint directory, or remove ace.json, generator.safetensors and \
+             discriminator.safetensors first to train the ACE stage again after",
+            ck.display()
+        ),
+    );
+    assert_eq!(snapshot_with_times(&ck), before);
+    // Rerunning the finished prior (as scripts/train-checkpoints.sh does on a rerun) changes nothing it
+    // was trained against, and the checkpoint still loads.
+    let weights = |f: &str| std::fs::read(ck.join(f)).unwrap();
+    let (prior, config) = (weights("prior.safetensors"), weights("config.json"));
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    assert!(weights("prior.safetensors") == prior && weights("config.json") == config);
+    run_ok(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&dir.join("walk.glb"))]);
+}
