@@ -1127,20 +1127,25 @@ fn a_urdf_s_mesh_files_are_never_written_over() {
     let dir = scratch("urdf-meshes");
     let robot = dir.join("robot");
     std::fs::create_dir_all(robot.join("meshes")).unwrap();
-    // The Stretch with two mesh visuals: one relative to the URDF, one through `package://`.
+    // The Stretch with three mesh visuals: one relative to the URDF, one through `package://`, and an
+    // OBJ with its material file.
     let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
     let meshes = "<visual><geometry><mesh filename=\"meshes/part.stl\"/></geometry></visual>\
-                  <visual><geometry><mesh filename=\"package://robot/meshes/cover.stl\"/></geometry></visual>";
+                  <visual><geometry><mesh filename=\"package://robot/meshes/cover.stl\"/></geometry></visual>\
+                  <visual><geometry><mesh filename=\"meshes/panel.obj\"/></geometry></visual>";
     let at = text.find("<visual>").unwrap();
     let urdf = robot.join("stretchy.urdf");
     std::fs::write(&urdf, format!("{}{meshes}{}", &text[..at], &text[at..])).unwrap();
     let (part, cover) = (robot.join("meshes/part.stl"), robot.join("meshes/cover.stl"));
     std::fs::write(&part, tiny_stl()).unwrap();
     std::fs::write(&cover, tiny_stl()).unwrap();
+    let (panel, paint) = (robot.join("meshes/panel.obj"), robot.join("meshes/paint.mtl"));
+    std::fs::write(&panel, "mtllib paint.mtl\nv 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nusemtl red\nf 1 2 3\n").unwrap();
+    std::fs::write(&paint, "newmtl red\nKd 1 0 0\n").unwrap();
     let o = ace(&["inspect", &s(&urdf), "--json"]);
     assert!(o.status.success() && !stderr(&o).contains("not found"), "the meshes are read: {}", stderr(&o));
     let before = snapshot(&dir);
-    for mesh in [&part, &cover] {
+    for mesh in [&part, &cover, &panel, &paint] {
         refused_up_front(
             &["dataset", "--character", &s(&urdf), "--frames", "300", "--out", &s(mesh)],
             &format!(
