@@ -161,6 +161,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
         &urdf,
         &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
     )?;
+    check_no_ace_stage_over(&dir, cfg.steps)?;
     // Temporaries of killed runs go now, this run's on SIGINT or SIGTERM.
     crate::output::watch_dir(&dir);
     let mut data_cfg = DatasetConfig::default();
@@ -187,6 +188,34 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
     plot_losses(&dir.join("prior_losses.csv"), "Motion prior", &["total", "reconstruction", "kl"])?;
     println!("prior saved in {} (curves: prior_losses.csv, prior_losses.png)", dir.display());
     Ok(())
+}
+
+/// Fails when `dir` holds an ACE stage (`ace.json`) and training the prior to `steps` would change
+/// the prior it was trained against: its `ace.json` records the prior's weights file, so the
+/// checkpoint would no longer load. A prior already trained to `steps` is left as it is (rerunning a
+/// finished `train-prior`, as the checkpoint script does, is allowed).
+fn check_no_ace_stage_over(dir: &Path, steps: usize) -> Result<()> {
+    use ace::models::checkpoint::ace::ACE_FILE;
+    use ace::models::checkpoint::prior::CONFIG_FILE;
+    if !dir.join(ACE_FILE).exists() {
+        return Ok(());
+    }
+    let done = ace::models::input::read_text(&dir.join(CONFIG_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+        .and_then(|v| v["step"].as_u64())
+        .map(|s| s as usize);
+    if done.is_some_and(|d| d >= steps) {
+        return Ok(());
+    }
+    bail!(
+        "{}: holds an ACE stage ({ACE_FILE}) trained against its prior ({}); training the prior to step {steps} would \
+         replace the weights the generator was trained with, and the checkpoint would no longer load: use another \
+         --checkpoint directory, or remove {ACE_FILE}, generator.safetensors and discriminator.safetensors first to \
+         train the ACE stage again after",
+        dir.display(),
+        done.map_or(format!("no {CONFIG_FILE}"), |d| format!("trained to step {d}"))
+    )
 }
 
 /// Runs `ace train` (the prior must be in the checkpoint directory).

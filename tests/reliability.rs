@@ -1127,20 +1127,25 @@ fn a_urdf_s_mesh_files_are_never_written_over() {
     let dir = scratch("urdf-meshes");
     let robot = dir.join("robot");
     std::fs::create_dir_all(robot.join("meshes")).unwrap();
-    // The Stretch with two mesh visuals: one relative to the URDF, one through `package://`.
+    // The Stretch with three mesh visuals: one relative to the URDF, one through `package://`, and an
+    // OBJ with its material file.
     let text = std::fs::read_to_string(root().join("assets/characters/stretch.urdf")).unwrap();
     let meshes = "<visual><geometry><mesh filename=\"meshes/part.stl\"/></geometry></visual>\
-                  <visual><geometry><mesh filename=\"package://robot/meshes/cover.stl\"/></geometry></visual>";
+                  <visual><geometry><mesh filename=\"package://robot/meshes/cover.stl\"/></geometry></visual>\
+                  <visual><geometry><mesh filename=\"meshes/panel.obj\"/></geometry></visual>";
     let at = text.find("<visual>").unwrap();
     let urdf = robot.join("stretchy.urdf");
     std::fs::write(&urdf, format!("{}{meshes}{}", &text[..at], &text[at..])).unwrap();
     let (part, cover) = (robot.join("meshes/part.stl"), robot.join("meshes/cover.stl"));
     std::fs::write(&part, tiny_stl()).unwrap();
     std::fs::write(&cover, tiny_stl()).unwrap();
+    let (panel, paint) = (robot.join("meshes/panel.obj"), robot.join("meshes/paint.mtl"));
+    std::fs::write(&panel, "mtllib paint.mtl\nv 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nusemtl red\nf 1 2 3\n").unwrap();
+    std::fs::write(&paint, "newmtl red\nKd 1 0 0\n").unwrap();
     let o = ace(&["inspect", &s(&urdf), "--json"]);
     assert!(o.status.success() && !stderr(&o).contains("not found"), "the meshes are read: {}", stderr(&o));
     let before = snapshot(&dir);
-    for mesh in [&part, &cover] {
+    for mesh in [&part, &cover, &panel, &paint] {
         refused_up_front(
             &["dataset", "--character", &s(&urdf), "--frames", "300", "--out", &s(mesh)],
             &format!(
@@ -1258,4 +1263,36 @@ fn retarget_warns_that_a_lying_clip_is_far_from_upright() {
     let o = ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot", "--out", &s(&dir.join("walk.glb"))]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("upright"), "{}", stderr(&o));
+}
+
+#[test]
+fn train_prior_never_changes_the_prior_under_an_ace_stage() {
+    let dir = scratch("prior-under-ace");
+    let ck = dir.join("ck");
+    let (prior_cfg, ace_cfg, longer) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("prior-longer.toml"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    std::fs::write(&longer, TINY_PRIOR.replace("steps = 40", "steps = 80")).unwrap();
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    run_ok(&["--threads", "1", "train", "--character", "stretch", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    let before = snapshot_with_times(&ck);
+    // More steps would resume the prior and save new weights under ace.json, which records the old.
+    refused_up_front(
+        &["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&longer), "--checkpoint", &s(&ck)],
+        &format!(
+            "{}: holds an ACE stage (ace.json) trained against its prior (trained to step 40); training the prior to \
+             step 80 would replace the weights the generator was trained with, and the checkpoint would no longer \
+             load: use another --checkpoint directory, or remove ace.json, generator.safetensors and \
+             discriminator.safetensors first to train the ACE stage again after",
+            ck.display()
+        ),
+    );
+    assert_eq!(snapshot_with_times(&ck), before);
+    // Rerunning the finished prior (as scripts/train-checkpoints.sh does on a rerun) changes nothing it
+    // was trained against, and the checkpoint still loads.
+    let weights = |f: &str| std::fs::read(ck.join(f)).unwrap();
+    let (prior, config) = (weights("prior.safetensors"), weights("config.json"));
+    run_ok(&["--threads", "1", "train-prior", "--character", "stretch", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    assert!(weights("prior.safetensors") == prior && weights("config.json") == config);
+    run_ok(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&dir.join("walk.glb"))]);
 }

@@ -628,8 +628,9 @@ pub fn resolve_mesh_path(filename: &str, base_dir: &Path) -> Option<PathBuf> {
 }
 
 /// The mesh files the URDF at `path` names that are found on disk ([`resolve_mesh_path`]), each once,
-/// in the order the links give them: what reading the character reads besides the URDF (commands
-/// register them as inputs, never to be written over). Empty when the URDF cannot be read.
+/// in the order the links give them, with the material files (`mtllib`) of OBJ meshes: what reading
+/// the character reads besides the URDF (commands register them as inputs, never to be written
+/// over). Empty when the URDF cannot be read.
 pub fn mesh_files(path: &Path) -> Vec<PathBuf> {
     let Ok(xml) = crate::input::read_text(path) else {
         return Vec::new();
@@ -645,11 +646,39 @@ pub fn mesh_files(path: &Path) -> Vec<PathBuf> {
                 && let Some(p) = resolve_mesh_path(filename, base)
                 && !files.contains(&p)
             {
+                let materials = obj_material_files(&p);
                 files.push(p);
+                for m in materials {
+                    if m.is_file() && !files.contains(&m) {
+                        files.push(m);
+                    }
+                }
             }
         }
     }
     files
+}
+
+/// The material files an OBJ mesh names (`mtllib a.mtl b.mtl`), relative to its folder; none for
+/// other formats.
+fn obj_material_files(mesh: &Path) -> Vec<PathBuf> {
+    use std::io::BufRead;
+    if !mesh.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+        return Vec::new();
+    }
+    let Ok(f) = std::fs::File::open(mesh) else {
+        return Vec::new();
+    };
+    let dir = mesh.parent().unwrap_or(Path::new("."));
+    std::io::BufReader::new(f)
+        .split(b'\n')
+        .map_while(Result::ok)
+        .filter_map(|line| {
+            let line = String::from_utf8_lossy(&line).into_owned();
+            line.trim_start().strip_prefix("mtllib").map(|rest| rest.split_whitespace().map(|m| dir.join(m)).collect::<Vec<_>>())
+        })
+        .flatten()
+        .collect()
 }
 
 /// Fills in `bounds` of every mesh whose file can be found and read; warns about the others.

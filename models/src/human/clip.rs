@@ -79,10 +79,9 @@ pub struct HumanClip {
     pub source_joints: [String; JOINT_COUNT],
     /// When the skeleton stands along the file's +y axis (BVH's up) in its rest pose (every rotation
     /// zero) but the up axis taken from the clip's posture is another: `(skeleton's, taken)`, as the
-    /// file's axes (`"y"`, `"-z"`).
-    /// A person lying or crawling through most of a clip makes a horizontal axis look like up, and then
-    /// the frames look upright ([`HumanClip::posture_warning`] says so). `None` when they agree, or when a
-    /// joint mapping gives `up`.
+    /// file's axes (`"y"`, `"-z"`). A person lying or crawling through most of a clip makes a
+    /// horizontal axis look like up, and then the frames look upright ([`HumanClip::posture_warning`]
+    /// says so). `None` when they agree, or when a joint mapping gives `up`.
     pub skeleton_up: Option<(String, String)>,
 }
 
@@ -140,12 +139,11 @@ impl HumanClip {
         if let Some((skeleton, taken)) = &self.skeleton_up {
             let stem = Path::new(&self.name).file_stem().map_or(self.name.clone(), |s| s.to_string_lossy().into_owned());
             return Some(format!(
-                "{}: the person seems to lie or crawl through most of the clip: the skeleton stands along the file's {skeleton} \
-                 axis in its rest pose, but the frames' feet-to-head direction is along its {taken} axis, which was taken \
-                 as up. ACE is \
-                 trained on upright humans, so a lying or crawling clip may drive the character in unintended ways \
-                 (e.g. walking backwards); to import it as lying, give `up = \"{skeleton}\"` in a joint-mapping file \
-                 (--mapping FILE or {stem}.mapping.toml)",
+                "{}: the person seems to lie or crawl through most of the clip: the skeleton stands along the \
+                 file's {skeleton} axis in its rest pose, but the frames' feet-to-head direction is along its {taken} \
+                 axis, which was taken as up. ACE is trained on upright humans, so a lying or crawling clip may drive \
+                 the character in unintended ways (e.g. walking backwards); to import it as lying, give \
+                 `up = \"{skeleton}\"` in a joint-mapping file (--mapping FILE or {stem}.mapping.toml)",
                 self.name
             ));
         }
