@@ -501,18 +501,22 @@ impl MotionSet {
         self.episodes[episode].clone().map(|i| self.pose(i)).collect()
     }
 
-    /// What is not finite in the dataset's values (x^r, joint positions, root poses, commands and
-    /// statistics): the first tensor that holds a NaN or an infinity, how many it holds and the first
-    /// frame (or entry); `None` when every value is finite.
-    pub fn non_finite(&self) -> Option<String> {
-        let roots: Vec<f32> = self
-            .roots
+    /// The root poses as 7 values a frame: translation, then the quaternion (w, i, j, k), as saved.
+    fn root_values(&self) -> Vec<f32> {
+        self.roots
             .iter()
             .flat_map(|r| {
                 let (t, q) = (r.translation.vector, r.rotation.quaternion());
                 [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
             })
-            .collect();
+            .collect()
+    }
+
+    /// What is not finite in the dataset's values (x^r, joint positions, root poses, commands and
+    /// statistics): the first tensor that holds a NaN or an infinity, how many it holds and the first
+    /// frame (or entry); `None` when every value is finite.
+    pub fn non_finite(&self) -> Option<String> {
+        let roots = self.root_values();
         let commands: Vec<f32> = self.commands.iter().flatten().copied().collect();
         let dim = self.layout.dim();
         [
@@ -565,14 +569,7 @@ impl MotionSet {
             episodes.extend((e.start as i64).to_le_bytes());
             episodes.extend((e.end as i64).to_le_bytes());
         }
-        let roots: Vec<f32> = self
-            .roots
-            .iter()
-            .flat_map(|r| {
-                let (t, q) = (r.translation.vector, r.rotation.quaternion());
-                [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
-            })
-            .collect();
+        let roots = self.root_values();
         let commands: Vec<f32> = self.commands.iter().flatten().copied().collect();
         // Data order: the 8-byte dtype first so that every tensor stays aligned.
         let tensors: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![

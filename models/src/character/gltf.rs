@@ -776,9 +776,8 @@ pub fn read_document(
     })
 }
 
-/// The document of the glTF file at `path` (at most [`MAX_FILE_BYTES`]) and the bytes of each of its
-/// buffers (the GLB binary chunk, data URIs, files beside it).
-pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
+/// The bytes of the glTF file at `path`: a regular file of at most [`MAX_FILE_BYTES`].
+fn read_file(path: &Path) -> Result<Vec<u8>, GltfError> {
     let fail = |p: GltfProblem| p.in_file(path);
     let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
     if !meta.is_file() {
@@ -787,7 +786,13 @@ pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> 
     if meta.len() > MAX_FILE_BYTES {
         return Err(fail(GltfProblem::TooLarge(meta.len())));
     }
-    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))
+}
+
+/// The document of the glTF file at `path` (at most [`MAX_FILE_BYTES`]) and the bytes of each of its
+/// buffers (the GLB binary chunk, data URIs, files beside it).
+pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
+    let bytes = read_file(path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     open_bytes(&bytes, path, &|uri| {
         let file = base.join(uri);
@@ -823,14 +828,7 @@ pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<String>, GltfEr
 /// over.
 pub fn external_files(path: &Path) -> Result<Vec<PathBuf>, GltfError> {
     let fail = |p: GltfProblem| p.in_file(path);
-    let meta = std::fs::metadata(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
-    if !meta.is_file() {
-        return Err(fail(GltfProblem::NotAFile));
-    }
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(fail(GltfProblem::TooLarge(meta.len())));
-    }
-    let bytes = std::fs::read(path).map_err(|e| fail(GltfProblem::Io(e.to_string())))?;
+    let bytes = read_file(path)?;
     let gltf = ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf.document.buffers().filter_map(|b| match b.source() {
