@@ -52,7 +52,7 @@ impl CollisionGuard {
         let legs: Vec<usize> = morph
             .feet
             .iter()
-            .flat_map(|&f| Chain::new(tree, morph, f).active_dofs().collect::<Vec<_>>())
+            .flat_map(|&f| Chain::limb(tree, morph, f).0.active_dofs().collect::<Vec<_>>())
             .collect();
         let all: Vec<usize> = (0..tree.dof()).filter(|d| !wheels.contains(d)).collect();
         CollisionGuard {

@@ -98,15 +98,7 @@ pub fn legs(tree: &KinematicTree, morph: &Morphology, standing: &CharacterPose) 
     let mut rng = rand_pcg::Pcg64::seed_from_u64(0x1e65);
     let mut legs = Vec::new();
     for &foot in &morph.feet {
-        let mut chain = Chain::new(tree, morph, foot);
-        // Spine DoFs between the root and the hip bend with the body, not with the leg: IK holds them.
-        let mut on_spine = false;
-        for d in chain.dofs.iter_mut() {
-            if d.is_some_and(|d| morph.spine.contains(&d)) {
-                *d = None;
-                on_spine = true;
-            }
-        }
+        let (chain, on_spine) = Chain::limb(tree, morph, foot);
         let Some(first) = chain.first_moving() else {
             return Err(leg_error(
                 tree,

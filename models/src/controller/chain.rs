@@ -73,6 +73,22 @@ impl Chain {
         c
     }
 
+    /// The chain from the root to a foot (or hand), `tip`, as a limb: the spine's DoFs on the path
+    /// ([`Morphology::spine`]) are left out, so IK on the limb holds them. They bend with the body, and
+    /// they carry the other limbs too: a solve that moved them to plant one foot would drag the others.
+    /// Also says whether any were left out (the spine carries this limb's hip).
+    pub fn limb(tree: &KinematicTree, morph: &Morphology, tip: usize) -> (Chain, bool) {
+        let mut chain = Chain::new(tree, morph, tip);
+        let mut on_spine = false;
+        for d in chain.dofs.iter_mut() {
+            if d.is_some_and(|d| morph.spine.contains(&d)) {
+                *d = None;
+                on_spine = true;
+            }
+        }
+        (chain, on_spine)
+    }
+
     /// The DoFs IK moves, root side first.
     pub fn active_dofs(&self) -> impl Iterator<Item = usize> + '_ {
         self.dofs.iter().flatten().copied()
