@@ -7,8 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::collision_guard::{CollisionGuard, GuardState};
-use crate::controller::chain::ChainScratch;
-use crate::foot_lock::{FootLock, FootLockConfig, FootLockState};
+use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 
@@ -51,7 +50,7 @@ pub struct CleanupPass {
 pub struct CleanupState {
     guard: GuardState,
     lock: Option<FootLockState>,
-    scratch: ChainScratch,
+    scratch: FootLockScratch,
 }
 
 impl CleanupState {
@@ -80,7 +79,7 @@ impl CleanupPass {
         CleanupState {
             guard: GuardState::default(),
             lock: self.lock.as_ref().map(FootLock::start),
-            scratch: ChainScratch::default(),
+            scratch: FootLockScratch::default(),
         }
     }
 

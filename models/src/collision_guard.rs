@@ -49,10 +49,12 @@ impl CollisionGuard {
         let checks = PoseChecks::new(tree, morph, &UfrConfig::for_character(tree, morph));
         let dof_of = |l: usize| tree.links[l].joint.as_ref().and_then(|j| j.dof);
         let wheels: Vec<usize> = morph.wheels.iter().filter_map(|&l| dof_of(l)).collect();
+        // Every DoF on a foot's path from the root, a spine's included: moving any of them moves a
+        // foot the foot lock may hold planted, so they are the last resort.
         let legs: Vec<usize> = morph
             .feet
             .iter()
-            .flat_map(|&f| Chain::limb(tree, morph, f).0.active_dofs().collect::<Vec<_>>())
+            .flat_map(|&f| Chain::new(tree, morph, f).active_dofs().collect::<Vec<_>>())
             .collect();
         let all: Vec<usize> = (0..tree.dof()).filter(|d| !wheels.contains(d)).collect();
         CollisionGuard {

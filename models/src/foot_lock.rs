@@ -15,7 +15,10 @@
 //!   anchor. A foot that only needs to move a little thus stays planted instead of popping. When the
 //!   leg cannot hold it on its anchor (IK misses it by more than [`FootLockConfig::hold_tolerance`]:
 //!   the body has moved beyond the leg's reach or joint limits), it lifts from where it is, as the
-//!   controllers' stance feet do, instead of being dragged along the ground;
+//!   controllers' stance feet do, instead of being dragged along the ground. So does a planted leg
+//!   that holding would cross into another body where the network's own pose keeps them clear (the
+//!   body turned above close-set legs): held there, the collision guard that follows would pull it
+//!   along the ground;
 //! - a lifted foot **swings**: for at least the character's natural swing time at its current speed
 //!   ([`crate::dynamic_similarity::swing_time`], never under [`FootLockConfig::min_swing_frames`]) it
 //!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
@@ -41,10 +44,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::controller::LegConfig;
 use crate::controller::chain::{Chain, ChainScratch};
+use crate::controller::rig::subtree;
 use crate::controller::legs::min_jerk;
 use crate::dynamic_similarity::{froude, hip_height, swing_time};
 use crate::features::character_body_length;
 use crate::kinematics::{CharacterPose, KinematicTree};
+use crate::metrics::{PoseChecks, PoseScratch, UfrConfig};
 use crate::morphology::Morphology;
 
 /// Thresholds of foot locking, in body lengths (L) and body lengths per second.
@@ -100,12 +105,16 @@ struct Leg {
     chain: Chain,
     ground: f32,
     length: f32,
+    /// The rigid bodies ([`PoseChecks::self_collision`]) from the hip down.
+    bodies: Vec<usize>,
 }
 
 /// Foot locking set up for one character (see the module docs).
 #[derive(Clone, Debug)]
 pub struct FootLock {
     legs: Vec<Leg>,
+    /// The UFR's self-collision check: a planted leg held into another body steps instead.
+    checks: PoseChecks,
     config: FootLockConfig,
     body_length: f32,
     hip_height: f32,
@@ -147,6 +156,15 @@ struct FootMemory {
     prev: Option<Point3<f32>>,
 }
 
+/// Reusable buffers of [`FootLock::apply`] (no allocation per frame once sized).
+#[derive(Clone, Debug, Default)]
+pub struct FootLockScratch {
+    chain: ChainScratch,
+    pose: PoseScratch,
+    /// The pairs of bodies colliding in the network's pose.
+    raw_pairs: Vec<usize>,
+}
+
 /// Fraction of a swing at each end without horizontal motion (as in the controllers).
 const EDGE: f32 = 0.2;
 /// Time constant of the root speed filter (s).
@@ -164,6 +182,7 @@ impl FootLock {
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, config: FootLockConfig) -> FootLock {
         let standing = tree.standing_pose();
         let links = tree.forward_kinematics(&standing);
+        let checks = PoseChecks::new(tree, morph, &UfrConfig::for_character(tree, morph));
         let legs: Vec<Leg> = morph
             .feet
             .iter()
@@ -173,16 +192,27 @@ impl FootLock {
                 let length = chain
                     .first_moving()
                     .map_or(0.0, |i| (links[chain.links[i]].translation.vector - foot.coords).norm());
+                let mut bodies: Vec<usize> = chain
+                    .first_moving()
+                    .map(|i| subtree(tree, chain.links[i]))
+                    .unwrap_or_default()
+                    .into_iter()
+                    .map(|l| checks.self_collision().body_of(l))
+                    .collect();
+                bodies.sort_unstable();
+                bodies.dedup();
                 Leg {
                     chain,
                     ground: foot.z.max(0.0),
                     length,
+                    bodies,
                 }
             })
             .collect();
         let mean_leg = legs.iter().map(|l| l.length).sum::<f32>() / legs.len().max(1) as f32;
         FootLock {
             legs,
+            checks,
             config,
             body_length: character_body_length(tree, morph),
             hip_height: hip_height(tree, morph).unwrap_or(mean_leg).max(1e-3),
@@ -208,12 +238,16 @@ impl FootLock {
         tree: &KinematicTree,
         state: &mut FootLockState,
         pose: &mut CharacterPose,
-        scratch: &mut ChainScratch,
+        scratch: &mut FootLockScratch,
     ) {
         assert_eq!(state.feet.len(), self.legs.len(), "a state from another character");
         if self.legs.is_empty() {
             return;
         }
+        let FootLockScratch { chain: scratch, pose: checked, raw_pairs } = scratch;
+        self.checks.place(tree, pose, checked);
+        raw_pairs.clear();
+        self.checks.collisions(checked, |i| raw_pairs.push(i));
         let c = &self.config;
         let l = self.body_length;
         // The root's horizontal speed, filtered: the speed the natural swing time is taken at.
@@ -315,6 +349,26 @@ impl FootLock {
                 }
             }
         }
+        // A planted leg held into another body (a pair the network's own pose keeps clear: the body
+        // turned above crossed front legs, a hind leg into the tail) steps, as the animal would, rather
+        // than be held there for the collision guard to pull along the ground.
+        if state.feet.iter().any(|m| m.anchor.is_some()) {
+            self.checks.place(tree, pose, checked);
+            let pairs = self.checks.self_collision().pairs();
+            let mut crossed: Vec<(usize, usize)> = Vec::new();
+            self.checks.collisions(checked, |i| {
+                if !raw_pairs.contains(&i) {
+                    crossed.push(pairs[i]);
+                }
+            });
+            for (leg, mem) in self.legs.iter().zip(&mut state.feet) {
+                let Some(a) = mem.anchor else { continue };
+                if crossed.iter().any(|(x, y)| leg.bodies.contains(x) || leg.bodies.contains(y)) {
+                    mem.anchor = None;
+                    mem.swing = Some(self.swing(a, swing_frames, leg, fr));
+                }
+            }
+        }
     }
 
     /// A swing of `frames` frames lifting off from `from`, at Froude number `fr`.
@@ -332,7 +386,7 @@ impl FootLock {
     /// Cleans up a whole motion (one episode, in order) from a fresh state.
     pub fn apply_all(&self, tree: &KinematicTree, poses: &mut [CharacterPose]) {
         let mut state = self.start();
-        let mut scratch = ChainScratch::default();
+        let mut scratch = FootLockScratch::default();
         for p in poses {
             self.apply(tree, &mut state, p, &mut scratch);
         }
@@ -346,7 +400,7 @@ mod tests {
     use nalgebra::{Isometry3, Translation3};
 
     use super::*;
-    use crate::metrics::{FootTracks, GaitConfig, UfrConfig, gait_quality, ufr};
+    use crate::metrics::{FootTracks, GaitConfig, gait_quality, ufr};
     use crate::morphology::load_character;
 
     fn spot() -> (KinematicTree, Morphology) {
@@ -509,6 +563,62 @@ mod tests {
         }
     }
 
+    /// Frames of `clean` with a self-collision that the same frame of `raw` does not have.
+    fn collisions_added(tree: &KinematicTree, morph: &Morphology, raw: &[CharacterPose], clean: &[CharacterPose]) -> usize {
+        let checks = PoseChecks::new(tree, morph, &UfrConfig::for_character(tree, morph));
+        let mut scratch = PoseScratch::default();
+        let mut pairs = |p: &CharacterPose| {
+            checks.place(tree, p, &mut scratch);
+            let mut v = Vec::new();
+            checks.collisions(&scratch, |i| v.push(i));
+            v
+        };
+        raw.iter()
+            .zip(clean)
+            .filter(|(r, c)| {
+                let before = pairs(r);
+                pairs(c).iter().any(|i| !before.contains(i))
+            })
+            .count()
+    }
+
+    #[test]
+    fn a_planted_leg_the_body_would_cross_steps_instead_of_being_held_there() {
+        // The Fox's body drifts sideways and turns while the network keeps its legs' angles, so that
+        // its feet go along and never cross. Held planted, its close-set legs end up crossed as the
+        // body passes over them (37 frames of 90); they step out instead, crossed only in the first
+        // frames of their swings.
+        let Some(path) = crate::test_data::require(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/creatures/Fox/Fox.glb"),
+            "the shared Fox",
+        ) else {
+            return;
+        };
+        let (tree, morph) = load_character(&path).unwrap();
+        let l = character_body_length(&tree, &morph);
+        let standing = tree.standing_pose();
+        let raw: Vec<CharacterPose> = (0..90)
+            .map(|t| {
+                let mut p = standing.clone();
+                p.root.translation.y += 0.3 * l * t as f32 / 30.0;
+                p.root.rotation =
+                    nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.8 * t as f32 / 30.0) * p.root.rotation;
+                p
+            })
+            .collect();
+        assert_eq!(collisions_added(&tree, &morph, &raw, &raw), 0);
+        // Feet neither drift nor leave the legs' reach far enough to step for those reasons.
+        let c = FootLockConfig {
+            max_drift: 1.0,
+            hold_tolerance: 1.0,
+            ..FootLockConfig::default()
+        };
+        let mut clean = raw.clone();
+        FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
+        let added = collisions_added(&tree, &morph, &raw, &clean);
+        assert!(added <= 8, "the lock held legs crossed in {added} frames");
+    }
+
     /// Spot standing still while the network moves its first foot: up to `lift` (L) for frames 10 and
     /// 11, then down again `forward` (L) ahead for good.
     fn quick_step(tree: &KinematicTree, morph: &Morphology, lift: f32, forward: f32) -> Vec<CharacterPose> {
@@ -664,7 +774,7 @@ mod tests {
         let mut whole = raw.clone();
         lock.apply_all(&tree, &mut whole);
         let mut state = lock.start();
-        let mut scratch = ChainScratch::default();
+        let mut scratch = FootLockScratch::default();
         for (t, p) in raw.iter().enumerate() {
             let mut p = p.clone();
             lock.apply(&tree, &mut state, &mut p, &mut scratch);
@@ -682,3 +792,4 @@ mod tests {
         assert_eq!(state.planted(), 0);
     }
 }
+
