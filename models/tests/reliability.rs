@@ -145,30 +145,47 @@ fn deep_chain(depth: usize) -> String {
 
 #[test]
 fn deep_joint_chains_do_not_overflow_the_stack() {
-    // Run on a thread with a small stack: the reader must not recurse on the file's depth.
+    // Run on a thread with a small stack: the reader must not recurse on the file's depth. A chain of
+    // 1000 joints (the most a file may have) parses; one more is refused at its line.
     let handle = std::thread::Builder::new()
         .stack_size(256 * 1024)
         .spawn(|| {
-            let mut out = Vec::new();
-            for depth in [30_000, 100_000] {
-                let text = deep_chain(depth);
-                let bvh = ace_models::human::bvh::Bvh::parse(&text, "deep.bvh").unwrap();
-                assert_eq!(bvh.joints.len(), depth + 1);
-                assert_eq!(bvh.joints[depth].parent, Some(depth - 1));
-                out.push(import_err(&text));
-            }
-            out
+            let text = deep_chain(999);
+            let bvh = ace_models::human::bvh::Bvh::parse(&text, "deep.bvh").unwrap();
+            assert_eq!(bvh.joints.len(), ace_models::human::bvh::MAX_JOINTS);
+            assert_eq!(bvh.joints[999].parent, Some(998));
+            (import_err(&text), import_err(&deep_chain(1000)), import_err(&deep_chain(100_000)))
         })
         .unwrap();
-    for e in handle.join().expect("no stack overflow") {
-        // Generic names: an unknown skeleton, with a bounded list of joints.
-        assert!(e.starts_with("bad.bvh: unknown skeleton") && e.contains("J58, … and"), "{e}");
-        assert!(
-            e.len() < 2_000,
-            "the message lists a bounded number of joints ({} bytes)",
-            e.len()
-        );
+    let (generic, over, far_over) = handle.join().expect("no stack overflow");
+    // Generic names: an unknown skeleton, with a bounded list of joints.
+    assert!(generic.starts_with("bad.bvh: unknown skeleton") && generic.contains("J58, … and"), "{generic}");
+    assert!(generic.len() < 2_000, "the message lists a bounded number of joints ({} bytes)", generic.len());
+    // `JOINT J999`, the 1001st joint, is on line 6 + 4 × 999.
+    for e in [over, far_over] {
+        assert_eq!(e, "bad.bvh, line 4002: joint `J999` is one more than the 1000 joints a file may have");
     }
+}
+
+/// `walk.bvh` with `extra` more `End Site` blocks (offset zero) in `LeftToe`.
+fn walk_with_end_sites(extra: usize) -> String {
+    let site = "          End Site\n          {\n            OFFSET 0.0000 0.0000 0.0000\n          }\n";
+    let at = "            OFFSET 0.0000 0.0000 5.0000\n          }\n";
+    walk().replacen(at, &format!("{at}{}", site.repeat(extra)), 1)
+}
+
+/// Every point under a foot is posed in every frame for the floor: the number of end sites is bounded
+/// like the joints', and the feet are kept per frame as a box, whatever their number of points.
+#[test]
+fn end_sites_are_bounded_and_do_not_change_the_floor() {
+    let opts = ImportOptions::default();
+    let base = HumanClip::from_bvh_str(&walk(), "walk.bvh", &opts).unwrap();
+    // The walk has 5 end sites: 995 more make the most a file may have, at the toe's own point.
+    let most = HumanClip::from_bvh_str(&walk_with_end_sites(995), "walk.bvh", &opts).unwrap();
+    assert_eq!(most.frames, base.frames);
+    // One more: the 1001st is then `RightToe`'s own, on line 123 + 4 × 996.
+    let e = import_err(&walk_with_end_sites(996));
+    assert_eq!(e, "bad.bvh, line 4107: `End Site` in joint `RightToe` is one more than the 1000 a file may have");
 }
 
 #[test]

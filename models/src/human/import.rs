@@ -145,7 +145,7 @@ pub fn import_with_report(
     }
     let dropped = leading_rest_frames(&tracks, leg, user.and_then(|u| u.first_frame_is_rest_pose));
     tracks.joints.drain(..dropped);
-    tracks.extra.drain(..dropped * tracks.extra_stride);
+    tracks.feet.drain(..dropped);
 
     let rot = up.to_z_up();
     let up_file = rot.transpose() * Vector3::z();
