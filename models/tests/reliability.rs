@@ -822,3 +822,37 @@ fn a_checkpoint_with_implausible_human_statistics_is_refused_naming_its_ace_json
         assert!(e.contains(shown), "{e}");
     }
 }
+
+/// A creature profile's numbers are checked when it is read (TOML allows `nan` and `inf`): an inverted
+/// limit made `f32::clamp` panic in the leg IK, a NaN tip offset gave a NaN dataset naming no profile.
+/// The error names the profile, the key and what would be valid.
+#[test]
+fn a_creature_profiles_numbers_are_checked_when_it_is_read() {
+    use ace_models::morphology::Profile;
+    let dir = scratch("profile-values");
+    let hound = dir.join("hound.glb");
+    std::fs::copy(asset("assets/creatures/hound.glb"), &hound).unwrap();
+    let shipped = std::fs::read_to_string(asset("assets/creatures/hound.profile.toml")).unwrap();
+    let limit = "a limit is [lower, upper] in radians, both finite, with lower ≤ upper";
+    let scale = "the scale is metres per file unit, from 0.0001 to 100";
+    let cases = [
+        ("", "[limits]\n\"Thigh.L:pitch\" = [0.5, -0.5]\n", format!("`limits.\"Thigh.L:pitch\"` = [0.5, -0.5]: {limit}")),
+        ("", "[limits]\n\"Thigh.L:pitch\" = [nan, 0.5]\n", format!("`limits.\"Thigh.L:pitch\"` = [NaN, 0.5]: {limit}")),
+        ("", "[rest_pose]\n\"Thigh.L:pitch\" = inf\n", "`rest_pose.\"Thigh.L:pitch\"` = inf: a rest position must be finite".into()),
+        ("", "[tip_offsets]\n\"Foot.L\" = [nan, 0, 0]\n", "`tip_offsets.\"Foot.L\"` = [NaN, 0.0, 0.0]: a tip offset is [x, y, z] in metres, each finite".into()),
+        ("scale = 0.0\n", "", format!("`scale` = 0: {scale}")),
+        ("scale = 100.5\n", "", format!("`scale` = 100.5: {scale}")),
+    ];
+    let profile = dir.join("hound.profile.toml");
+    for (top, table, problem) in cases {
+        std::fs::write(&profile, format!("{top}{shipped}\n{table}")).unwrap();
+        let e = Profile::from_file(&profile).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: {problem}", profile.display()));
+        // Loading the creature reads the profile beside it: the same error, before any work.
+        let e = ace_models::character::load_creature(&hound).map(|_| ()).unwrap_err().to_string();
+        assert!(e.contains(&format!("{}: {problem}", profile.display())), "{e}");
+    }
+    // The bounds themselves are valid.
+    let ok = "scale = 100.0\n[limits]\n\"a:pitch\" = [0.5, 0.5]\n[tip_offsets]\n\"b\" = [0, 0, 0]\n";
+    Profile::from_toml(ok, "ok.profile.toml").unwrap();
+}
