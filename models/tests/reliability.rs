@@ -856,3 +856,54 @@ fn a_creature_profiles_numbers_are_checked_when_it_is_read() {
     let ok = "scale = 100.0\n[limits]\n\"a:pitch\" = [0.5, 0.5]\n[tip_offsets]\n\"b\" = [0, 0, 0]\n";
     Profile::from_toml(ok, "ok.profile.toml").unwrap();
 }
+
+/// A copy of the bundled checkpoint `name` in `dir`, with `file`'s JSON changed by `edit`.
+fn edited_checkpoint(dir: &Path, name: &str, file: &str, edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for e in std::fs::read_dir(asset(&format!("assets/checkpoints/{name}"))).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(dir.join(file), serde_json::to_string(&v).unwrap()).unwrap();
+    dir.to_path_buf()
+}
+
+/// The fields of `ace.json` the scorer and the editor index by end effector or divide by are checked
+/// when the checkpoint is read: a short `feature_offset` or a sixth mapping entry made the scorer
+/// panic, empty `scores` crashed the editor, a zero body length gave NaN metrics with rc 0.
+#[test]
+fn an_ace_json_whose_correspondence_or_lengths_do_not_fit_its_character_is_refused() {
+    use ace_models::runtime::Retargeter;
+    let dir = scratch("ace-fields");
+    let eleven = "`correspondence.scores` must have 5 rows (one per end effector) of 5 scores (one per human end effector)";
+    let cases: [(&str, fn(&mut serde_json::Value), &str); 8] = [
+        ("offset", |v| v["feature_offset"] = serde_json::json!([0.0]),
+         "`feature_offset` has 1 entries; it must be empty or hold 28 finite values (Ψ's width)"),
+        ("mapping", |v| v["correspondence"]["mapping"]["human"].as_array_mut().unwrap().push("head".into()),
+         "`correspondence.mapping.human` has 6 entries; it needs one per end effector of `spot` (5)"),
+        ("links", |v| v["correspondence"]["character_links"][4] = "body".into(),
+         "`correspondence.character_links` is [fl_foot, fr_foot, rl_foot, rr_foot, body]; it must be the \
+          character's end-effector links [fl_foot, fr_foot, rl_foot, rr_foot, gripper_tip]"),
+        ("no-scores", |v| v["correspondence"]["scores"] = serde_json::json!([]), eleven),
+        ("short-scores", |v| { v["correspondence"]["scores"][2].as_array_mut().unwrap().pop(); }, eleven),
+        ("speed", |v| v["speed_scale"] = serde_json::json!(1e39), "`speed_scale` is inf; it must be finite and positive"),
+        ("override", |v| v["body_lengths"]["human_override"] = serde_json::json!(0.0),
+         "`body_lengths.human_override` is 0; it must be finite and positive"),
+        ("body", |v| v["body_lengths"]["character"] = serde_json::json!(-0.5),
+         "`body_lengths.character` is -0.5; it must be finite and positive"),
+    ];
+    for (name, edit, problem) in cases {
+        let ck = edited_checkpoint(&dir.join(name), "spot", "ace.json", edit);
+        let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: corrupt file: {problem}", ck.join("ace.json").display()), "{name}");
+    }
+    // Unchanged, and without the optional fields, it loads.
+    Retargeter::load(&edited_checkpoint(&dir.join("ok"), "spot", "ace.json", |v| {
+        let o = v.as_object_mut().unwrap();
+        o.remove("feature_offset");
+        o.remove("speed_scale");
+    }))
+    .unwrap();
+}
