@@ -907,3 +907,47 @@ fn an_ace_json_whose_correspondence_or_lengths_do_not_fit_its_character_is_refus
     }))
     .unwrap();
 }
+
+/// A dataset's frame rate, foot count and deviations are checked when it is read: `fps = 0` made the
+/// sliding detector panic, a tiny one turned it off, a zero deviation gave NaN losses in training
+/// that were blamed on the learning rate.
+#[test]
+fn a_dataset_with_an_absurd_frame_rate_foot_count_or_deviation_is_refused() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, STD_FLOOR, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let good = generate(&tree, &morph, &DatasetConfig { frames: 60, ..DatasetConfig::default() }, &mut |_| {}).unwrap();
+    let dir = scratch("dataset-values");
+    let path = dir.join("d.safetensors");
+    let refused = |set: &MotionSet| {
+        std::fs::write(&path, set.to_bytes().unwrap()).unwrap();
+        MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string()
+    };
+    for fps in [0.0, -30.0, f32::NAN, 1e-30, 0.99, 1000.5] {
+        let e = refused(&MotionSet { fps, ..good.clone() });
+        assert_eq!(e, format!("{}: metadata `fps` is {fps}; expected 1 to 1000 frames per second", path.display()));
+    }
+    for sd in [0.0, -1.0, 0.99 * STD_FLOOR] {
+        let mut bad = good.clone();
+        bad.std[3] = sd;
+        let e = refused(&bad);
+        assert_eq!(e, format!("{}: tensor `std` entry 3 is {sd}; every standard deviation is at least 0.001", path.display()));
+    }
+    // A foot count that is not a whole number, which `as usize` truncated to the right count: the
+    // header is rewritten (tensor offsets count from the data, so they stay valid).
+    let bytes = good.to_bytes().unwrap();
+    let len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + len]).unwrap();
+    header["__metadata__"]["n_feet"] = format!("{}.5", good.n_feet).into();
+    let header = serde_json::to_vec(&header).unwrap();
+    let mut bad = (header.len() as u64).to_le_bytes().to_vec();
+    bad.extend(&header);
+    bad.extend(&bytes[8 + len..]);
+    std::fs::write(&path, &bad).unwrap();
+    let e = MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string();
+    assert_eq!(e, format!("{}: metadata `n_feet` is not a whole number of feet", path.display()));
+    // The bounds themselves load.
+    let mut edge = MotionSet { fps: 1000.0, ..good.clone() };
+    edge.std[3] = STD_FLOOR;
+    std::fs::write(&path, edge.to_bytes().unwrap()).unwrap();
+    assert_eq!(MotionSet::load(&path).unwrap(), edge);
+}
