@@ -951,3 +951,29 @@ fn a_dataset_with_an_absurd_frame_rate_foot_count_or_deviation_is_refused() {
     std::fs::write(&path, edge.to_bytes().unwrap()).unwrap();
     assert_eq!(MotionSet::load(&path).unwrap(), edge);
 }
+
+/// `config.json`'s mean, bounds and mask are checked when the prior is read: a mean of `1e39` (infinity
+/// as f32) gave NaN motion blamed on the output file, a finite absurd mean or swapped bounds a wrong
+/// motion with rc 0.
+#[test]
+fn a_prior_config_with_absurd_means_bounds_or_mask_is_refused_naming_it() {
+    use ace_models::runtime::Retargeter;
+    let dir = scratch("prior-config");
+    let cases: [(&str, fn(&mut serde_json::Value), &str); 6] = [
+        ("inf", |v| v["mean"][2] = serde_json::json!(1e39),
+         "`mean` entry 2 is inf; a state entry's mean is finite and at most 1000 in magnitude"),
+        ("absurd", |v| v["mean"][2] = serde_json::json!(1000.5),
+         "`mean` entry 2 is 1000.5; a state entry's mean is finite and at most 1000 in magnitude"),
+        ("swapped", |v| { v["bounds"]["lo"][4] = serde_json::json!(2.0); v["bounds"]["hi"][4] = serde_json::json!(-2.0); },
+         "`bounds` entry 4 is [2, -2]; each entry's bounds are finite, with `lo` ≤ `hi`"),
+        ("infinite-bound", |v| v["bounds"]["hi"][4] = serde_json::json!(1e39),
+         "`bounds` entry 4 is [-1.7834841, inf]; each entry's bounds are finite, with `lo` ≤ `hi`"),
+        ("mask", |v| v["mask"][1] = serde_json::json!(0.5), "`mask` entry 1 is 0.5; the mask holds 0 or 1"),
+        ("mask-negative", |v| v["mask"][1] = serde_json::json!(-1.0), "`mask` entry 1 is -1; the mask holds 0 or 1"),
+    ];
+    for (name, edit, problem) in cases {
+        let ck = edited_checkpoint(&dir.join(name), "spot", "config.json", edit);
+        let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: corrupt file: {problem}", ck.join("config.json").display()), "{name}");
+    }
+}
