@@ -977,3 +977,38 @@ fn a_prior_config_with_absurd_means_bounds_or_mask_is_refused_naming_it() {
         assert_eq!(e, format!("{}: corrupt file: {problem}", ck.join("config.json").display()), "{name}");
     }
 }
+
+/// URDF numbers are checked as the f32 the tree holds (`1e39` is finite as f64, infinite as f32), and
+/// lengths are bounded: sizes above 0 and at most 1 km, origins within 1 km, mesh scales nonzero. Each
+/// error names the element and says what would be valid.
+#[test]
+fn urdf_values_beyond_f32_and_absurd_sizes_are_refused_naming_the_element() {
+    let leg_box = r#"<box size="0.05 0.05 0.3"/>"#;
+    let hip = r#"<axis xyz="0 1 0"/>"#;
+    let of_leg = "of a collision of link `leg`";
+    let size = "a size must be greater than 0 and at most 1000 m";
+    let f32_range = "(values must be finite numbers within f32's range, ±3.4e38)";
+    let cases = [
+        (leg_box, r#"<box size="1e39 0.05 0.3"/>"#, format!("non-finite value in the size of box geometry {of_leg} {f32_range}")),
+        (leg_box, r#"<box size="0 0.05 0.3"/>"#, format!("the size of box geometry {of_leg} is 0; {size}")),
+        (leg_box, r#"<box size="0.05 -0.05 0.3"/>"#, format!("the size of box geometry {of_leg} is -0.05; {size}")),
+        (leg_box, r#"<box size="0.05 0.05 1000.5"/>"#, format!("the size of box geometry {of_leg} is 1000.5; {size}")),
+        (leg_box, r#"<cylinder radius="0" length="0.3"/>"#, format!("the radius of cylinder geometry {of_leg} is 0; {size}")),
+        (leg_box, r#"<sphere radius="-1"/>"#, format!("the radius of sphere geometry {of_leg} is -1; {size}")),
+        (leg_box, r#"<mesh filename="leg.stl" scale="1 0 1"/>"#,
+         format!("the scale of mesh leg.stl {of_leg} is 0; a mesh's scale must be nonzero along each axis")),
+        (hip, r#"<axis xyz="0 1 0"/><origin xyz="1e39 0 0"/>"#, format!("non-finite value in the origin xyz of joint `hip` {f32_range}")),
+        (hip, r#"<axis xyz="0 1 0"/><origin xyz="0 0 -1000.5"/>"#,
+         "the origin xyz of joint `hip` is -1000.5; an offset must be at most 1000 m along each axis".into()),
+    ];
+    for (from, to, problem) in cases {
+        let text = robot("fixed", "-1", "1").replacen(from, to, 1);
+        let e = parse_urdf(&text, "r.urdf", None).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("r.urdf: {problem}"), "{to}");
+    }
+    // The bounds themselves load.
+    let edge = robot("fixed", "-1", "1")
+        .replacen(leg_box, r#"<box size="1000 0.05 0.3"/>"#, 1)
+        .replacen(hip, r#"<axis xyz="0 1 0"/><origin xyz="0 0 -1000"/>"#, 1);
+    parse_urdf(&edge, "r.urdf", None).unwrap();
+}
