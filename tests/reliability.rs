@@ -1326,3 +1326,28 @@ fn a_reference_of_another_checkpoint_is_refused_naming_it() {
     );
     assert_eq!(snapshot(&dir), before, "nothing written");
 }
+
+/// A write that fails midway (here a file size limit, as a full disk would) is reported naming the
+/// output, not only its staged temporary, which is removed with the rest of the set: nothing new is
+/// left beside the previous outputs.
+#[test]
+fn a_failed_write_names_the_output_and_leaves_the_previous_set() {
+    let dir = scratch("failed-write");
+    let out = dir.join("o.glb");
+    let previous = ["o.glb", "o.json", "o.csv", "o.metrics.json"];
+    for name in previous {
+        std::fs::write(dir.join(name), "previous").unwrap();
+    }
+    let before = snapshot(&dir);
+    // 64 KB at most per file (SIGXFSZ ignored, so the write fails with EFBIG): the glTF is larger.
+    let o = Command::new("sh")
+        .args(["-c", "ulimit -f 64; trap '' XFSZ; exec \"$@\"", "sh", env!("CARGO_BIN_EXE_ace")])
+        .args(["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "stretch", "--out", &s(&out)])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains(&format!("writing {}", s(&out))) && e.contains("File too large"), "{e}");
+    assert_eq!(snapshot(&dir), before, "the previous outputs are kept and no temporary is left");
+}
