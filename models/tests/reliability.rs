@@ -1012,3 +1012,22 @@ fn urdf_values_beyond_f32_and_absurd_sizes_are_refused_naming_the_element() {
         .replacen(hip, r#"<axis xyz="0 1 0"/><origin xyz="0 0 -1000"/>"#, 1);
     parse_urdf(&edge, "r.urdf", None).unwrap();
 }
+
+/// A mapping's `unit` overrides the unit detection, which only picks units giving a 1.4–2 m human:
+/// an override that makes the centimetre walk 170 m (or 0.2 µm) tall is refused, naming the clip
+/// and the unit; the right one imports.
+#[test]
+fn a_mapping_unit_that_makes_an_implausible_human_is_refused() {
+    use ace_models::human::JointMapping;
+    let import = |unit: &str| {
+        let opts = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str(&format!("unit = {unit}")).unwrap()) };
+        HumanClip::from_bvh_str(&walk(), "walk.bvh", &opts)
+    };
+    for (unit, shown) in [("1", "1"), ("1e-9", "0.000000001"), ("\"m\"", "m")] {
+        let e = import(unit).map(|c| format!("imported, {} m tall", c.height_m)).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("walk.bvh: invalid joint mapping: unit `{shown}` makes the human ")), "{e}");
+        assert!(e.ends_with(" m tall; a human is 0.3 to 3 m tall: check the mapping's `unit`"), "{e}");
+    }
+    let clip = import("0.01").unwrap();
+    assert!((1.4..2.0).contains(&clip.height_m), "{}", clip.height_m);
+}
