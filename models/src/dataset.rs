@@ -670,11 +670,14 @@ impl MotionSet {
             .and_then(DatasetConfig::from_record)
             .map_err(|e| format!("metadata `config` is not a dataset configuration: {e}"))?;
         let layout_v = parse("layout")?;
+        // Bounded before `dim()` adds them: a robot has at most MAX_LINKS links of at most 6 DoF.
+        let most = crate::urdf::MAX_LINKS * 6;
         let field = |k: &str| {
-            layout_v[k]
-                .as_u64()
-                .map(|x| x as usize)
-                .ok_or_else(|| format!("metadata `layout` has no `{k}`"))
+            let v = layout_v[k].as_u64().ok_or_else(|| format!("metadata `layout` has no `{k}`"))?;
+            usize::try_from(v)
+                .ok()
+                .filter(|&v| v <= most || k == "dim")
+                .ok_or_else(|| format!("metadata `layout`: `{k}` is {v}; at most {most} (6 per link of the most a robot has)"))
         };
         let layout = CharacterLayout {
             dof: field("dof")?,

@@ -1031,3 +1031,29 @@ fn a_mapping_unit_that_makes_an_implausible_human_is_refused() {
     let clip = import("0.01").unwrap();
     assert!((1.4..2.0).contains(&clip.height_m), "{}", clip.height_m);
 }
+
+/// A dataset header's layout sizes are bounded before they are added up (`dim()`), which overflowed
+/// (a panic in debug builds) for a `dof` of 2^64 − 1.
+#[test]
+fn a_dataset_layout_too_large_to_add_up_is_refused() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let good = generate(&tree, &morph, &DatasetConfig { frames: 10, ..DatasetConfig::default() }, &mut |_| {}).unwrap();
+    let bytes = good.to_bytes().unwrap();
+    let len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + len]).unwrap();
+    for (dof, valid) in [(u64::MAX, false), (6145, false), (6144, true)] {
+        let layout = format!(r#"{{"dof":{dof},"end_effectors":1,"dim":1}}"#);
+        header["__metadata__"]["layout"] = layout.into();
+        let h = serde_json::to_vec(&header).unwrap();
+        let mut file = (h.len() as u64).to_le_bytes().to_vec();
+        file.extend(&h);
+        file.extend(&bytes[8 + len..]);
+        let e = MotionSet::from_bytes(&file).map(|_| ()).unwrap_err();
+        if valid {
+            assert!(e.starts_with("metadata `layout`: dim 1 does not match dof 6144"), "{e}");
+        } else {
+            assert_eq!(e, format!("metadata `layout`: `dof` is {dof}; at most 6144 (6 per link of the most a robot has)"));
+        }
+    }
+}
