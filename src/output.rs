@@ -329,6 +329,10 @@ impl Outputs {
                 );
             }
         }
+        // LIVE is held across every rename, so the signal handler runs before the first (nothing new
+        // is left) or after the last (the whole set is in place), never between two. It is released
+        // before `self` drops, whose cleanup takes it again.
+        let mut live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
         while !self.staged.is_empty() {
             let (tmp, out) = self.staged.remove(0);
             let moved = if tmp.is_dir() {
@@ -339,8 +343,11 @@ impl Outputs {
             if tmp.is_dir() {
                 let _ = fs::remove_dir_all(&tmp);
             }
-            LIVE.lock().unwrap_or_else(|e| e.into_inner()).remove(&tmp);
-            moved.with_context(|| format!("moving {} into place as {}", tmp.display(), out.display()))?;
+            live.remove(&tmp);
+            if let Err(e) = moved {
+                drop(live);
+                return Err(e).with_context(|| format!("moving {} into place as {}", tmp.display(), out.display()));
+            }
         }
         Ok(())
     }
@@ -494,6 +501,46 @@ mod tests {
         );
         assert_eq!(Outputs::new().stage(&metrics).unwrap_err().to_string(), refused);
         assert_eq!(Outputs::new().check(&metrics).unwrap_err().to_string(), refused);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The signal handler takes LIVE before it removes temporaries and exits, so what another thread
+    /// sees under LIVE is what a SIGINT during a commit would leave: the whole new set or none of it.
+    #[test]
+    fn under_the_signal_handlers_lock_a_commit_is_whole_or_not_begun() {
+        use std::sync::Arc;
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let dir = std::env::temp_dir().join(format!("ace-output-whole-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let (glb, json) = (dir.join("o.glb"), dir.join("o.json"));
+        fs::write(&glb, "0").unwrap();
+        fs::write(&json, "0").unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let looker = {
+            let (stop, glb, json) = (stop.clone(), glb.clone(), json.clone());
+            std::thread::spawn(move || {
+                let mut mixed = Vec::new();
+                while !stop.load(Ordering::Relaxed) {
+                    let _live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+                    let (a, b) = (fs::read(&glb).ok(), fs::read(&json).ok());
+                    if a != b {
+                        mixed.push((a, b));
+                    }
+                }
+                mixed
+            })
+        };
+        for k in 1..=300 {
+            let mut outputs = Outputs::new();
+            fs::write(outputs.stage(&glb).unwrap(), k.to_string()).unwrap();
+            fs::write(outputs.stage(&json).unwrap(), k.to_string()).unwrap();
+            outputs.commit().unwrap();
+        }
+        stop.store(true, Ordering::Relaxed);
+        let mixed = looker.join().unwrap();
+        assert!(mixed.is_empty(), "{} looks saw a new output beside an old one, e.g. {:?}", mixed.len(), mixed.first());
+        assert_eq!(fs::read(&json).unwrap(), b"300");
         fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -295,7 +295,8 @@ pub fn write_with(
             }
             let name = rig.name.clone().unwrap_or_else(|| clip.name.clone());
             let opts = RigClipOptions { name: Some(name), ..rig.clone() };
-            write_rig_clip(&outputs.stage(&glb_path)?, &creature, &motion.poses, motion.fps, &opts)?;
+            write_rig_clip(&outputs.stage(&glb_path)?, &creature, &motion.poses, motion.fps, &opts)
+                .with_context(|| format!("writing {}", glb_path.display()))?;
         }
         None => {
             check_rig_options(tree.source.as_deref().unwrap_or(Path::new(&tree.name)), rig)?;
@@ -306,15 +307,17 @@ pub fn write_with(
                 human: with_human.then(|| HumanOverlay::new(&clip.frames, offset)),
                 ..GltfOptions::default()
             };
-            let glb = write_glb(&outputs.stage(&glb_path)?, tree, &motion.poses, motion.fps, &opts)?;
+            let glb = write_glb(&outputs.stage(&glb_path)?, tree, &motion.poses, motion.fps, &opts)
+                .with_context(|| format!("writing {}", glb_path.display()))?;
             for w in &glb.warnings {
                 eprintln!("warning: {w}");
             }
         }
     }
     let trajectory = CommandTrajectory::from_poses(tree, &motion.poses, motion.fps)?;
-    trajectory.write_json(&outputs.stage(&json)?)?;
-    trajectory.write_csv(&outputs.stage(&csv)?)?;
+    // Errors name the output, not its staged temporary (removed with the set).
+    trajectory.write_json(&outputs.stage(&json)?).with_context(|| format!("writing {}", json.display()))?;
+    trajectory.write_csv(&outputs.stage(&csv)?).with_context(|| format!("writing {}", csv.display()))?;
     let metrics_tmp = outputs.stage(&metrics)?;
     std::fs::write(&metrics_tmp, serde_json::to_string_pretty(&r.report)?)
         .with_context(|| format!("writing {}", metrics.display()))?;

@@ -36,6 +36,22 @@ pub struct FidSplit {
     pub blocks: Vec<(&'static str, f64)>,
 }
 
+/// Fails unless `fit` is a Gaussian over Ψ of width `width` (FID compares it with fits of the
+/// checkpoint's Ψ): a mean of `width` values and a `width × width` covariance (JSON holds finite numbers
+/// only). A
+/// `reference.json` of another checkpoint, or of another training run of this one, has another width.
+fn check_reference(fit: &GaussianFit, width: usize) -> Result<(), String> {
+    let (d, rows, cols) = (fit.dim(), fit.cov.nrows(), fit.cov.ncols());
+    if d != width || rows != width || cols != width {
+        return Err(format!(
+            "the Gaussian fit has a mean of {d} entries and a {rows} × {cols} covariance, but the checkpoint's Ψ has \
+             {width} entries: it is not this checkpoint's reference; remove it to score without FID, or rerun \
+             `ace train` to write it again"
+        ));
+    }
+    Ok(())
+}
+
 /// Ψ of the human clips a motion was retargeted from, aligned with its frames.
 #[derive(Clone, Copy)]
 pub struct HumanSource<'a> {
@@ -71,7 +87,11 @@ impl Scorer {
             let text = ace::models::input::read_text(&path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
             let v: serde_json::Value =
                 serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
-            Some(serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", path.display()))?)
+            let fit: GaussianFit =
+                serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", path.display()))?;
+            check_reference(&fit, FeatureLayout::new(&record.correspondence.mapping).dim())
+                .map_err(|problem| anyhow::anyhow!("{}: {problem}", path.display()))?;
+            Some(fit)
         } else {
             None
         };

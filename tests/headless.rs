@@ -156,6 +156,49 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
     assert!(app.world().get::<CharacterLinks>(character).is_none());
 }
 
+/// The load state of `handle` once it is no longer loading.
+fn settled<A: Asset>(app: &mut App, handle: &Handle<A>) -> LoadState {
+    let mut state = LoadState::Loading;
+    update_until(app, |w| {
+        state = w.resource::<AssetServer>().load_state(handle);
+        matches!(state, LoadState::Loaded | LoadState::Failed(_))
+    });
+    state
+}
+
+/// The BVH loader reads the clip's joint mapping as the CLI does: `<clip>.mapping.toml` beside it, or
+/// the file its settings name. Without it a rig of unknown joint names fails to load.
+#[test]
+fn the_bvh_loader_reads_the_mapping_beside_the_clip_or_in_its_settings() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-mapping");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/tests/data");
+    for name in ["rig.bvh", "bare.bvh", "named.bvh", "missing.bvh"] {
+        std::fs::copy(data.join("unknown_rig.bvh"), dir.join(name)).unwrap();
+    }
+    std::fs::copy(data.join("unknown_rig.toml"), dir.join("rig.mapping.toml")).unwrap();
+    std::fs::copy(data.join("unknown_rig.toml"), dir.join("maps/m.toml")).unwrap();
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let server = app.world().resource::<AssetServer>().clone();
+    let beside: Handle<BvhAsset> = server.load("rig.bvh");
+    let bare: Handle<BvhAsset> = server.load("bare.bvh");
+    let named: Handle<BvhAsset> =
+        server.load_builder().with_settings(|s: &mut BvhSettings| s.mapping = Some("maps/m.toml".into())).load("named.bvh");
+    for handle in [&beside, &named] {
+        assert!(matches!(settled(&mut app, handle), LoadState::Loaded));
+        let clip = app.world().resource::<Assets<BvhAsset>>().get(handle).unwrap().clip.clone();
+        assert_eq!((clip.convention.as_str(), clip.mapped_joints), ("user-mapping", 17));
+    }
+    let LoadState::Failed(err) = settled(&mut app, &bare) else { panic!("bare.bvh loaded without a mapping") };
+    assert!(err.to_string().contains("unknown skeleton"), "{err}");
+    // A mapping named in the settings must be there.
+    let missing: Handle<BvhAsset> =
+        server.load_builder().with_settings(|s: &mut BvhSettings| s.mapping = Some("maps/none.toml".into())).load("missing.bvh");
+    let LoadState::Failed(err) = settled(&mut app, &missing) else { panic!("loaded without its mapping file") };
+    assert!(err.to_string().contains("maps/none.toml"), "{err}");
+}
+
 // ---- Characters driven by a checkpoint (the Retargeter component) ----
 
 use ace::models::human::state::HumanState;

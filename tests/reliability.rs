@@ -1296,3 +1296,58 @@ fn train_prior_never_changes_the_prior_under_an_ace_stage() {
     assert!(weights("prior.safetensors") == prior && weights("config.json") == config);
     run_ok(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "stretch", "--checkpoint", &s(&ck), "--out", &s(&dir.join("walk.glb"))]);
 }
+
+/// A `reference.json` of another checkpoint (the crab's Ψ has 37 entries, Spot's 28) made FID panic on
+/// Gaussians of different dimensions: it is refused when the checkpoint is scored, naming the file,
+/// and nothing is written.
+#[test]
+fn a_reference_of_another_checkpoint_is_refused_naming_it() {
+    let dir = scratch("reference");
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/spot"), &ck);
+    std::fs::copy(root().join("assets/checkpoints/crab/reference.json"), ck.join("reference.json")).unwrap();
+    let before = snapshot(&dir);
+    let out = dir.join("o.glb");
+    let o = ace(&[
+        "--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot", "--checkpoint", &s(&ck),
+        "--out", &s(&out),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(
+        e.contains(&format!(
+            "{}: the Gaussian fit has a mean of 37 entries and a 37 × 37 covariance, but the checkpoint's Ψ has 28 \
+             entries: it is not this checkpoint's reference; remove it to score without FID, or rerun `ace train` to \
+             write it again",
+            s(&ck.join("reference.json"))
+        )),
+        "{e}"
+    );
+    assert_eq!(snapshot(&dir), before, "nothing written");
+}
+
+/// A write that fails midway (here a file size limit, as a full disk would) is reported naming the
+/// output, not only its staged temporary, which is removed with the rest of the set: nothing new is
+/// left beside the previous outputs.
+#[test]
+fn a_failed_write_names_the_output_and_leaves_the_previous_set() {
+    let dir = scratch("failed-write");
+    let out = dir.join("o.glb");
+    let previous = ["o.glb", "o.json", "o.csv", "o.metrics.json"];
+    for name in previous {
+        std::fs::write(dir.join(name), "previous").unwrap();
+    }
+    let before = snapshot(&dir);
+    // 64 KB at most per file (SIGXFSZ ignored, so the write fails with EFBIG): the glTF is larger.
+    let o = Command::new("sh")
+        .args(["-c", "ulimit -f 64; trap '' XFSZ; exec \"$@\"", "sh", env!("CARGO_BIN_EXE_ace")])
+        .args(["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "stretch", "--out", &s(&out)])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains(&format!("writing {}", s(&out))) && e.contains("File too large"), "{e}");
+    assert_eq!(snapshot(&dir), before, "the previous outputs are kept and no temporary is left");
+}

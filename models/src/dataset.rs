@@ -59,6 +59,8 @@ pub const FORMAT: &str = "ace_motion_set";
 pub const FORMAT_VERSION: u32 = 1;
 /// Smallest standard deviation stored (a constant entry normalises to 0, not to ±∞).
 pub const STD_FLOOR: f32 = 1e-3;
+/// Frame rates a dataset may have (frames per second).
+pub const FPS_RANGE: (f32, f32) = (1.0, 1000.0);
 
 /// How a dataset is generated. Every field has a default; TOML/JSON may give any subset.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -318,8 +320,8 @@ pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
             cfg.frames
         ));
     }
-    if !(cfg.fps.is_finite() && (1.0..=1000.0).contains(&cfg.fps)) {
-        return bad(format!("`fps` = {} is out of range: expected 1 to 1000", cfg.fps));
+    if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&cfg.fps) {
+        return bad(format!("`fps` = {} is out of range: expected {} to {}", cfg.fps, FPS_RANGE.0, FPS_RANGE.1));
     }
     let [a, b] = cfg.episode_seconds;
     if !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b) {
@@ -660,15 +662,22 @@ impl MotionSet {
                 .parse::<f64>()
                 .map_err(|_| format!("metadata `{k}` is not a number"))
         };
+        let fps = number("fps")? as f32;
+        if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&fps) {
+            return Err(format!("metadata `fps` is {fps}; expected {} to {} frames per second", FPS_RANGE.0, FPS_RANGE.1));
+        }
         let config = serde_json::from_str(get("config")?)
             .and_then(DatasetConfig::from_record)
             .map_err(|e| format!("metadata `config` is not a dataset configuration: {e}"))?;
         let layout_v = parse("layout")?;
+        // Bounded before `dim()` adds them: a robot has at most MAX_LINKS links of at most 6 DoF.
+        let most = crate::urdf::MAX_LINKS * 6;
         let field = |k: &str| {
-            layout_v[k]
-                .as_u64()
-                .map(|x| x as usize)
-                .ok_or_else(|| format!("metadata `layout` has no `{k}`"))
+            let v = layout_v[k].as_u64().ok_or_else(|| format!("metadata `layout` has no `{k}`"))?;
+            usize::try_from(v)
+                .ok()
+                .filter(|&v| v <= most || k == "dim")
+                .ok_or_else(|| format!("metadata `layout`: `{k}` is {v}; at most {most} (6 per link of the most a robot has)"))
         };
         let layout = CharacterLayout {
             dof: field("dof")?,
@@ -687,7 +696,9 @@ impl MotionSet {
         };
         let dof_names = strings("dof_names")?;
         let end_effector_links = strings("end_effector_links")?;
-        let n_feet = number("n_feet")? as usize;
+        let n_feet: usize = get("n_feet")?
+            .parse()
+            .map_err(|_| "metadata `n_feet` is not a whole number of feet".to_string())?;
         if dof_names.len() != layout.dof
             || end_effector_links.len() != layout.end_effectors
             || n_feet > layout.end_effectors
@@ -773,7 +784,7 @@ impl MotionSet {
         let set = MotionSet {
             character: get("character")?.clone(),
             character_source: meta.get("character_source").cloned(),
-            fps: number("fps")? as f32,
+            fps,
             seed: get("seed")?
                 .parse()
                 .map_err(|_| "metadata `seed` is not an integer".to_string())?,
@@ -791,10 +802,15 @@ impl MotionSet {
             commands: floats(commands).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             contacts: contacts.to_vec(),
         };
-        match set.non_finite() {
-            Some(problem) => Err(format!("the dataset {problem}")),
-            None => Ok(set),
+        if let Some(problem) = set.non_finite() {
+            return Err(format!("the dataset {problem}"));
         }
+        // Training divides by the deviations: one below the floor gave NaN losses blamed on the
+        // learning rate.
+        if let Some((i, sd)) = set.std.iter().enumerate().find(|(_, sd)| **sd < STD_FLOOR) {
+            return Err(format!("tensor `std` entry {i} is {sd}; every standard deviation is at least {STD_FLOOR}"));
+        }
+        Ok(set)
     }
 }
 

@@ -246,7 +246,18 @@ pub enum ProfileProblem {
     UnknownJoint(String),
     #[error("`{0}` applies to glTF creatures only, not to a URDF")]
     GltfOnly(&'static str),
+    #[error("`{key}` = {value}: {valid}")]
+    BadValue {
+        /// The key, as TOML writes it (`limits."Thigh.L:pitch"`).
+        key: String,
+        value: String,
+        /// What would be valid.
+        valid: String,
+    },
 }
+
+/// Range of a profile's `scale` (metres per file unit): from a tenth of a millimetre to 100 m per unit.
+pub const PROFILE_SCALE_RANGE: (f32, f32) = (1e-4, 100.0);
 
 impl Profile {
     /// Parses profile TOML; `file` names the source in errors.
@@ -255,8 +266,52 @@ impl Profile {
             file: file.into(),
             problem: ProfileProblem::Parse(e.to_string()),
         })?;
+        p.check().map_err(|problem| ProfileError { file: file.into(), problem })?;
         p.source = Some(file.into());
         Ok(p)
+    }
+
+    /// Checks the numbers the profile gives (TOML allows `nan` and `inf`): limits are finite with
+    /// lower ≤ upper (the controllers clamp to them), rest positions and tip offsets finite, the scale
+    /// in [`PROFILE_SCALE_RANGE`].
+    fn check(&self) -> Result<(), ProfileProblem> {
+        let bad = |key: String, value: String, valid: &str| {
+            Err(ProfileProblem::BadValue { key, value, valid: valid.into() })
+        };
+        for (joint, &[lo, hi]) in &self.limits {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return bad(
+                    format!("limits.\"{joint}\""),
+                    format!("[{lo}, {hi}]"),
+                    "a limit is [lower, upper] in radians, both finite, with lower ≤ upper",
+                );
+            }
+        }
+        for (joint, &v) in &self.rest_pose {
+            if !v.is_finite() {
+                return bad(format!("rest_pose.\"{joint}\""), v.to_string(), "a rest position must be finite");
+            }
+        }
+        for (link, p) in &self.tip_offsets {
+            if !p.iter().all(|v| v.is_finite()) {
+                return bad(
+                    format!("tip_offsets.\"{link}\""),
+                    format!("{p:?}"),
+                    "a tip offset is [x, y, z] in metres, each finite",
+                );
+            }
+        }
+        if let Some(s) = self.scale {
+            let (lo, hi) = PROFILE_SCALE_RANGE;
+            if !(lo..=hi).contains(&s) {
+                return bad(
+                    "scale".into(),
+                    s.to_string(),
+                    &format!("the scale is metres per file unit, from {lo} to {hi}"),
+                );
+            }
+        }
+        Ok(())
     }
 
     /// Reads a profile file (a regular file of UTF-8 text: [`crate::input::read_text`]).

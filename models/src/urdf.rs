@@ -72,8 +72,10 @@ pub enum UrdfProblem {
     UnknownJointType { joint: String, kind: String },
     #[error("joint `{joint}` has type `{kind}`, which is not supported")]
     UnsupportedJointType { joint: String, kind: String },
-    #[error("non-finite value in {0}")]
+    #[error("non-finite value in {0} (values must be finite numbers within f32's range, ±3.4e38)")]
     NonFinite(String),
+    #[error("{what} is {value}; {valid}")]
+    OutOfRange { what: String, value: f32, valid: String },
     #[error("joint `{0}` is movable but its axis is zero")]
     ZeroAxis(String),
     #[error(
@@ -262,25 +264,48 @@ fn attribute(tag: &str, name: &str) -> Option<String> {
     None
 }
 
+/// Largest length a URDF may give (m): an origin's offset, a shape's size.
+pub const MAX_LENGTH_M: f32 = 1000.0;
+
+/// `v` as f32, checked after the conversion (`1e39` is finite as f64 and infinite as f32).
 fn finite3(v: &urdf_rs::Vec3, what: impl Fn() -> String) -> Result<Vector3<f32>, UrdfProblem> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(Vector3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+    let f = Vector3::new(v[0] as f32, v[1] as f32, v[2] as f32);
+    if f.iter().all(|x| x.is_finite()) {
+        Ok(f)
     } else {
         Err(UrdfProblem::NonFinite(what()))
     }
 }
 
+/// `v` as f32, checked after the conversion.
 fn finite(v: f64, what: impl Fn() -> String) -> Result<f32, UrdfProblem> {
-    if v.is_finite() {
-        Ok(v as f32)
+    let f = v as f32;
+    if f.is_finite() {
+        Ok(f)
     } else {
         Err(UrdfProblem::NonFinite(what()))
     }
+}
+
+/// `v` as a length of at most [`MAX_LENGTH_M`] in magnitude; a size (`positive`) must also be above 0.
+fn length(v: f32, positive: bool, what: impl Fn() -> String) -> Result<f32, UrdfProblem> {
+    if v.abs() <= MAX_LENGTH_M && (!positive || v > 0.0) {
+        return Ok(v);
+    }
+    let valid = if positive {
+        format!("a size must be greater than 0 and at most {MAX_LENGTH_M} m")
+    } else {
+        format!("an offset must be at most {MAX_LENGTH_M} m along each axis")
+    };
+    Err(UrdfProblem::OutOfRange { what: what(), value: v, valid })
 }
 
 /// URDF `<origin xyz rpy>` → isometry (rpy fixed-axis XYZ: R = Rz(y)·Ry(p)·Rx(r)).
 pub fn pose_to_isometry(pose: &urdf_rs::Pose, what: &str) -> Result<Isometry3<f32>, UrdfProblem> {
     let t = finite3(&pose.xyz, || format!("the origin xyz of {what}"))?;
+    for v in t.iter() {
+        length(*v, false, || format!("the origin xyz of {what}"))?;
+    }
     let r = finite3(&pose.rpy, || format!("the origin rpy of {what}"))?;
     Ok(Isometry3::from_parts(Translation3::from(t), rpy_to_quat(r.x, r.y, r.z)))
 }
@@ -298,25 +323,40 @@ impl TryFrom<&urdf_rs::Geometry> for Shape {
         fn nf(what: &'static str) -> impl Fn() -> String {
             move || format!("{what} geometry")
         }
+        let size = |v: f64, what: &'static str| length(finite(v, nf(what))?, true, nf(what));
         Ok(match g {
-            urdf_rs::Geometry::Box { size } => Shape::Box {
-                size: finite3(size, nf("box"))?,
-            },
+            urdf_rs::Geometry::Box { size: s } => {
+                let s = finite3(s, nf("the size of box"))?;
+                for v in s.iter() {
+                    length(*v, true, nf("the size of box"))?;
+                }
+                Shape::Box { size: s }
+            }
             urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
-                radius: finite(*radius, nf("cylinder"))?,
-                length: finite(*length, nf("cylinder"))?,
+                radius: size(*radius, "the radius of cylinder")?,
+                length: size(*length, "the length of cylinder")?,
             },
             urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
-                radius: finite(*radius, nf("capsule"))?,
-                length: finite(*length, nf("capsule"))?,
+                radius: size(*radius, "the radius of capsule")?,
+                length: size(*length, "the length of capsule")?,
             },
             urdf_rs::Geometry::Sphere { radius } => Shape::Sphere {
-                radius: finite(*radius, nf("sphere"))?,
+                radius: size(*radius, "the radius of sphere")?,
             },
             urdf_rs::Geometry::Mesh { filename, scale } => Shape::Mesh {
                 filename: filename.clone(),
                 scale: match scale {
-                    Some(s) => finite3(s, || format!("the scale of mesh {filename}"))?,
+                    Some(s) => {
+                        let s = finite3(s, || format!("the scale of mesh {filename}"))?;
+                        if s.iter().any(|v| *v == 0.0) {
+                            return Err(UrdfProblem::OutOfRange {
+                                what: format!("the scale of mesh {filename}"),
+                                value: s.iter().copied().find(|v| *v == 0.0).unwrap_or(0.0),
+                                valid: "a mesh's scale must be nonzero along each axis".into(),
+                            });
+                        }
+                        s
+                    }
                     None => Vector3::repeat(1.0),
                 },
                 bounds: None,
@@ -328,6 +368,7 @@ impl TryFrom<&urdf_rs::Geometry> for Shape {
 fn geometry(origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, what: &str) -> Result<Geometry, UrdfProblem> {
     let shape = Shape::try_from(g).map_err(|e| match e {
         UrdfProblem::NonFinite(s) => UrdfProblem::NonFinite(format!("{s} of {what}")),
+        UrdfProblem::OutOfRange { what: w, value, valid } => UrdfProblem::OutOfRange { what: format!("{w} of {what}"), value, valid },
         e => e,
     })?;
     Ok(Geometry {

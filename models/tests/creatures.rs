@@ -620,6 +620,71 @@ fn bad_rigs_get_errors_that_name_the_file_and_the_problem() {
     assert!(matches!(p, GltfProblem::Parse(_)), "{m}");
 }
 
+/// The hand-made rig with one animation rotating `bone0` whose keyframes sit at 0 and `end` seconds.
+fn animated_rig(dir: &Path, name: &str, end: f32) -> PathBuf {
+    rig(dir, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+        let mut bin = Vec::new();
+        [0.0f32, end].iter().for_each(|t| bin.extend(t.to_le_bytes()));
+        [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0].iter().for_each(|q| bin.extend(q.to_le_bytes()));
+        v["buffers"].as_array_mut().unwrap().push(serde_json::json!(
+            {"byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&bin))}));
+        v["bufferViews"].as_array_mut().unwrap().extend([
+            serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 8}),
+            serde_json::json!({"buffer": 1, "byteOffset": 8, "byteLength": 32}),
+        ]);
+        v["accessors"].as_array_mut().unwrap().extend([
+            serde_json::json!({"bufferView": 4, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [end]}),
+            serde_json::json!({"bufferView": 5, "componentType": 5126, "count": 2, "type": "VEC4"}),
+        ]);
+        v["animations"] = serde_json::json!([{"name": "Idle",
+            "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
+            "samplers": [{"input": 4, "output": 5}]}]);
+    })
+}
+
+/// An animation's keyframe time sizes the sampling of the clip, so one beyond two hours is refused when
+/// the file is read, naming the file and the animation, not allocated (10^8 s would be 3·10^9 frames).
+#[test]
+fn an_animation_longer_than_two_hours_is_refused_before_it_is_sampled() {
+    let d = tmp("long-animation");
+    let ok = load(&animated_rig(&d, "ok.gltf", 7200.0));
+    assert_eq!(ok.rig.animations[0].duration_s, 7200.0);
+    for end in [7201.0, 1e8] {
+        let (msg, p) = problem(&animated_rig(&d, "long.gltf", end));
+        assert_eq!(p, GltfProblem::AnimationTooLong { index: 0, name: "Idle".into(), time: end }, "{msg}");
+        assert!(msg.contains("animation 0 (`Idle`)") && msg.contains("at most 7200 s"), "{msg}");
+    }
+}
+
+/// Reused accessors and buffers multiply what a small file costs: the skinned vertices are counted over
+/// every node and primitive before any is read, and a file listed by two buffers is refused before
+/// it is read twice.
+#[test]
+fn reused_meshes_and_buffers_are_bounded_before_they_are_read() {
+    let d = tmp("reuse");
+    // 666 nodes of a mesh of 1000 three-vertex primitives and one of 667: 2,000,001 vertices from one
+    // triangle of 36 bytes.
+    let p = rig(&d, "many.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+        let prim = v["meshes"][0]["primitives"][0].clone();
+        v["meshes"] = serde_json::json!([{"primitives": vec![prim.clone(); 1000]}, {"primitives": vec![prim; 667]}]);
+        let nodes = v["nodes"].as_array_mut().unwrap();
+        nodes.extend(vec![serde_json::json!({"mesh": 0, "skin": 0}); 665]);
+        nodes.push(serde_json::json!({"mesh": 1, "skin": 0}));
+    });
+    let (msg, found) = problem(&p);
+    assert_eq!(found, GltfProblem::TooManyVertices { skin: 0, vertices: 2_000_001 }, "{msg}");
+    assert!(msg.ends_with("more than the 2000000 supported"), "{msg}");
+    // Two buffers of one file.
+    std::fs::write(d.join("a.bin"), [0u8; 4]).unwrap();
+    let p = rig(&d, "twice.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+        let b = serde_json::json!({"uri": "a.bin", "byteLength": 4});
+        v["buffers"].as_array_mut().unwrap().extend([b.clone(), b]);
+    });
+    let (msg, found) = problem(&p);
+    assert_eq!(found, GltfProblem::RepeatedBuffer { first: 1, index: 2, uri: "a.bin".into() }, "{msg}");
+    assert!(msg.ends_with("buffers 1 and 2 both read `a.bin`; each file may be listed once"), "{msg}");
+}
+
 #[test]
 fn a_rig_without_feet_imports_with_a_warning() {
     let d = tmp("nofeet");

@@ -639,18 +639,20 @@ fn mapping_files_are_validated() {
 #[test]
 fn unit_and_up_overrides_apply() {
     let text = std::fs::read_to_string(fixture("mixamo_walk.bvh")).unwrap();
-    let mapping = JointMapping::from_toml_str("unit = \"mm\"").unwrap();
+    // The clip is in centimetres: 1.5 cm per unit makes the human 1.5 times as tall (a unit that
+    // makes an implausible human, such as mm here, is refused).
+    let mapping = JointMapping::from_toml_str("unit = 0.015").unwrap();
     let clip = HumanClip::from_bvh_str(
         &text,
-        "mm",
+        "scaled",
         &ImportOptions {
             fps: None,
             mapping: Some(mapping),
         },
     )
     .unwrap();
-    assert_eq!(clip.unit, "mm");
-    assert!((clip.height_m - 0.169).abs() < 0.01, "{}", clip.height_m);
+    assert_eq!(clip.unit, "0.015");
+    assert!((clip.height_m - 2.535).abs() < 0.15, "{}", clip.height_m);
 }
 
 /// A small valid file to break in various ways: the Mixamo fixture cut to 5 frames.

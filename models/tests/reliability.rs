@@ -145,30 +145,47 @@ fn deep_chain(depth: usize) -> String {
 
 #[test]
 fn deep_joint_chains_do_not_overflow_the_stack() {
-    // Run on a thread with a small stack: the reader must not recurse on the file's depth.
+    // Run on a thread with a small stack: the reader must not recurse on the file's depth. A chain of
+    // 1000 joints (the most a file may have) parses; one more is refused at its line.
     let handle = std::thread::Builder::new()
         .stack_size(256 * 1024)
         .spawn(|| {
-            let mut out = Vec::new();
-            for depth in [30_000, 100_000] {
-                let text = deep_chain(depth);
-                let bvh = ace_models::human::bvh::Bvh::parse(&text, "deep.bvh").unwrap();
-                assert_eq!(bvh.joints.len(), depth + 1);
-                assert_eq!(bvh.joints[depth].parent, Some(depth - 1));
-                out.push(import_err(&text));
-            }
-            out
+            let text = deep_chain(999);
+            let bvh = ace_models::human::bvh::Bvh::parse(&text, "deep.bvh").unwrap();
+            assert_eq!(bvh.joints.len(), ace_models::human::bvh::MAX_JOINTS);
+            assert_eq!(bvh.joints[999].parent, Some(998));
+            (import_err(&text), import_err(&deep_chain(1000)), import_err(&deep_chain(100_000)))
         })
         .unwrap();
-    for e in handle.join().expect("no stack overflow") {
-        // Generic names: an unknown skeleton, with a bounded list of joints.
-        assert!(e.starts_with("bad.bvh: unknown skeleton") && e.contains("J58, … and"), "{e}");
-        assert!(
-            e.len() < 2_000,
-            "the message lists a bounded number of joints ({} bytes)",
-            e.len()
-        );
+    let (generic, over, far_over) = handle.join().expect("no stack overflow");
+    // Generic names: an unknown skeleton, with a bounded list of joints.
+    assert!(generic.starts_with("bad.bvh: unknown skeleton") && generic.contains("J58, … and"), "{generic}");
+    assert!(generic.len() < 2_000, "the message lists a bounded number of joints ({} bytes)", generic.len());
+    // `JOINT J999`, the 1001st joint, is on line 6 + 4 × 999.
+    for e in [over, far_over] {
+        assert_eq!(e, "bad.bvh, line 4002: joint `J999` is one more than the 1000 joints a file may have");
     }
+}
+
+/// `walk.bvh` with `extra` more `End Site` blocks (offset zero) in `LeftToe`.
+fn walk_with_end_sites(extra: usize) -> String {
+    let site = "          End Site\n          {\n            OFFSET 0.0000 0.0000 0.0000\n          }\n";
+    let at = "            OFFSET 0.0000 0.0000 5.0000\n          }\n";
+    walk().replacen(at, &format!("{at}{}", site.repeat(extra)), 1)
+}
+
+/// Every point under a foot is posed in every frame for the floor: the number of end sites is bounded
+/// like the joints', and the feet are kept per frame as a box, whatever their number of points.
+#[test]
+fn end_sites_are_bounded_and_do_not_change_the_floor() {
+    let opts = ImportOptions::default();
+    let base = HumanClip::from_bvh_str(&walk(), "walk.bvh", &opts).unwrap();
+    // The walk has 5 end sites: 995 more make the most a file may have, at the toe's own point.
+    let most = HumanClip::from_bvh_str(&walk_with_end_sites(995), "walk.bvh", &opts).unwrap();
+    assert_eq!(most.frames, base.frames);
+    // One more: the 1001st is then `RightToe`'s own, on line 123 + 4 × 996.
+    let e = import_err(&walk_with_end_sites(996));
+    assert_eq!(e, "bad.bvh, line 4107: `End Site` in joint `RightToe` is one more than the 1000 a file may have");
 }
 
 #[test]
@@ -803,5 +820,240 @@ fn a_checkpoint_with_implausible_human_statistics_is_refused_naming_its_ace_json
             )
         );
         assert!(e.contains(shown), "{e}");
+    }
+}
+
+/// A creature profile's numbers are checked when it is read (TOML allows `nan` and `inf`): an inverted
+/// limit made `f32::clamp` panic in the leg IK, a NaN tip offset gave a NaN dataset naming no profile.
+/// The error names the profile, the key and what would be valid.
+#[test]
+fn a_creature_profiles_numbers_are_checked_when_it_is_read() {
+    use ace_models::morphology::Profile;
+    let dir = scratch("profile-values");
+    let hound = dir.join("hound.glb");
+    std::fs::copy(asset("assets/creatures/hound.glb"), &hound).unwrap();
+    let shipped = std::fs::read_to_string(asset("assets/creatures/hound.profile.toml")).unwrap();
+    let limit = "a limit is [lower, upper] in radians, both finite, with lower ≤ upper";
+    let scale = "the scale is metres per file unit, from 0.0001 to 100";
+    let cases = [
+        ("", "[limits]\n\"Thigh.L:pitch\" = [0.5, -0.5]\n", format!("`limits.\"Thigh.L:pitch\"` = [0.5, -0.5]: {limit}")),
+        ("", "[limits]\n\"Thigh.L:pitch\" = [nan, 0.5]\n", format!("`limits.\"Thigh.L:pitch\"` = [NaN, 0.5]: {limit}")),
+        ("", "[rest_pose]\n\"Thigh.L:pitch\" = inf\n", "`rest_pose.\"Thigh.L:pitch\"` = inf: a rest position must be finite".into()),
+        ("", "[tip_offsets]\n\"Foot.L\" = [nan, 0, 0]\n", "`tip_offsets.\"Foot.L\"` = [NaN, 0.0, 0.0]: a tip offset is [x, y, z] in metres, each finite".into()),
+        ("scale = 0.0\n", "", format!("`scale` = 0: {scale}")),
+        ("scale = 100.5\n", "", format!("`scale` = 100.5: {scale}")),
+    ];
+    let profile = dir.join("hound.profile.toml");
+    for (top, table, problem) in cases {
+        std::fs::write(&profile, format!("{top}{shipped}\n{table}")).unwrap();
+        let e = Profile::from_file(&profile).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: {problem}", profile.display()));
+        // Loading the creature reads the profile beside it: the same error, before any work.
+        let e = ace_models::character::load_creature(&hound).map(|_| ()).unwrap_err().to_string();
+        assert!(e.contains(&format!("{}: {problem}", profile.display())), "{e}");
+    }
+    // The bounds themselves are valid.
+    let ok = "scale = 100.0\n[limits]\n\"a:pitch\" = [0.5, 0.5]\n[tip_offsets]\n\"b\" = [0, 0, 0]\n";
+    Profile::from_toml(ok, "ok.profile.toml").unwrap();
+}
+
+/// A copy of the bundled checkpoint `name` in `dir`, with `file`'s JSON changed by `edit`.
+fn edited_checkpoint(dir: &Path, name: &str, file: &str, edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for e in std::fs::read_dir(asset(&format!("assets/checkpoints/{name}"))).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(dir.join(file), serde_json::to_string(&v).unwrap()).unwrap();
+    dir.to_path_buf()
+}
+
+/// The fields of `ace.json` the scorer and the editor index by end effector or divide by are checked
+/// when the checkpoint is read: a short `feature_offset` or a sixth mapping entry made the scorer
+/// panic, empty `scores` crashed the editor, a zero body length gave NaN metrics with rc 0.
+#[test]
+fn an_ace_json_whose_correspondence_or_lengths_do_not_fit_its_character_is_refused() {
+    use ace_models::runtime::Retargeter;
+    let dir = scratch("ace-fields");
+    let eleven = "`correspondence.scores` must have 5 rows (one per end effector) of 5 scores (one per human end effector)";
+    let cases: [(&str, fn(&mut serde_json::Value), &str); 8] = [
+        ("offset", |v| v["feature_offset"] = serde_json::json!([0.0]),
+         "`feature_offset` has 1 entries; it must be empty or hold 28 finite values (Ψ's width)"),
+        ("mapping", |v| v["correspondence"]["mapping"]["human"].as_array_mut().unwrap().push("head".into()),
+         "`correspondence.mapping.human` has 6 entries; it needs one per end effector of `spot` (5)"),
+        ("links", |v| v["correspondence"]["character_links"][4] = "body".into(),
+         "`correspondence.character_links` is [fl_foot, fr_foot, rl_foot, rr_foot, body]; it must be the \
+          character's end-effector links [fl_foot, fr_foot, rl_foot, rr_foot, gripper_tip]"),
+        ("no-scores", |v| v["correspondence"]["scores"] = serde_json::json!([]), eleven),
+        ("short-scores", |v| { v["correspondence"]["scores"][2].as_array_mut().unwrap().pop(); }, eleven),
+        ("speed", |v| v["speed_scale"] = serde_json::json!(1e39), "`speed_scale` is inf; it must be finite and positive"),
+        ("override", |v| v["body_lengths"]["human_override"] = serde_json::json!(0.0),
+         "`body_lengths.human_override` is 0; it must be finite and positive"),
+        ("body", |v| v["body_lengths"]["character"] = serde_json::json!(-0.5),
+         "`body_lengths.character` is -0.5; it must be finite and positive"),
+    ];
+    for (name, edit, problem) in cases {
+        let ck = edited_checkpoint(&dir.join(name), "spot", "ace.json", edit);
+        let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: corrupt file: {problem}", ck.join("ace.json").display()), "{name}");
+    }
+    // Unchanged, and without the optional fields, it loads.
+    Retargeter::load(&edited_checkpoint(&dir.join("ok"), "spot", "ace.json", |v| {
+        let o = v.as_object_mut().unwrap();
+        o.remove("feature_offset");
+        o.remove("speed_scale");
+    }))
+    .unwrap();
+}
+
+/// A dataset's frame rate, foot count and deviations are checked when it is read: `fps = 0` made the
+/// sliding detector panic, a tiny one turned it off, a zero deviation gave NaN losses in training
+/// that were blamed on the learning rate.
+#[test]
+fn a_dataset_with_an_absurd_frame_rate_foot_count_or_deviation_is_refused() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, STD_FLOOR, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let good = generate(&tree, &morph, &DatasetConfig { frames: 60, ..DatasetConfig::default() }, &mut |_| {}).unwrap();
+    let dir = scratch("dataset-values");
+    let path = dir.join("d.safetensors");
+    let refused = |set: &MotionSet| {
+        std::fs::write(&path, set.to_bytes().unwrap()).unwrap();
+        MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string()
+    };
+    for fps in [0.0, -30.0, f32::NAN, 1e-30, 0.99, 1000.5] {
+        let e = refused(&MotionSet { fps, ..good.clone() });
+        assert_eq!(e, format!("{}: metadata `fps` is {fps}; expected 1 to 1000 frames per second", path.display()));
+    }
+    for sd in [0.0, -1.0, 0.99 * STD_FLOOR] {
+        let mut bad = good.clone();
+        bad.std[3] = sd;
+        let e = refused(&bad);
+        assert_eq!(e, format!("{}: tensor `std` entry 3 is {sd}; every standard deviation is at least 0.001", path.display()));
+    }
+    // A foot count that is not a whole number, which `as usize` truncated to the right count: the
+    // header is rewritten (tensor offsets count from the data, so they stay valid).
+    let bytes = good.to_bytes().unwrap();
+    let len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + len]).unwrap();
+    header["__metadata__"]["n_feet"] = format!("{}.5", good.n_feet).into();
+    let header = serde_json::to_vec(&header).unwrap();
+    let mut bad = (header.len() as u64).to_le_bytes().to_vec();
+    bad.extend(&header);
+    bad.extend(&bytes[8 + len..]);
+    std::fs::write(&path, &bad).unwrap();
+    let e = MotionSet::load(&path).map(|_| "loaded").unwrap_err().to_string();
+    assert_eq!(e, format!("{}: metadata `n_feet` is not a whole number of feet", path.display()));
+    // The bounds themselves load.
+    let mut edge = MotionSet { fps: 1000.0, ..good.clone() };
+    edge.std[3] = STD_FLOOR;
+    std::fs::write(&path, edge.to_bytes().unwrap()).unwrap();
+    assert_eq!(MotionSet::load(&path).unwrap(), edge);
+}
+
+/// `config.json`'s mean, bounds and mask are checked when the prior is read: a mean of `1e39` (infinity
+/// as f32) gave NaN motion blamed on the output file, a finite absurd mean or swapped bounds a wrong
+/// motion with rc 0.
+#[test]
+fn a_prior_config_with_absurd_means_bounds_or_mask_is_refused_naming_it() {
+    use ace_models::runtime::Retargeter;
+    let dir = scratch("prior-config");
+    let cases: [(&str, fn(&mut serde_json::Value), &str); 6] = [
+        ("inf", |v| v["mean"][2] = serde_json::json!(1e39),
+         "`mean` entry 2 is inf; a state entry's mean is finite and at most 1000 in magnitude"),
+        ("absurd", |v| v["mean"][2] = serde_json::json!(1000.5),
+         "`mean` entry 2 is 1000.5; a state entry's mean is finite and at most 1000 in magnitude"),
+        ("swapped", |v| { v["bounds"]["lo"][4] = serde_json::json!(2.0); v["bounds"]["hi"][4] = serde_json::json!(-2.0); },
+         "`bounds` entry 4 is [2, -2]; each entry's bounds are finite, with `lo` ≤ `hi`"),
+        ("infinite-bound", |v| v["bounds"]["hi"][4] = serde_json::json!(1e39),
+         "`bounds` entry 4 is [-1.7834841, inf]; each entry's bounds are finite, with `lo` ≤ `hi`"),
+        ("mask", |v| v["mask"][1] = serde_json::json!(0.5), "`mask` entry 1 is 0.5; the mask holds 0 or 1"),
+        ("mask-negative", |v| v["mask"][1] = serde_json::json!(-1.0), "`mask` entry 1 is -1; the mask holds 0 or 1"),
+    ];
+    for (name, edit, problem) in cases {
+        let ck = edited_checkpoint(&dir.join(name), "spot", "config.json", edit);
+        let e = Retargeter::load(&ck).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("{}: corrupt file: {problem}", ck.join("config.json").display()), "{name}");
+    }
+}
+
+/// URDF numbers are checked as the f32 the tree holds (`1e39` is finite as f64, infinite as f32), and
+/// lengths are bounded: sizes above 0 and at most 1 km, origins within 1 km, mesh scales nonzero. Each
+/// error names the element and says what would be valid.
+#[test]
+fn urdf_values_beyond_f32_and_absurd_sizes_are_refused_naming_the_element() {
+    let leg_box = r#"<box size="0.05 0.05 0.3"/>"#;
+    let hip = r#"<axis xyz="0 1 0"/>"#;
+    let of_leg = "of a collision of link `leg`";
+    let size = "a size must be greater than 0 and at most 1000 m";
+    let f32_range = "(values must be finite numbers within f32's range, ±3.4e38)";
+    let cases = [
+        (leg_box, r#"<box size="1e39 0.05 0.3"/>"#, format!("non-finite value in the size of box geometry {of_leg} {f32_range}")),
+        (leg_box, r#"<box size="0 0.05 0.3"/>"#, format!("the size of box geometry {of_leg} is 0; {size}")),
+        (leg_box, r#"<box size="0.05 -0.05 0.3"/>"#, format!("the size of box geometry {of_leg} is -0.05; {size}")),
+        (leg_box, r#"<box size="0.05 0.05 1000.5"/>"#, format!("the size of box geometry {of_leg} is 1000.5; {size}")),
+        (leg_box, r#"<cylinder radius="0" length="0.3"/>"#, format!("the radius of cylinder geometry {of_leg} is 0; {size}")),
+        (leg_box, r#"<sphere radius="-1"/>"#, format!("the radius of sphere geometry {of_leg} is -1; {size}")),
+        (leg_box, r#"<mesh filename="leg.stl" scale="1 0 1"/>"#,
+         format!("the scale of mesh leg.stl {of_leg} is 0; a mesh's scale must be nonzero along each axis")),
+        (hip, r#"<axis xyz="0 1 0"/><origin xyz="1e39 0 0"/>"#, format!("non-finite value in the origin xyz of joint `hip` {f32_range}")),
+        (hip, r#"<axis xyz="0 1 0"/><origin xyz="0 0 -1000.5"/>"#,
+         "the origin xyz of joint `hip` is -1000.5; an offset must be at most 1000 m along each axis".into()),
+    ];
+    for (from, to, problem) in cases {
+        let text = robot("fixed", "-1", "1").replacen(from, to, 1);
+        let e = parse_urdf(&text, "r.urdf", None).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(e, format!("r.urdf: {problem}"), "{to}");
+    }
+    // The bounds themselves load.
+    let edge = robot("fixed", "-1", "1")
+        .replacen(leg_box, r#"<box size="1000 0.05 0.3"/>"#, 1)
+        .replacen(hip, r#"<axis xyz="0 1 0"/><origin xyz="0 0 -1000"/>"#, 1);
+    parse_urdf(&edge, "r.urdf", None).unwrap();
+}
+
+/// A mapping's `unit` overrides the unit detection, which only picks units giving a 1.4–2 m human:
+/// an override that makes the centimetre walk 170 m (or 0.2 µm) tall is refused, naming the clip
+/// and the unit; the right one imports.
+#[test]
+fn a_mapping_unit_that_makes_an_implausible_human_is_refused() {
+    use ace_models::human::JointMapping;
+    let import = |unit: &str| {
+        let opts = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str(&format!("unit = {unit}")).unwrap()) };
+        HumanClip::from_bvh_str(&walk(), "walk.bvh", &opts)
+    };
+    for (unit, shown) in [("1", "1"), ("1e-9", "0.000000001"), ("\"m\"", "m")] {
+        let e = import(unit).map(|c| format!("imported, {} m tall", c.height_m)).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("walk.bvh: invalid joint mapping: unit `{shown}` makes the human ")), "{e}");
+        assert!(e.ends_with(" m tall; a human is 0.3 to 3 m tall: check the mapping's `unit`"), "{e}");
+    }
+    let clip = import("0.01").unwrap();
+    assert!((1.4..2.0).contains(&clip.height_m), "{}", clip.height_m);
+}
+
+/// A dataset header's layout sizes are bounded before they are added up (`dim()`), which overflowed
+/// (a panic in debug builds) for a `dof` of 2^64 − 1.
+#[test]
+fn a_dataset_layout_too_large_to_add_up_is_refused() {
+    use ace_models::dataset::{DatasetConfig, MotionSet, generate};
+    let (tree, morph) = ace_models::morphology::load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+    let good = generate(&tree, &morph, &DatasetConfig { frames: 10, ..DatasetConfig::default() }, &mut |_| {}).unwrap();
+    let bytes = good.to_bytes().unwrap();
+    let len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + len]).unwrap();
+    for (dof, valid) in [(u64::MAX, false), (6145, false), (6144, true)] {
+        let layout = format!(r#"{{"dof":{dof},"end_effectors":1,"dim":1}}"#);
+        header["__metadata__"]["layout"] = layout.into();
+        let h = serde_json::to_vec(&header).unwrap();
+        let mut file = (h.len() as u64).to_le_bytes().to_vec();
+        file.extend(&h);
+        file.extend(&bytes[8 + len..]);
+        let e = MotionSet::from_bytes(&file).map(|_| ()).unwrap_err();
+        if valid {
+            assert!(e.starts_with("metadata `layout`: dim 1 does not match dof 6144"), "{e}");
+        } else {
+            assert_eq!(e, format!("metadata `layout`: `dof` is {dof}; at most 6144 (6 per link of the most a robot has)"));
+        }
     }
 }

@@ -12,7 +12,8 @@ use std::sync::Arc;
 
 use ace_models::character::{RigPose, creature_from_document, gltf, is_gltf};
 use ace_models::checkpoint::FileRecord;
-use ace_models::human::{HumanClip, ImportOptions};
+use ace_models::human::clip::{decode_text, mapping_path_beside};
+use ace_models::human::{HumanClip, ImportOptions, JointMapping};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
 use bevy::asset::{Asset, AssetLoader, AssetPath, LoadContext, io::Reader};
@@ -141,6 +142,10 @@ async fn load_creature(
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut external = Vec::new();
     for uri in gltf::external_buffers(&bytes, &file).map_err(|e| import(e.problem.to_string()))? {
+        if external.iter().any(|(u, _)| *u == uri) {
+            // Listed twice: `open_bytes` refuses it; read once.
+            continue;
+        }
         let buffer = beside(ctx, dir.join(&uri));
         let data = ctx.read_asset_bytes(buffer).await.map_err(|e| e.to_string());
         external.push((uri, data));
@@ -164,6 +169,26 @@ async fn load_creature(
 pub struct BvhSettings {
     /// Resample the clip to this frame rate; `None` keeps the file's rate.
     pub fps: Option<f32>,
+    /// A joint-mapping file (asset path in the clip's asset source); `None` reads
+    /// `<clip>.mapping.toml` beside the clip when there is one, as the CLI does.
+    pub mapping: Option<PathBuf>,
+}
+
+/// The joint mapping of the clip `ctx` loads: `settings.mapping`'s, which must be there, or the one
+/// beside the clip, if any.
+async fn read_mapping(settings: &BvhSettings, ctx: &mut LoadContext<'_>) -> Result<Option<JointMapping>, AceAssetError> {
+    let (path, required) = match &settings.mapping {
+        Some(p) => (p.clone(), true),
+        None => (mapping_path_beside(ctx.path().path()), false),
+    };
+    let bytes = match ctx.read_asset_bytes(beside(ctx, path.clone())).await {
+        Ok(bytes) => bytes,
+        Err(_) if !required => return Ok(None),
+        Err(e) => return Err(AceAssetError::Import { path: path.display().to_string(), message: e.to_string() }),
+    };
+    let file = path.display().to_string();
+    let text = ace_models::input::text_from_bytes(bytes).map_err(|e| AceAssetError::NotText { path: file.clone(), problem: e.to_string() })?;
+    JointMapping::parse(&text, &file).map(Some).map_err(|e| AceAssetError::Import { path: file, message: e.to_string() })
 }
 
 /// Loads `.bvh` files into [`BvhAsset`]s.
@@ -181,10 +206,13 @@ impl AssetLoader for BvhLoader {
         settings: &BvhSettings,
         ctx: &mut LoadContext<'_>,
     ) -> Result<BvhAsset, AceAssetError> {
-        let text = read_text(reader, ctx).await?;
         let path = ctx.path().to_string();
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+        // Decoded as the CLI decodes a clip (Latin-1 names read, UTF-16 refused with a hint).
+        let text = decode_text(&bytes, &path).map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
         let name = ctx.path().path().file_stem().map_or_else(|| path.clone(), |s| s.to_string_lossy().into_owned());
-        let opts = ImportOptions { fps: settings.fps, ..Default::default() };
+        let opts = ImportOptions { fps: settings.fps, mapping: read_mapping(settings, ctx).await? };
         let clip = HumanClip::from_bvh_str(&text, &name, &opts)
             .map_err(|e| AceAssetError::Import { path, message: e.to_string() })?;
         Ok(BvhAsset { clip: Arc::new(clip) })

@@ -50,8 +50,15 @@ pub const DISTINCT_AXIS: f32 = 1.5;
 pub const MAX_PLAUSIBLE_SIZE: f32 = 20.0;
 /// Most joints a skin may have.
 pub const MAX_JOINTS: usize = 256;
-/// Most bytes a glTF file (and each of its buffers) may have.
+/// Most bytes a glTF file may have, and its buffers together.
 pub const MAX_FILE_BYTES: u64 = 512 << 20;
+/// Most skinned vertices a creature may have, counted over every node that carries its skin and every
+/// primitive of that node's mesh (a file may reuse one accessor many times, so its size does not bound
+/// this).
+pub const MAX_SKINNED_VERTICES: usize = 2_000_000;
+/// Longest animation a creature may have, in seconds: as long as a mocap clip
+/// ([`crate::human::bvh::MAX_CLIP_SECONDS`]). Clips are sampled frame by frame, so their length sizes memory.
+pub const MAX_ANIMATION_SECONDS: f32 = 7200.0;
 
 /// An error importing a glTF creature: which file, and what is wrong with it.
 #[derive(Debug, Clone, Error, PartialEq)]
@@ -86,6 +93,15 @@ pub enum GltfProblem {
     TooFewJoints { skin: usize, joints: usize },
     #[error("skin {skin} has {joints} joints, more than the {MAX_JOINTS} supported")]
     TooManyJoints { skin: usize, joints: usize },
+    #[error(
+        "skin {skin} deforms {vertices} vertices (over every node and primitive that uses it), more than the \
+         {MAX_SKINNED_VERTICES} supported"
+    )]
+    TooManyVertices { skin: usize, vertices: usize },
+    #[error("buffers {first} and {index} both read `{uri}`; each file may be listed once")]
+    RepeatedBuffer { first: usize, index: usize, uri: String },
+    #[error("the buffers hold more than {MAX_FILE_BYTES} bytes together")]
+    BuffersTooLarge,
     #[error("skin {skin} lists node {node} (`{name}`) more than once among its joints")]
     DuplicateJoint {
         skin: usize,
@@ -109,6 +125,11 @@ pub enum GltfProblem {
     NoSkinnedMesh { skin: usize },
     #[error("non-finite or degenerate transform: {0}")]
     BadTransform(String),
+    #[error(
+        "animation {index} (`{name}`) has a keyframe at {time} s; keyframe times must be finite and \
+         at most {MAX_ANIMATION_SECONDS} s (2 hours)"
+    )]
+    AnimationTooLong { index: usize, name: String, time: f32 },
 }
 
 impl GltfProblem {
@@ -446,6 +467,9 @@ pub fn read_document(
             joints: joints.len(),
         }));
     }
+    if skin_vertices[skin_index] > MAX_SKINNED_VERTICES {
+        return Err(fail(GltfProblem::TooManyVertices { skin: skin_index, vertices: skin_vertices[skin_index] }));
+    }
     let mut slot = vec![None; n];
     for (k, &j) in joints.iter().enumerate() {
         if slot[j].is_some() {
@@ -703,6 +727,7 @@ pub fn read_document(
     let mut animations = Vec::new();
     let mut clips = Vec::new();
     for a in doc.animations() {
+        let name = a.name().map(str::to_owned).unwrap_or_else(|| format!("animation{}", a.index()));
         let mut duration = 0.0f32;
         let mut channels = 0;
         let mut tracks = Vec::new();
@@ -710,7 +735,13 @@ pub fn read_document(
             channels += 1;
             let r = ch.reader(get);
             if let Some(t) = r.read_inputs() {
-                duration = t.fold(duration, f32::max);
+                for time in t {
+                    // The duration sizes every sampling of the clip (`clips::clip_frames`).
+                    if !(time.is_finite() && time <= MAX_ANIMATION_SECONDS) {
+                        return Err(fail(GltfProblem::AnimationTooLong { index: a.index(), name, time }));
+                    }
+                    duration = duration.max(time);
+                }
             }
             let Some(b) = bone_of[ch.target().node().index()] else {
                 continue;
@@ -754,10 +785,7 @@ pub fn read_document(
             }
         }
         animations.push(AnimationInfo {
-            name: a
-                .name()
-                .map(str::to_owned)
-                .unwrap_or_else(|| format!("animation{}", a.index())),
+            name,
             duration_s: duration,
             channels,
         });
@@ -871,7 +899,18 @@ fn read_buffers(
     mut blob: Option<Vec<u8>>,
     file: &dyn Fn(&str) -> Result<Vec<u8>, String>,
 ) -> Result<Vec<Vec<u8>>, GltfError> {
+    // A file listed by several buffers would be read (and held) once per listing.
+    let mut listed: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for b in doc.buffers() {
+        if let ::gltf::buffer::Source::Uri(uri) = b.source()
+            && !uri.starts_with("data:")
+            && let Some(first) = listed.insert(uri, b.index())
+        {
+            return Err(GltfProblem::RepeatedBuffer { first, index: b.index(), uri: uri.to_owned() }.in_file(path));
+        }
+    }
     let mut out = Vec::new();
+    let mut total = 0u64;
     for b in doc.buffers() {
         let index = b.index();
         let (uri, data) = match b.source() {
@@ -914,6 +953,10 @@ fn read_buffers(
                 reason: format!("{} bytes, but the file declares {}", data.len(), b.length()),
             }
             .in_file(path));
+        }
+        total += data.len() as u64;
+        if total > MAX_FILE_BYTES {
+            return Err(GltfProblem::BuffersTooLarge.in_file(path));
         }
         out.push(data);
     }

@@ -27,6 +27,10 @@ pub const SAMPLE_FPS: f32 = 30.0;
 pub fn held_offsets(rig: &Rig, host: &BTreeMap<usize, usize>) -> BTreeMap<usize, Vector3<f32>> {
     let bind = |h: usize, b: usize| rig.bones[b].rest.inverse_transform_point(&Point3::from(rig.bones[h].rest.translation.vector)).coords;
     let mut samples: BTreeMap<usize, Vec<Vector3<f32>>> = host.keys().map(|&h| (h, Vec::new())).collect();
+    if host.is_empty() {
+        // Nothing to sample: the clips are not posed (their length sizes the sampling).
+        return BTreeMap::new();
+    }
     for clip in 0..rig.clips.len() {
         for world in bone_worlds(rig, clip, SAMPLE_FPS) {
             for (&h, &b) in host {

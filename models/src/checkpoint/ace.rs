@@ -313,6 +313,7 @@ impl AceRecord {
             problem,
         };
         record.config.check().map_err(|e| corrupt(e.to_string()))?;
+        record.check_fields().map_err(corrupt)?;
         let dim = record.character.layout.dim();
         if prior_mask.len() != dim {
             return Err(LearnError::WrongCharacter {
@@ -360,6 +361,56 @@ impl AceRecord {
 }
 
 impl AceRecord {
+    /// Checks the fields the scorer and the editor index by end effector or divide by: the
+    /// correspondence has one entry per character end effector (its links the character's, a score
+    /// per human end effector), the centring offset is Ψ's width, the speed scale and body lengths are
+    /// finite and positive. The problem names the field and what would be valid.
+    fn check_fields(&self) -> Result<(), String> {
+        let links = &self.character.end_effector_links;
+        let corr = &self.correspondence;
+        let n = links.len();
+        if corr.mapping.human.len() != n {
+            return Err(format!(
+                "`correspondence.mapping.human` has {} entries; it needs one per end effector of `{}` ({n})",
+                corr.mapping.human.len(),
+                self.character.name
+            ));
+        }
+        if &corr.character_links != links {
+            return Err(format!(
+                "`correspondence.character_links` is [{}]; it must be the character's end-effector links [{}]",
+                corr.character_links.join(", "),
+                links.join(", ")
+            ));
+        }
+        let humans = EndEffector::ALL.len();
+        if corr.scores.len() != n || corr.scores.iter().any(|row| row.len() != humans) {
+            return Err(format!(
+                "`correspondence.scores` must have {n} rows (one per end effector) of {humans} scores (one per human \
+                 end effector)"
+            ));
+        }
+        let width = crate::features::FeatureLayout::new(&corr.mapping).dim();
+        let offset = &self.feature_offset;
+        if !(offset.is_empty() || offset.len() == width) || offset.iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "`feature_offset` has {} entries; it must be empty or hold {width} finite values (Ψ's width)",
+                offset.len()
+            ));
+        }
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        for (field, value) in [
+            ("speed_scale", self.speed_scale),
+            ("body_lengths.character", Some(self.body_lengths.character)),
+            ("body_lengths.human_override", self.body_lengths.human_override),
+        ] {
+            if let Some(v) = value.filter(|&v| !positive(v)) {
+                return Err(format!("`{field}` is {v}; it must be finite and positive"));
+            }
+        }
+        Ok(())
+    }
+
     /// Fails with [`LearnError::WrongCharacter`] (naming `dir`'s `ace.json`) unless the generator was
     /// trained for `prior_character`, the character of the prior beside it.
     pub fn check_prior(&self, dir: &Path, prior_character: &CharacterInfo) -> Result<(), LearnError> {

@@ -536,9 +536,14 @@ pub(crate) struct PriorRecord {
     pub(crate) provenance: Value,
 }
 
+/// Largest magnitude of a state entry's mean in `config.json`: states are metres, radians and their
+/// rates, so no character's average anywhere near it.
+pub const MAX_STATE_MEAN: f32 = 1e3;
+
 impl PriorRecord {
     /// Reads and checks `config.json`: kind and version, then every per-entry list one value per state
-    /// entry, positive standard deviations and a configuration in range. Errors name the file.
+    /// entry, positive standard deviations, means within [`MAX_STATE_MEAN`], finite bounds in order, a
+    /// mask of 0s and 1s, and a configuration in range. Errors name the file.
     pub(crate) fn read(files: &CheckpointFiles) -> Result<PriorRecord, LearnError> {
         let config_path = files.path(CONFIG_FILE);
         let record: PriorRecord = read_json(files, CONFIG_FILE, KIND, FORMAT_VERSION, "a motion-prior checkpoint")?;
@@ -565,6 +570,24 @@ impl PriorRecord {
                 "`std` entry {i} is {}, not positive",
                 record.std[i]
             )));
+        }
+        // The prior's outputs are `mean + std · x` clamped to the bounds: an absurd mean or inverted
+        // bounds gave a wrong motion with rc 0, an infinite one (`1e39` in JSON) NaN at export.
+        if let Some(i) = record.mean.iter().position(|m| !(m.abs() <= MAX_STATE_MEAN)) {
+            return Err(corrupt(format!(
+                "`mean` entry {i} is {}; a state entry's mean is finite and at most {MAX_STATE_MEAN} in magnitude",
+                record.mean[i]
+            )));
+        }
+        let StateBounds { lo, hi } = &record.bounds;
+        if let Some(i) = (0..dim).position(|i| !(lo[i].is_finite() && hi[i].is_finite() && lo[i] <= hi[i])) {
+            return Err(corrupt(format!(
+                "`bounds` entry {i} is [{}, {}]; each entry's bounds are finite, with `lo` ≤ `hi`",
+                lo[i], hi[i]
+            )));
+        }
+        if let Some(i) = record.mask.iter().position(|&m| m != 0.0 && m != 1.0) {
+            return Err(corrupt(format!("`mask` entry {i} is {}; the mask holds 0 or 1", record.mask[i])));
         }
         record.config.check().map_err(|e| corrupt(e.to_string()))?;
         Ok(record)

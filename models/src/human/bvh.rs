@@ -11,6 +11,11 @@ use super::error::HumanImportError;
 /// Most channels a joint may declare (6 is the usual maximum: three positions, three rotations).
 pub const MAX_CHANNELS_PER_JOINT: usize = 12;
 
+/// Most joints a file may have, and most `End Site` blocks: mocap skeletons have a few hundred at most.
+/// Every joint and end site under a foot is posed in every frame to find the floor, so their number
+/// times the frame count is the import's work.
+pub const MAX_JOINTS: usize = 1000;
+
 /// Range of `Frame Time:` accepted, seconds: 1000 frames per second down to one frame per 10 s.
 /// Outside it the clip's timing is not mocap timing (`Frame Time: 1e-9` would squeeze a clip into
 /// one frame when resampled).
@@ -118,6 +123,7 @@ impl Bvh {
             joints: Vec::new(),
             names: HashMap::new(),
             channels: 0,
+            end_sites: 0,
             file,
         };
         match tokens.first() {
@@ -360,6 +366,8 @@ struct HierarchyParser<'t, 'a> {
     /// Index of each joint by name, to refuse duplicates.
     names: HashMap<String, usize>,
     channels: usize,
+    /// `End Site` blocks read so far.
+    end_sites: usize,
     file: &'t str,
 }
 
@@ -436,6 +444,12 @@ impl<'a> HierarchyParser<'_, 'a> {
         open: &mut Vec<OpenJoint>,
     ) -> Result<(), HumanImportError> {
         let name = self.joint_name(line)?;
+        if self.joints.len() == MAX_JOINTS {
+            return Err(self.err(
+                line,
+                format!("joint `{name}` is one more than the {MAX_JOINTS} joints a file may have"),
+            ));
+        }
         if let Some(&first) = self.names.get(&name) {
             return Err(self.err(
                 line,
@@ -537,6 +551,13 @@ impl<'a> HierarchyParser<'_, 'a> {
             } else if t.eq_ignore_ascii_case("JOINT") {
                 self.open_joint(Some(index), l, end_line, &mut open)?;
             } else if t.eq_ignore_ascii_case("End") {
+                if self.end_sites == MAX_JOINTS {
+                    return Err(self.err(
+                        l,
+                        format!("`End Site` in joint `{name}` is one more than the {MAX_JOINTS} a file may have"),
+                    ));
+                }
+                self.end_sites += 1;
                 let (s, sl) = self.next(end_line, "`Site`")?;
                 if !s.eq_ignore_ascii_case("Site") {
                     return Err(self.err(sl, format!("expected `End Site`, found `End {s}`")));

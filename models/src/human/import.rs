@@ -28,6 +28,10 @@ pub const FLOOR_PERCENTILE: f32 = 0.05;
 /// letting it through would poison every statistic computed from the clip.
 pub const MAX_DISTANCE_M: f32 = 10_000.0;
 
+/// Heights (m) a human may have with a mapping's `unit` override (the unit detection only picks
+/// units giving [`super::units::PLAUSIBLE_HEIGHT_M`]): a wrong override made a 170 m human.
+pub const HUMAN_HEIGHT_RANGE_M: (f32, f32) = (0.3, 3.0);
+
 /// Largest OFFSET component or position value accepted in the file's own units: 10 km in
 /// millimetres, the smallest unit files use. Checked before anything is inferred from the skeleton.
 pub const MAX_FILE_LENGTH: f32 = 1e7;
@@ -145,7 +149,7 @@ pub fn import_with_report(
     }
     let dropped = leading_rest_frames(&tracks, leg, user.and_then(|u| u.first_frame_is_rest_pose));
     tracks.joints.drain(..dropped);
-    tracks.extra.drain(..dropped * tracks.extra_stride);
+    tracks.feet.drain(..dropped);
 
     let rot = up.to_z_up();
     let up_file = rot.transpose() * Vector3::z();
@@ -156,6 +160,17 @@ pub fn import_with_report(
                 file: file.to_string(),
                 message: format!("unknown unit `{s}`"),
             })?;
+            let (lo, hi) = HUMAN_HEIGHT_RANGE_M;
+            let height = height_units * m;
+            if !(lo..=hi).contains(&height) {
+                return Err(HumanImportError::Mapping {
+                    file: file.to_string(),
+                    message: format!(
+                        "unit `{s}` makes the human {height} m tall; a human is {lo} to {hi} m tall: check the mapping's \
+                         `unit`"
+                    ),
+                });
+            }
             (s.to_string(), m)
         }
         None => match detect_unit(height_units) {

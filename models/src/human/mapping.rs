@@ -41,7 +41,8 @@ impl JointMapping {
         Self::parse(s, "joint mapping")
     }
 
-    fn parse(text: &str, file: &str) -> Result<JointMapping, HumanImportError> {
+    /// Parse mapping TOML text read from `file` (named in errors).
+    pub fn parse(text: &str, file: &str) -> Result<JointMapping, HumanImportError> {
         let table: BTreeMap<String, toml::Value> =
             toml::from_str(text).map_err(|e| HumanImportError::Mapping {
                 file: file.to_string(),

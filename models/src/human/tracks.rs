@@ -8,21 +8,18 @@ use super::fk::{Pose, Translation};
 use super::matching::SkeletonMap;
 use super::skeleton::{JOINT_COUNT, Joint};
 
-/// Per-frame positions in file axes and units: the canonical joints plus the points that bound the
-/// feet (ankles, toes, their end sites), for the floor.
+/// Per-frame positions in file axes and units: the canonical joints, and the box that bounds the feet
+/// (ankles, toes, their end sites), for the floor.
 pub(super) struct Tracks {
     pub joints: Vec<[Vector3<f32>; JOINT_COUNT]>,
-    /// `extra_stride` foot points per frame, both feet.
-    pub extra: Vec<Vector3<f32>>,
-    pub extra_stride: usize,
+    /// Per frame, the coordinate-wise least and greatest of both feet's points: two vectors whatever
+    /// the number of points, and enough for the lowest point along an axis ([`lowest_foot`]).
+    pub feet: Vec<[Vector3<f32>; 2]>,
 }
 
 impl Tracks {
     pub fn frame_count(&self) -> usize {
         self.joints.len()
-    }
-    pub fn feet(&self, t: usize) -> &[Vector3<f32>] {
-        &self.extra[t * self.extra_stride..(t + 1) * self.extra_stride]
     }
 }
 
@@ -49,23 +46,23 @@ pub(super) fn track(
 ) -> Tracks {
     let mut feet = subtree_points(bvh, map.index(Joint::LeftFoot));
     feet.extend(subtree_points(bvh, map.index(Joint::RightFoot)));
-    let stride = feet.len();
     let mut wanted: Vec<usize> = feet.iter().map(|(j, _)| *j).collect();
     wanted.extend(Joint::ALL.iter().flat_map(|&j| map.indices(j)));
     let mut pose = Pose::for_joints(bvh, &wanted);
     let mut tracks = Tracks {
         joints: Vec::with_capacity(frames.len()),
-        extra: Vec::with_capacity(frames.len() * stride),
-        extra_stride: stride,
+        feet: Vec::with_capacity(frames.len()),
     };
     for &f in frames {
         pose.compute(bvh, f, modes);
         tracks
             .joints
             .push(std::array::from_fn(|k| map.position(&pose, Joint::ALL[k])));
-        tracks
-            .extra
-            .extend(feet.iter().map(|(j, o)| pose.point(*j, o)));
+        let bounds = feet.iter().map(|(j, o)| pose.point(*j, o)).fold(
+            [Vector3::repeat(f32::INFINITY), Vector3::repeat(f32::NEG_INFINITY)],
+            |[lo, hi], p| [lo.inf(&p), hi.sup(&p)],
+        );
+        tracks.feet.push(bounds);
     }
     tracks
 }
@@ -88,16 +85,15 @@ pub(super) fn percentile(mut v: Vec<f32>, q: f32) -> f32 {
     v[((v.len() - 1) as f32 * q).round() as usize]
 }
 
-/// Per-frame height of the lowest foot point along `up`.
+/// Per-frame height of the lowest foot point along `up`, a signed coordinate axis (as [`UpAxis`]
+/// gives): along an axis the lowest point of the feet is the lowest corner of their box.
+///
+/// [`UpAxis`]: super::units::UpAxis
 pub(super) fn lowest_foot(tracks: &Tracks, up: &Vector3<f32>) -> Vec<f32> {
-    (0..tracks.frame_count())
-        .map(|t| {
-            tracks
-                .feet(t)
-                .iter()
-                .map(|p| p.dot(up))
-                .fold(f32::INFINITY, f32::min)
-        })
+    tracks
+        .feet
+        .iter()
+        .map(|[lo, hi]| (0..3).map(|i| up[i] * if up[i] >= 0.0 { lo[i] } else { hi[i] }).sum())
         .collect()
 }
 
