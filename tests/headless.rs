@@ -156,6 +156,24 @@ fn a_broken_urdf_fails_to_load_with_a_message_and_no_panic() {
     assert!(app.world().get::<CharacterLinks>(character).is_none());
 }
 
+/// A profile beside a character that cannot be read (here a folder by its name) fails the load,
+/// naming the profile, rather than giving the automatic body plan as though it were not there.
+#[test]
+fn an_unreadable_profile_beside_a_character_is_an_error() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-unreadable-profile");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("spot.profile.toml")).unwrap();
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/characters/spot.urdf"), dir.join("spot.urdf")).unwrap();
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/characters/spot.urdf"), dir.join("plain.urdf")).unwrap();
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let server = app.world().resource::<AssetServer>().clone();
+    let plain: Handle<CharacterAsset> = server.load("plain.urdf");
+    assert!(matches!(settled(&mut app, &plain), LoadState::Loaded), "no profile: the automatic body plan");
+    let spot: Handle<CharacterAsset> = server.load("spot.urdf");
+    let LoadState::Failed(err) = settled(&mut app, &spot) else { panic!("loaded without its profile") };
+    assert!(err.to_string().contains("spot.profile.toml"), "{err}");
+}
+
 /// The load state of `handle` once it is no longer loading.
 fn settled<A: Asset>(app: &mut App, handle: &Handle<A>) -> LoadState {
     let mut state = LoadState::Loading;

@@ -16,7 +16,8 @@ use ace_models::human::clip::{decode_text, mapping_path_beside};
 use ace_models::human::{HumanClip, ImportOptions, JointMapping};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
-use bevy::asset::{Asset, AssetLoader, AssetPath, LoadContext, io::Reader};
+use bevy::asset::io::{AssetReaderError, Reader};
+use bevy::asset::{Asset, AssetLoader, AssetPath, LoadContext, ReadAssetBytesError};
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
@@ -103,7 +104,10 @@ impl AssetLoader for CharacterLoader {
                     .map_err(|e| import(format!("profile {}: {e}", profile_path.display())))?;
                 Some(Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?)
             }
-            Err(_) => None,
+            // No profile beside the file: the automatic body plan. A profile that is there but cannot
+            // be read is an error, not a silently different body plan.
+            Err(ReadAssetBytesError::AssetReaderError(AssetReaderError::NotFound(_))) => None,
+            Err(e) => return Err(import(format!("profile {}: {e}", profile_path.display()))),
         };
         if is_gltf(ctx.path().path()) {
             return load_creature(reader, ctx, profile.unwrap_or_default()).await;
