@@ -108,6 +108,7 @@ pub fn poll(mut preview: ResMut<Preview>) {
     let Some((_, job)) = preview.job.as_mut() else { return };
     let messages = job.poll();
     let finished = job.finished();
+    let panicked = job.panicked();
     for m in messages {
         match m {
             Ok(r) => {
@@ -118,6 +119,9 @@ pub fn poll(mut preview: ResMut<Preview>) {
         }
     }
     if finished {
+        if let Some(e) = panicked {
+            preview.error = Some(e);
+        }
         preview.job = None;
     }
 }

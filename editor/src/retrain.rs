@@ -181,6 +181,10 @@ pub fn poll(mut retrain: ResMut<Retrain>, preview: Res<Preview>, mut session: Re
             }
         }
         if job.finished() {
+            if let Some(e) = job.panicked() {
+                retrain.stage = "failed".into();
+                retrain.error = Some(e);
+            }
             retrain.job = None;
         }
     }
