@@ -174,6 +174,23 @@ fn an_unreadable_profile_beside_a_character_is_an_error() {
     assert!(err.to_string().contains("spot.profile.toml"), "{err}");
 }
 
+/// A checkpoint file that is there but cannot be read (here a folder in the prior's place) fails the
+/// load with the reader's error, not as a missing file.
+#[test]
+fn an_unreadable_checkpoint_file_is_not_reported_missing() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-unreadable-checkpoint");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("crab/prior.safetensors")).unwrap();
+    for name in ["ace.json", "config.json", "generator.safetensors"] {
+        std::fs::copy(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/checkpoints/crab")).join(name), dir.join("crab").join(name)).unwrap();
+    }
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let checkpoint: Handle<CheckpointAsset> = app.world().resource::<AssetServer>().load("crab/ace.json");
+    let LoadState::Failed(err) = settled(&mut app, &checkpoint) else { panic!("loaded without its prior") };
+    let msg = err.to_string();
+    assert!(msg.contains("prior.safetensors") && !msg.contains("missing"), "{msg}");
+}
+
 /// The load state of `handle` once it is no longer loading.
 fn settled<A: Asset>(app: &mut App, handle: &Handle<A>) -> LoadState {
     let mut state = LoadState::Loading;

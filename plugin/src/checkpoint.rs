@@ -23,7 +23,8 @@ use ace_models::checkpoint::ace::{ACE_FILE, GENERATOR_FILE, other_character_file
 use ace_models::checkpoint::prior::{CONFIG_FILE, WEIGHTS_FILE};
 use ace_models::checkpoint::{CharacterInfo, CheckpointFiles, FileRecord};
 use ace_models::runtime::Retargeter;
-use bevy::asset::{Asset, AssetLoader, LoadContext, io::Reader};
+use bevy::asset::io::{AssetReaderError, Reader};
+use bevy::asset::{Asset, AssetLoader, LoadContext, ReadAssetBytesError};
 use bevy::reflect::TypePath;
 
 use crate::assets::{AceAssetError, CharacterAsset, beside};
@@ -82,10 +83,17 @@ impl AssetLoader for CheckpointLoader {
         files.insert(ACE_FILE.to_string(), bytes);
         for name in SIBLINGS {
             // From the asset source `ace.json` came from. A missing file is left out: loading names
-            // it (`dir/<file>` is missing).
+            // it (`dir/<file>` is missing). A file that is there but cannot be read says why.
             let sibling = beside(ctx, dir.join(name));
-            if let Ok(bytes) = ctx.read_asset_bytes(sibling).await {
-                files.insert(name.to_string(), bytes);
+            match ctx.read_asset_bytes(sibling).await {
+                Ok(bytes) => {
+                    files.insert(name.to_string(), bytes);
+                }
+                Err(ReadAssetBytesError::AssetReaderError(AssetReaderError::NotFound(_))) => {}
+                Err(e) => {
+                    let message = format!("{}: {e}", dir.join(name).display());
+                    return Err(AceAssetError::Import { path: path.clone(), message });
+                }
             }
         }
         let files = CheckpointFiles::in_memory(&dir, files);
