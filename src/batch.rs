@@ -266,7 +266,7 @@ fn one_clip(
     mut outputs: Outputs,
 ) -> Result<ClipDone> {
     let clip = HumanClip::from_bvh_file(file, opts)?;
-    let warnings = clip.posture_warning().into_iter().collect();
+    let warnings = clip.warnings();
     let r = retarget_and_score(networks, scorer, tree, morph, &clip)?;
     let w = write_with(&r, tree, &clip, out, a.with_human, &a.rig, &mut outputs)?;
     outputs.commit()?;

@@ -97,7 +97,7 @@ pub fn run(
     let mut humans: Vec<HumanClip> = Vec::with_capacity(clips.len());
     for (p, name) in clips.iter().zip(&names) {
         let mut clip = HumanClip::from_bvh_file(p, &import)?;
-        if let Some(w) = clip.posture_warning() {
+        for w in clip.warnings() {
             eprintln!("warning: {w}");
         }
         if *name != clip.name {

@@ -27,7 +27,7 @@ pub fn bvh_summary(path: &Path, mapping: Option<&Path>) -> Result<(HumanClip, Va
         "unit": clip.unit,
         "canonical_joints": clip.mapped_joints,
         "joint_mapping": mapping,
-        "warnings": clip.posture_warning().into_iter().collect::<Vec<_>>(),
+        "warnings": clip.warnings(),
     });
     Ok((clip, v))
 }

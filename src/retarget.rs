@@ -148,7 +148,7 @@ pub fn import_options(mapping: Option<&Path>) -> Result<ImportOptions> {
 /// same joints and size, other content: [`AceRecord::character_file_difference`]); `None` when it is,
 /// or when the checkpoint does not record its character file.
 pub fn character_file_warning(record: &AceRecord, character: &Path) -> Result<Option<String>> {
-    let bytes = ace::models::input::read_regular(character)
+    let bytes = ace::models::input::read_regular(character, ace::models::input::MAX_MESH_BYTES)
         .with_context(|| format!("{}: cannot read the character file", character.display()))?;
     Ok(record.character_file_difference(&FileRecord::of(&character.display().to_string(), &bytes)))
 }
@@ -187,7 +187,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         retargeter.set_cleanup(Cleanup::NONE);
     }
     let clip = HumanClip::from_bvh_file(&a.clip, &import_options(a.mapping.as_deref())?)?;
-    if let Some(w) = clip.posture_warning() {
+    for w in clip.warnings() {
         eprintln!("warning: {w}");
     }
     let scorer = Scorer::new(retargeter.record(), retargeter.character(), &dir)?;

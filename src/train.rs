@@ -109,7 +109,7 @@ pub fn generate_dataset(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetC
 
 /// The character file's path, size and FNV-1a 64 checksum, for the checkpoint's provenance.
 pub fn character_record(path: &Path) -> Result<Value> {
-    let bytes = ace::models::input::read_regular(path).with_context(|| format!("{}: cannot read the character file", path.display()))?;
+    let bytes = ace::models::input::read_regular(path, ace::models::input::MAX_MESH_BYTES).with_context(|| format!("{}: cannot read the character file", path.display()))?;
     Ok(serde_json::to_value(ace::models::learn::files::FileRecord::of(&path.display().to_string(), &bytes))?)
 }
 

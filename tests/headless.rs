@@ -191,6 +191,31 @@ fn an_unreadable_checkpoint_file_is_not_reported_missing() {
     assert!(msg.contains("prior.safetensors") && !msg.contains("missing"), "{msg}");
 }
 
+/// Files over the core's bound for their kind fail their load as the CLI refuses them, once that many
+/// bytes are read (an asset source need not know a file's size): a URDF and a checkpoint's `ace.json`
+/// of more than [`ace::models::input::MAX_TEXT_BYTES`] (sparse files of zeros).
+#[test]
+fn asset_files_over_their_kinds_bound_fail_to_load() {
+    use ace::models::input::MAX_TEXT_BYTES;
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-huge");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("ck")).unwrap();
+    std::fs::File::create(dir.join("huge.urdf")).unwrap().set_len(MAX_TEXT_BYTES + 1).unwrap();
+    std::fs::File::create(dir.join("ck/ace.json")).unwrap().set_len(MAX_TEXT_BYTES + 1).unwrap();
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/characters/spot.urdf"), dir.join("spot.urdf")).unwrap();
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let server = app.world().resource::<AssetServer>().clone();
+    let spot: Handle<CharacterAsset> = server.load("spot.urdf");
+    assert!(matches!(settled(&mut app, &spot), LoadState::Loaded));
+    let urdf: Handle<CharacterAsset> = server.load("huge.urdf");
+    let checkpoint: Handle<CheckpointAsset> = server.load("ck/ace.json");
+    for (state, file) in [(settled(&mut app, &urdf), "huge.urdf"), (settled(&mut app, &checkpoint), "ck/ace.json")] {
+        let LoadState::Failed(err) = state else { panic!("{file} loaded") };
+        let want = format!("{file}: the file has more than the {MAX_TEXT_BYTES} bytes this kind of file may have");
+        assert!(err.to_string().contains(&want), "{err}");
+    }
+}
+
 /// The load state of `handle` once it is no longer loading.
 fn settled<A: Asset>(app: &mut App, handle: &Handle<A>) -> LoadState {
     let mut state = LoadState::Loading;

@@ -1061,6 +1061,45 @@ fn every_input_file_refuses_a_fifo_and_utf16_from_the_command_line() {
     assert_eq!(names(&dir), ["ck", "f.safetensors", "f.toml", "f.urdf", "good.safetensors", "u16.toml", "u16.urdf"]);
 }
 
+/// A sparse file of `len` bytes: its size is in the metadata, its bytes take no disk (nothing may read
+/// them: each is refused from its size).
+fn sparse(path: &Path, len: u64) {
+    std::fs::File::create(path).unwrap().set_len(len).unwrap();
+}
+
+#[test]
+fn every_input_file_over_its_kinds_bound_is_refused_from_its_size() {
+    use ace::models::input::{MAX_BVH_BYTES, MAX_DATA_BYTES, MAX_TEXT_BYTES};
+    let dir = scratch("input-sizes");
+    let (bvh, toml, set, urdf) = (dir.join("huge.bvh"), dir.join("huge.toml"), dir.join("huge.safetensors"), dir.join("huge.urdf"));
+    sparse(&bvh, MAX_BVH_BYTES + 1);
+    sparse(&toml, MAX_TEXT_BYTES + 1);
+    sparse(&set, MAX_DATA_BYTES + 1);
+    sparse(&urdf, MAX_TEXT_BYTES + 1);
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/stretch"), &ck);
+    sparse(&ck.join("generator.safetensors"), MAX_DATA_BYTES + 1);
+    let too_large = |p: &Path, size: u64, max: u64| format!("{}: the file is {size} bytes, more than the {max} bytes this kind of file may have", p.display());
+    let x = s(&dir.join("x.safetensors"));
+    for (args, expected) in [
+        (vec!["inspect".to_string(), s(&bvh)], too_large(&bvh, MAX_BVH_BYTES + 1, MAX_BVH_BYTES)),
+        (
+            vec!["dataset".into(), "--character".into(), "stretch".into(), "--config".into(), s(&toml), "--out".into(), x.clone()],
+            too_large(&toml, MAX_TEXT_BYTES + 1, MAX_TEXT_BYTES),
+        ),
+        (vec!["metrics".into(), s(&set)], too_large(&set, MAX_DATA_BYTES + 1, MAX_DATA_BYTES)),
+        (vec!["inspect".into(), s(&urdf)], format!("{}: cannot read the file: the file is {} bytes, more than the {MAX_TEXT_BYTES} bytes this kind of file may have", urdf.display(), MAX_TEXT_BYTES + 1)),
+        (
+            vec!["retarget".into(), "assets/motions/walk.bvh".into(), "--character".into(), "stretch".into(), "--checkpoint".into(), s(&ck), "--out".into(), s(&dir.join("x.glb"))],
+            too_large(&ck.join("generator.safetensors"), MAX_DATA_BYTES + 1, MAX_DATA_BYTES),
+        ),
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused_without_hanging(&args, &expected);
+    }
+    assert_eq!(names(&dir), ["ck", "huge.bvh", "huge.safetensors", "huge.toml", "huge.urdf"]);
+}
+
 fn ace_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ace")).args(args).current_dir(dir).output().expect("running ace")
 }

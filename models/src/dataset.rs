@@ -629,7 +629,7 @@ impl MotionSet {
     /// Reads a dataset written by [`MotionSet::save`] from a regular file ([`crate::input::read_regular`]),
     /// checking it (see the module docs).
     pub fn load(path: &Path) -> Result<MotionSet, DatasetError> {
-        let bytes = crate::input::read_regular(path).map_err(|e| match e {
+        let bytes = crate::input::read_regular(path, crate::input::MAX_DATA_BYTES).map_err(|e| match e {
             crate::input::ReadError::Io(e) => file_error(path, format!("cannot read the file: {e}")),
             other => file_error(path, other.to_string()),
         })?;

@@ -3,6 +3,10 @@
 //! - Only a regular file is read (after following symlinks): a FIFO, a directory or a device named
 //!   `.toml`, `.bvh` or `.safetensors` is refused from its metadata, without being opened, where
 //!   reading it would block forever or never end.
+//! - Each kind of file has a largest size ([`MAX_TEXT_BYTES`], [`MAX_BVH_BYTES`], [`MAX_MESH_BYTES`],
+//!   [`MAX_DATA_BYTES`]), checked from the metadata too: a mistaken path (a disk image or a video
+//!   named `.bvh`) fails at once instead of filling memory. Each bound is far above what the project's
+//!   real inputs need.
 //! - Text that is UTF-16 (with a byte-order mark, or without one: a NUL in every other byte of its
 //!   start, which no UTF-8 text of the project's formats has) is refused with a hint to save it as
 //!   UTF-8, rather than read as NUL-riddled garbage that the TOML, XML or JSON parser would report
@@ -18,6 +22,17 @@ use std::path::Path;
 
 use thiserror::Error;
 
+/// The largest text file read: TOML configurations, joint mappings and profiles, URDF, and the JSON
+/// records of checkpoints (the project's largest, a checkpoint's `ace.json`, is well under 1 MiB).
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+/// The largest BVH clip read: two hours (the reader's bound) of 120 fps mocap with 100 joints is
+/// about 1.5 GiB of text.
+pub const MAX_BVH_BYTES: u64 = 2 << 30;
+/// The largest mesh or glTF character file read.
+pub const MAX_MESH_BYTES: u64 = 512 << 20;
+/// The largest binary data file read: datasets and network weights (safetensors).
+pub const MAX_DATA_BYTES: u64 = 4 << 30;
+
 /// Why a file could not be read as input (the file itself is named by the caller).
 #[derive(Debug, Error)]
 pub enum ReadError {
@@ -27,6 +42,14 @@ pub enum ReadError {
     /// The file system's error (missing file, no permission, …).
     #[error("{0}")]
     Io(#[from] std::io::Error),
+    /// Larger than the bound for its kind.
+    #[error("the file is {size} bytes, more than the {max} bytes this kind of file may have")]
+    TooLarge {
+        /// The file's size.
+        size: u64,
+        /// The bound.
+        max: u64,
+    },
     /// UTF-16 text.
     #[error("the file is UTF-16 encoded; save it as UTF-8 (e.g. `iconv -f UTF-16 -t UTF-8`)")]
     Utf16,
@@ -47,12 +70,23 @@ impl ReadError {
     }
 }
 
-/// The bytes of `path`, which must be a regular file: its metadata is checked before it is opened.
-pub fn read_regular(path: &Path) -> Result<Vec<u8>, ReadError> {
-    if !std::fs::metadata(path)?.is_file() {
+/// The bytes of `path`, which must be a regular file of at most `max` bytes: its metadata is checked
+/// before it is opened, and no more than `max` bytes are read should it grow meanwhile.
+pub fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
         return Err(ReadError::NotRegular);
     }
-    Ok(std::fs::read(path)?)
+    if meta.len() > max {
+        return Err(ReadError::TooLarge { size: meta.len(), max });
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)?.take(max + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max {
+        return Err(ReadError::TooLarge { size: bytes.len() as u64, max });
+    }
+    Ok(bytes)
 }
 
 /// Whether `bytes` look like UTF-16 text: a byte-order mark, or a NUL in every other byte of the first
@@ -82,14 +116,31 @@ pub fn text_from_bytes(bytes: Vec<u8>) -> Result<String, ReadError> {
     Ok(text)
 }
 
-/// The UTF-8 text of the regular file `path` ([`read_regular`], [`text_from_bytes`]).
+/// The UTF-8 text of the regular file `path`, of at most [`MAX_TEXT_BYTES`] ([`read_regular`],
+/// [`text_from_bytes`]).
 pub fn read_text(path: &Path) -> Result<String, ReadError> {
-    text_from_bytes(read_regular(path)?)
+    text_from_bytes(read_regular(path, MAX_TEXT_BYTES)?)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_over_its_kinds_bound_is_refused_before_it_is_read() {
+        let dir = std::env::temp_dir().join(format!("ace-input-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("big.bvh");
+        // A sparse file: its size is in the metadata, its bytes take no disk.
+        std::fs::File::create(&path).unwrap().set_len(MAX_BVH_BYTES + 1).unwrap();
+        let e = read_regular(&path, MAX_BVH_BYTES).unwrap_err();
+        assert!(matches!(e, ReadError::TooLarge { size, max } if size == MAX_BVH_BYTES + 1 && max == MAX_BVH_BYTES), "{e}");
+        assert_eq!(e.to_string(), format!("the file is {} bytes, more than the {MAX_BVH_BYTES} bytes this kind of file may have", MAX_BVH_BYTES + 1));
+        std::fs::write(&path, b"HIERARCHY\n").unwrap();
+        assert_eq!(read_regular(&path, 10).unwrap(), b"HIERARCHY\n");
+        assert!(matches!(read_regular(&path, 9), Err(ReadError::TooLarge { size: 10, max: 9 })));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn utf16_is_recognised_with_or_without_a_byte_order_mark() {

@@ -150,7 +150,7 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
             "unsupported mesh format `.{ext}` (STL, OBJ and Collada `.dae` are read)"
         )));
     }
-    let bytes = crate::input::read_regular(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
+    let bytes = crate::input::read_regular(path, crate::input::MAX_MESH_BYTES).map_err(|e| err(format!("cannot read the file: {e}")))?;
     let mut warnings = Vec::new();
     let loader = Loader::default();
     // The Collada reader panics on some malformed files (an index past its array): caught, so that
@@ -160,7 +160,7 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
         "dae" => loader.load_collada_from_slice(&bytes, path),
         _ => loader.load_obj_from_slice_with_reader(&bytes, path, |mtl: &Path| {
             // The crate skips an MTL file it cannot read without a word.
-            crate::input::read_regular(mtl).map_err(std::io::Error::other).inspect_err(|e| {
+            crate::input::read_regular(mtl, crate::input::MAX_TEXT_BYTES).map_err(std::io::Error::other).inspect_err(|e| {
                 warnings.push(format!(
                     "{file}: material file {} cannot be read ({e}); its colours are not used",
                     mtl.display()

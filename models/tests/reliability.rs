@@ -355,6 +355,36 @@ fn a_lying_clip_gets_a_posture_warning() {
     );
 }
 
+#[test]
+fn a_clip_whose_pelvis_jumps_gets_a_warning_naming_when() {
+    let clip = HumanClip::from_bvh_str(&walk(), "walk", &ImportOptions::default()).unwrap();
+    assert_eq!(clip.root_jump_warning(), None);
+    assert!(clip.warnings().is_empty());
+    let (speed, _) = clip.fastest_root_move().unwrap();
+    assert!(speed > 0.5 && speed < 5.0, "a walk's pelvis moves at {speed} m/s");
+    // From frame 40 on the person stands 1 m further along x: a cut.
+    let mut cut = clip.clone();
+    for f in &mut cut.frames[40..] {
+        for p in f.positions.iter_mut() {
+            p.x += 1.0;
+        }
+    }
+    let w = cut.root_jump_warning().expect("a warning");
+    let t = 40.0 / cut.fps;
+    assert!(w.starts_with(&format!("walk: the pelvis jumps 1.0")) && w.contains(&format!("in one frame at {t:.2} s")), "{w}");
+    assert_eq!(cut.warnings(), [w]);
+    // Just under the bound: no warning.
+    let mut fast = clip.clone();
+    let step = 0.99 * ace_models::human::clip::MAX_ROOT_SPEED / fast.fps - (fast.frames[41].positions[0] - fast.frames[40].positions[0]).x;
+    for f in &mut fast.frames[41..] {
+        for p in f.positions.iter_mut() {
+            p.x += step;
+        }
+    }
+    assert!(fast.fastest_root_move().unwrap().0 < ace_models::human::clip::MAX_ROOT_SPEED);
+    assert_eq!(fast.root_jump_warning(), None);
+}
+
 const ROBOT: &str = r#"<robot name="r">
   <link name="world"/>
   <link name="base"><collision><geometry><box size="0.4 0.2 0.1"/></geometry></collision></link>

@@ -71,10 +71,26 @@ pub(crate) fn beside(ctx: &LoadContext<'_>, path: PathBuf) -> AssetPath<'static>
     AssetPath::from_path_buf(path).with_source(ctx.path().source().clone_owned())
 }
 
+/// The bytes of `reader` (the file `path`), refused once more than `max` are read (the core's bound
+/// for the file's kind, [`ace_models::input`]): an asset source need not know a file's size
+/// beforehand, and a mistaken path must not fill memory.
+pub(crate) async fn read_bounded(reader: &mut dyn Reader, path: &str, max: u64) -> Result<Vec<u8>, AceAssetError> {
+    use bevy::asset::AsyncReadExt;
+    let mut bytes = Vec::new();
+    AsyncReadExt::take(&mut *reader, max + 1)
+        .read_to_end(&mut bytes)
+        .await
+        .map_err(|source| AceAssetError::Io { path: path.to_string(), source })?;
+    if bytes.len() as u64 > max {
+        let message = format!("the file has more than the {max} bytes this kind of file may have");
+        return Err(AceAssetError::Import { path: path.to_string(), message });
+    }
+    Ok(bytes)
+}
+
 async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<String, AceAssetError> {
     let path = ctx.path().to_string();
-    let mut bytes = Vec::new();
-    reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+    let bytes = read_bounded(reader, &path, ace_models::input::MAX_TEXT_BYTES).await?;
     ace_models::input::text_from_bytes(bytes).map_err(|e| AceAssetError::NotText { path, problem: e.to_string() })
 }
 
@@ -140,8 +156,7 @@ async fn load_creature(
 ) -> Result<CharacterAsset, AceAssetError> {
     let path = ctx.path().to_string();
     let import = |message: String| AceAssetError::Import { path: path.clone(), message };
-    let mut bytes = Vec::new();
-    reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+    let bytes = read_bounded(reader, &path, gltf::MAX_FILE_BYTES).await?;
     let file: PathBuf = ctx.path().path().to_path_buf();
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut external = Vec::new();
@@ -211,8 +226,7 @@ impl AssetLoader for BvhLoader {
         ctx: &mut LoadContext<'_>,
     ) -> Result<BvhAsset, AceAssetError> {
         let path = ctx.path().to_string();
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+        let bytes = read_bounded(reader, &path, ace_models::input::MAX_BVH_BYTES).await?;
         // Decoded as the CLI decodes a clip (Latin-1 names read, UTF-16 refused with a hint).
         let text = decode_text(&bytes, &path).map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
         let name = ctx.path().path().file_stem().map_or_else(|| path.clone(), |s| s.to_string_lossy().into_owned());

@@ -78,8 +78,7 @@ impl AssetLoader for CheckpointLoader {
         let path = ctx.path().to_string();
         let dir: PathBuf = ctx.path().path().parent().map(Path::to_path_buf).unwrap_or_default();
         let mut files = BTreeMap::new();
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await.map_err(|source| AceAssetError::Io { path: path.clone(), source })?;
+        let bytes = crate::assets::read_bounded(reader, &path, ace_models::input::MAX_TEXT_BYTES).await?;
         files.insert(ACE_FILE.to_string(), bytes);
         for name in SIBLINGS {
             // From the asset source `ace.json` came from. A missing file is left out: loading names

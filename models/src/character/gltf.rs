@@ -51,7 +51,7 @@ pub const MAX_PLAUSIBLE_SIZE: f32 = 20.0;
 /// Most joints a skin may have.
 pub const MAX_JOINTS: usize = 256;
 /// Most bytes a glTF file may have, and its buffers together.
-pub const MAX_FILE_BYTES: u64 = 512 << 20;
+pub const MAX_FILE_BYTES: u64 = crate::input::MAX_MESH_BYTES;
 /// Most skinned vertices a creature may have, counted over every node that carries its skin and every
 /// primitive of that node's mesh (a file may reuse one accessor many times, so its size does not bound
 /// this).

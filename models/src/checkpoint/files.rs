@@ -66,7 +66,7 @@ pub(crate) fn fnv1a64(bytes: &[u8]) -> u64 {
 /// without being opened); a missing one is [`LearnError::MissingFile`].
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LearnError> {
     use crate::input::ReadError;
-    crate::input::read_regular(path).map_err(|e| match e {
+    crate::input::read_regular(path, crate::input::MAX_DATA_BYTES).map_err(|e| match e {
         e if e.is_not_found() => LearnError::MissingFile { path: path.into() },
         ReadError::Io(e) => LearnError::io(path, e),
         other => LearnError::Format {

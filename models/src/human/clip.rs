@@ -8,6 +8,10 @@ use super::error::HumanImportError;
 use super::mapping::JointMapping;
 use super::skeleton::{JOINT_COUNT, Joint};
 
+/// The fastest a person's pelvis moves between two frames (m/s): above a sprinter's peak of about
+/// 12.4 m/s.
+pub const MAX_ROOT_SPEED: f32 = 15.0;
+
 /// One frame: world positions of the 17 canonical joints (metres, z up) and the pelvis' world
 /// orientation (its local x = facing direction, z = up when standing upright).
 #[derive(Clone, Debug, PartialEq)]
@@ -159,6 +163,36 @@ impl HumanClip {
         })
     }
 
+    /// The largest jump of the pelvis between two frames: its speed (m/s) and the time (s) of the
+    /// frame it jumps to.
+    pub fn fastest_root_move(&self) -> Option<(f32, f32)> {
+        let pelvis = Joint::Pelvis.index();
+        self.frames
+            .windows(2)
+            .enumerate()
+            .map(|(k, w)| ((w[1].positions[pelvis] - w[0].positions[pelvis]).norm() * self.fps, (k + 1) as f32 / self.fps))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
+    /// A warning when the pelvis moves faster than [`MAX_ROOT_SPEED`] between two frames: a cut, a
+    /// mocap glitch or two takes joined, which the character would follow as a lurch.
+    pub fn root_jump_warning(&self) -> Option<String> {
+        let (speed, t) = self.fastest_root_move()?;
+        (speed > MAX_ROOT_SPEED).then(|| {
+            format!(
+                "{}: the pelvis jumps {:.2} m in one frame at {t:.2} s ({speed:.0} m/s; a person moves at most                  {MAX_ROOT_SPEED} m/s): the clip is cut or glitched there, and the character will lurch",
+                self.name,
+                speed / self.fps
+            )
+        })
+    }
+
+    /// Every warning about the clip's content ([`HumanClip::posture_warning`],
+    /// [`HumanClip::root_jump_warning`]).
+    pub fn warnings(&self) -> Vec<String> {
+        self.posture_warning().into_iter().chain(self.root_jump_warning()).collect()
+    }
+
     /// Seconds from the first to the last frame.
     pub fn duration(&self) -> f32 {
         self.frames.len().saturating_sub(1) as f32 / self.fps
@@ -222,7 +256,7 @@ pub fn mapping_path_beside(clip: &Path) -> std::path::PathBuf {
 /// The bytes of `path`, which must be a regular file (a FIFO or device named `.bvh` would block the
 /// reader or never end): [`crate::input::read_regular`].
 pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, HumanImportError> {
-    crate::input::read_regular(path).map_err(|e| read_error(&path.display().to_string(), e))
+    crate::input::read_regular(path, crate::input::MAX_BVH_BYTES).map_err(|e| read_error(&path.display().to_string(), e))
 }
 
 /// A [`crate::input::ReadError`] of the human-motion file `file` (a clip or a joint mapping).
