@@ -52,6 +52,34 @@ fn check_reference(fit: &GaussianFit, width: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// Whether a reference fit was written for the generator of `record`: the same prior, mapping and body
+/// length. A `ace train` stopped before its end leaves the previous training's fit beside a new
+/// generator. (Fits written before these were recorded carry none of them and are not checked.)
+fn check_reference_origin(v: &serde_json::Value, record: &AceRecord) -> Result<(), String> {
+    let stale = |what: &str| {
+        Err(format!(
+            "it was written for another training ({what} differs from ace.json's): rerun `ace train` to finish and \
+             write it again, or remove it to score without FID"
+        ))
+    };
+    if let Some(prior) = v.get("prior") {
+        if serde_json::from_value::<ace::models::checkpoint::FileRecord>(prior.clone()).ok().as_ref() != Some(&record.prior) {
+            return stale("its prior");
+        }
+    }
+    if let Some(mapping) = v.get("mapping") {
+        if serde_json::from_value::<ace::models::features::EndEffectorMapping>(mapping.clone()).ok().as_ref() != Some(&record.correspondence.mapping) {
+            return stale("its end-effector mapping");
+        }
+    }
+    if let Some(body) = v.get("character_body_length") {
+        if body.as_f64().is_none_or(|b| (b as f32 - record.body_lengths.character).abs() > 1e-6 * record.body_lengths.character.abs().max(1.0)) {
+            return stale("its character body length");
+        }
+    }
+    Ok(())
+}
+
 /// Ψ of the human clips a motion was retargeted from, aligned with its frames.
 #[derive(Clone, Copy)]
 pub struct HumanSource<'a> {
@@ -90,6 +118,7 @@ impl Scorer {
             let fit: GaussianFit =
                 serde_json::from_value(v["fit"].clone()).with_context(|| format!("{}: no Gaussian fit", path.display()))?;
             check_reference(&fit, FeatureLayout::new(&record.correspondence.mapping).dim())
+                .and_then(|()| check_reference_origin(&v, record))
                 .map_err(|problem| anyhow::anyhow!("{}: {problem}", path.display()))?;
             Some(fit)
         } else {

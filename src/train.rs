@@ -16,6 +16,8 @@ use ace::models::features::{FeatureLayout, character_body_length, character_feat
 use ace::models::human_set::HumanSet;
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::AceConfig;
+use ace::models::checkpoint::FileRecord;
+use ace::models::checkpoint::prior::WEIGHTS_FILE as PRIOR_WEIGHTS_FILE;
 use ace::models::learn::checkpoint::PriorCheckpoint;
 use ace::models::learn::prior::{PriorConfig, state_mask, train_prior_with};
 use ace::models::learn::train_ace::{AceInputs, LOSSES_FILE, train_ace};
@@ -304,12 +306,24 @@ pub fn train_ace_with_progress(inputs: &AceInputs<'_>, cfg: &AceConfig, dir: &Pa
     plot_losses(&dir.join(LOSSES_FILE), label, &["g_loss", "d_loss", "fea", "adv", "gp"])
 }
 
-/// Writes [`REFERENCE_FILE`]: the Gaussian fit of the dataset's Ψ under the chosen correspondence.
+/// Writes [`REFERENCE_FILE`]: the Gaussian fit of the dataset's Ψ under the chosen correspondence,
+/// with what it was fitted for (the prior in `dir`, the mapping, the body length), so that a fit left
+/// from another training is recognised ([`crate::scoring::Scorer::new`]).
 pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Correspondence, body: f32) -> Result<()> {
     let mapping = &correspondence.mapping;
     let psi: Vec<Vec<f32>> = (0..set.len()).map(|i| character_features(&set.layout, set.state(i), body, mapping)).collect();
     let fit = GaussianFit::fit(&psi);
-    let v = json!({ "features": FeatureLayout::new(mapping).entry_names(), "frames": set.len(), "fit": fit });
+    let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
+    let prior = ace::models::input::read_regular(&prior_path, ace::models::input::MAX_DATA_BYTES)
+        .with_context(|| format!("{}: cannot read the prior", prior_path.display()))?;
+    let v = json!({
+        "features": FeatureLayout::new(mapping).entry_names(),
+        "frames": set.len(),
+        "prior": FileRecord::of(PRIOR_WEIGHTS_FILE, &prior),
+        "mapping": mapping,
+        "character_body_length": body,
+        "fit": fit,
+    });
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(REFERENCE_FILE);
     let tmp = dir.join(format!(".{REFERENCE_FILE}.{}.tmp", std::process::id()));

@@ -349,6 +349,14 @@ fn tiny_checkpoint_with(dir: &Path, character: &str, ace_lines: &str) -> (PathBu
     for f in ["ace.json", "generator.safetensors", "discriminator.safetensors", "ace_losses.csv", "ace_losses.png", "reference.json"] {
         assert!(ck.join(f).is_file(), "train wrote no {f}");
     }
+    // The reference fit records what it was fitted for, as ace.json records it.
+    let json = |f: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(ck.join(f)).unwrap()).unwrap() };
+    let (ace_json, reference) = (json("ace.json"), json("reference.json"));
+    assert_eq!(reference["prior"], ace_json["prior"]);
+    assert_eq!(reference["mapping"], ace_json["correspondence"]["mapping"]);
+    let f32_of = |v: &serde_json::Value| v.as_f64().map(|x| x as f32);
+    assert_eq!(f32_of(&reference["character_body_length"]), f32_of(&ace_json["body_lengths"]["character"]));
+    assert!(f32_of(&reference["character_body_length"]).is_some());
     (ck, stdout)
 }
 

@@ -1366,6 +1366,57 @@ fn a_reference_of_another_checkpoint_is_refused_naming_it() {
     assert_eq!(snapshot(&dir), before, "nothing written");
 }
 
+/// A `reference.json` of the same width left from another training (an `ace train` stopped before its
+/// end keeps the previous fit beside the new generator) is recognised by what it records: the prior,
+/// the mapping and the body length it was fitted for. One recording this checkpoint's is accepted.
+#[test]
+fn a_reference_left_from_another_training_is_refused_naming_what_differs() {
+    let dir = scratch("stale-reference");
+    let ck = dir.join("ck");
+    copy_dir(&root().join("assets/checkpoints/spot"), &ck);
+    let ace_json: Value = serde_json::from_slice(&std::fs::read(ck.join("ace.json")).unwrap()).unwrap();
+    let shipped: Value = serde_json::from_slice(&std::fs::read(ck.join("reference.json")).unwrap()).unwrap();
+    let with = |key: &str, value: Value| {
+        let mut v = shipped.clone();
+        v[key] = value;
+        std::fs::write(ck.join("reference.json"), serde_json::to_string(&v).unwrap()).unwrap();
+    };
+    let retarget = || {
+        ace(&["--threads", "1", "retarget", "assets/motions/walk.bvh", "--character", "spot", "--checkpoint", &s(&ck), "--out", &s(&dir.join("o.glb"))])
+    };
+    let mut other_prior = ace_json["prior"].clone();
+    other_prior["fnv1a64"] = Value::from("0123456789abcdef");
+    let mut other_mapping = ace_json["correspondence"]["mapping"].clone();
+    let human = other_mapping["human"].as_array_mut().unwrap();
+    human.swap(0, 1);
+    let body = ace_json["body_lengths"]["character"].as_f64().unwrap();
+    for (key, value, what) in [
+        ("prior", other_prior, "its prior"),
+        ("mapping", other_mapping, "its end-effector mapping"),
+        ("character_body_length", Value::from(body * 2.0), "its character body length"),
+    ] {
+        with(key, value);
+        let before = snapshot(&dir);
+        let o = retarget();
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{key}: {e}");
+        let want = format!(
+            "{}: it was written for another training ({what} differs from ace.json's): rerun `ace train` to finish and \
+             write it again, or remove it to score without FID",
+            s(&ck.join("reference.json"))
+        );
+        assert!(e.contains(&want), "{key}:\n{e}");
+        assert_eq!(snapshot(&dir), before, "nothing written");
+    }
+    let mut v = shipped.clone();
+    v["prior"] = ace_json["prior"].clone();
+    v["mapping"] = ace_json["correspondence"]["mapping"].clone();
+    v["character_body_length"] = Value::from(body);
+    std::fs::write(ck.join("reference.json"), serde_json::to_string(&v).unwrap()).unwrap();
+    let o = retarget();
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// A write that fails midway (here a file size limit, as a full disk would) is reported naming the
 /// output, not only its staged temporary, which is removed with the rest of the set: nothing new is
 /// left beside the previous outputs.
