@@ -8,9 +8,10 @@ use super::error::HumanImportError;
 use super::mapping::JointMapping;
 use super::skeleton::{JOINT_COUNT, Joint};
 
-/// The fastest a person's pelvis moves between two frames (m/s): above a sprinter's peak of about
-/// 12.4 m/s.
-pub const MAX_ROOT_SPEED: f32 = 15.0;
+/// The fastest a person's pelvis moves between two frames in a capture (m/s). A sprinter peaks at about
+/// 12 m/s after some 40 m, farther than any capture volume; the shared clips stay under 8 m/s but for
+/// one glitch of 14 m/s (a salsa clip whose root jumps 12 cm in one 120 fps frame).
+pub const MAX_ROOT_SPEED: f32 = 10.0;
 
 /// One frame: world positions of the 17 canonical joints (metres, z up) and the pelvis' world
 /// orientation (its local x = facing direction, z = up when standing upright).
@@ -180,7 +181,8 @@ impl HumanClip {
         let (speed, t) = self.fastest_root_move()?;
         (speed > MAX_ROOT_SPEED).then(|| {
             format!(
-                "{}: the pelvis jumps {:.2} m in one frame at {t:.2} s ({speed:.0} m/s; a person moves at most                  {MAX_ROOT_SPEED} m/s): the clip is cut or glitched there, and the character will lurch",
+                "{}: the pelvis jumps {:.2} m in one frame at {t:.2} s ({speed:.0} m/s; a person moves at most \
+                 {MAX_ROOT_SPEED} m/s): the clip is cut or glitched there, and the character will lurch",
                 self.name,
                 speed / self.fps
             )
