@@ -830,6 +830,10 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     assert_ace_systems_run_after_animation(&mut app);
     let player = paused_player(&mut app, "walk.bvh");
     let server = app.world().resource::<AssetServer>().clone();
+    // Asked for with the scene: asked for once the file's load is over and its unused assets dropped,
+    // the clip would load the file again, and Bevy would respawn the scene (the plugin follows, but
+    // the AnimationPlayer found below would be gone: `a_scene_that_spawns_anew_is_driven_again`).
+    let walk: Handle<AnimationClip> = server.load(GltfAssetLabel::Animation(1).from_asset("creatures/Fox.glb"));
     let fox = app
         .world_mut()
         .spawn((
@@ -843,7 +847,6 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
         animated.is_some()
     });
     let animated = animated.unwrap();
-    let walk: Handle<AnimationClip> = server.load(GltfAssetLabel::Animation(1).from_asset("creatures/Fox.glb"));
     let (graph, node) = AnimationGraph::from_clip(walk.clone());
     let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
     app.world_mut().entity_mut(animated).insert(AnimationGraphHandle(graph));
@@ -985,6 +988,46 @@ fn a_creature_scene_moves_as_ace_retarget_writes_it() {
     let (_, turned) = bone_gap(&mut app, &c, &placement, &c.tree.standing_pose());
     assert!(turned > 0.05, "the bones are {turned} rad from rest");
     assert_eq!(app.world().get::<RootOrigin>(hound).map(|o| o.0), Some(placement));
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+}
+
+/// A scene that spawns anew (Bevy respawns every instance of a scene whose asset is replaced: here the
+/// file reloaded, as a hot reload does) has new joint entities: the Retargeter finds them and keeps
+/// driving the creature, in the same frame, instead of writing to the despawned ones while the new
+/// skeleton stands at rest.
+#[test]
+fn a_scene_that_spawns_anew_is_driven_again() {
+    let c = hound();
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
+    let r = Offline::load(&creature_assets().join("checkpoints/hound")).unwrap();
+    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+    let size = 1.0 / c.rig.scale;
+    let mut app = creature_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let hound = app
+        .world_mut()
+        .spawn((WorldAssetRoot(server.load("creatures/hound.glb#Scene0")), Retargeter::new(server.load("checkpoints/hound/ace.json"), player)))
+        .id();
+    start_together(&mut app, player, &[hound]);
+    for _ in 0..5 {
+        app.update();
+    }
+    let tail = named(&mut app, "Tail3");
+    server.reload("creatures/hound.glb#Scene0");
+    let mut respawned = 0;
+    for _ in 0..60 {
+        app.update();
+        let t = tick(&app, hound).unwrap();
+        if app.world().get_entity(tail).is_ok() {
+            continue;
+        }
+        respawned += 1;
+        let (d, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
+        assert!(d < 1e-4 * size && a < 1e-3, "tick {t}, {respawned} frames after the scene spawned anew: bones {d} file units and {a} rad from the offline motion");
+    }
+    assert!(respawned >= 10, "the scene spawned anew {respawned} frames before the end");
+    assert_ne!(named(&mut app, "Tail3"), tail);
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
 }
 

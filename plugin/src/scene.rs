@@ -19,7 +19,8 @@
 //!   `hound.glb#Scene0`, with the profile beside it if any); the checkpoint is checked against it as
 //!   for a URDF character. The entity gets a [`CreatureScene`] holding it.
 //! - **Joints** are the scene's entities whose [`Name`] is a driven bone's node name, found once the
-//!   scene has spawned. Each driven bone must be there exactly once; otherwise the retargeter fails
+//!   scene has spawned, and found again when it spawns anew (Bevy respawns a scene whose asset is
+//!   replaced: a hot reload, or the file loaded again). Each driven bone must be there exactly once; otherwise the retargeter fails
 //!   ([`RetargetStatus::Failed`] and a [`RetargetError`] naming the missing joint), as it does for a
 //!   checkpoint trained for another character (a URDF robot's, say).
 //! - **Poses** ([`Pose`], as for URDF characters) become the joints' local [`Transform`]s through
@@ -117,7 +118,10 @@ pub(crate) fn release_scenes(
     }
 }
 
-/// Finds the joints of scenes that have spawned.
+/// Finds the joints of scenes that have spawned, and again when a scene spawns anew: Bevy respawns
+/// every instance of a scene whose asset is replaced (its file hot-reloaded, or loaded a second time,
+/// as when the `Gltf` asset was dropped and a clip of the same file is then asked for), with new
+/// entities under the same instance.
 pub(crate) fn find_joints(
     mut scenes: Query<(Entity, &mut CreatureScene, &WorldInstance, &mut RetargetStatus)>,
     spawner: Option<Res<WorldInstanceSpawner>>,
@@ -128,6 +132,10 @@ pub(crate) fn find_joints(
     // Without Bevy's world serialization plugin no scene spawns.
     let Some(spawner) = spawner else { return };
     for (entity, mut scene, instance, mut status) in &mut scenes {
+        if scene.joints.as_ref().is_some_and(|joints| joints.iter().any(|&e| !names.contains(e))) {
+            scene.joints = None;
+            scene.held.clear();
+        }
         if scene.joints.is_some() || !spawner.instance_is_ready(**instance) || matches!(*status, RetargetStatus::Failed(_)) {
             continue;
         }
