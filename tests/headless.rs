@@ -806,7 +806,7 @@ fn the_plugins_systems_are_ordered_after_bevys_animation() {
 /// while a Retargeter drives it; the bones show the Retargeter's poses (it writes after the animation).
 #[test]
 fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
-    use bevy::animation::{AnimationClip, AnimationPlayer, graph::{AnimationGraph, AnimationGraphHandle}};
+    use bevy::animation::{AnimationClip, AnimationPlayer, graph::AnimationGraph};
     use bevy::gltf::GltfAssetLabel;
     let Some(fox_glb) = shared("creatures/Fox/Fox.glb") else { return };
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-fox");
@@ -830,27 +830,25 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     assert_ace_systems_run_after_animation(&mut app);
     let player = paused_player(&mut app, "walk.bvh");
     let server = app.world().resource::<AssetServer>().clone();
-    // Asked for with the scene: asked for once the file's load is over and its unused assets dropped,
-    // the clip would load the file again, and Bevy would respawn the scene (the plugin follows, but
-    // the AnimationPlayer found below would be gone: `a_scene_that_spawns_anew_is_driven_again`).
+    // Everything the test loads from the Fox's file is loaded, and held, before its scene spawns. Bevy
+    // may still respawn the scene while the test runs (in about one whole-binary run in ten): the
+    // Retargeter follows (`a_scene_that_spawns_anew_is_driven_again`), and the Walk clip is played on
+    // every AnimationPlayer that appears, as a game starts its clips.
     let walk: Handle<AnimationClip> = server.load(GltfAssetLabel::Animation(1).from_asset("creatures/Fox.glb"));
-    let fox = app
-        .world_mut()
-        .spawn((
-            WorldAssetRoot(server.load("creatures/Fox.glb#Scene0")),
-            Retargeter::new(server.load("checkpoints/fox/ace.json"), player),
-        ))
-        .id();
-    let mut animated = None;
+    let scene: Handle<WorldAsset> = server.load("creatures/Fox.glb#Scene0");
+    let character: Handle<CharacterAsset> = server.load("creatures/Fox.glb");
     update_until(&mut app, |w| {
-        animated = w.query_filtered::<Entity, With<AnimationPlayer>>().iter(w).next();
-        animated.is_some()
+        let s = w.resource::<AssetServer>();
+        s.is_loaded_with_dependencies(&walk) && s.is_loaded_with_dependencies(&scene) && s.is_loaded_with_dependencies(&character)
     });
-    let animated = animated.unwrap();
     let (graph, node) = AnimationGraph::from_clip(walk.clone());
     let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
-    app.world_mut().entity_mut(animated).insert(AnimationGraphHandle(graph));
-    app.world_mut().get_mut::<AnimationPlayer>(animated).unwrap().play(node).repeat();
+    app.insert_resource(PlayWalk(graph, node)).add_systems(Update, play_walk);
+    let fox = app
+        .world_mut()
+        .spawn((WorldAssetRoot(scene.clone()), Retargeter::new(server.load("checkpoints/fox/ace.json"), player)))
+        .id();
+    update_until(&mut app, |w| w.query_filtered::<(), With<AnimationPlayer>>().iter(w).next().is_some());
     start_together(&mut app, player, &[fox]);
     for _ in 0..45 {
         app.update();
@@ -868,8 +866,9 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     assert!(d < 1e-4 / c.rig.scale && a < 1e-3, "paused at tick {t}: bones {d} file units and {a} rad from the offline motion");
     // The Fox's own clip did play all along.
     assert!(app.world().resource::<Assets<AnimationClip>>().get(&walk).is_some(), "the Walk clip loaded");
-    let elapsed = app.world().get::<AnimationPlayer>(animated).unwrap().animation(node).map(|a| a.elapsed());
-    assert!(elapsed.is_some_and(|e| e > 1.0), "the Walk clip played for {elapsed:?} s");
+    let mut players = app.world_mut().query::<&AnimationPlayer>();
+    let elapsed = players.single(app.world()).unwrap().animation(node).map(|a| a.elapsed());
+    assert!(elapsed.is_some_and(|e| e > 0.1), "the Walk clip played for {elapsed:?} s");
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
     // And it moves the bones compared above: once the Retargeter is removed (its CreatureScene goes
     // with it), they leave the Retargeter's pose (the comparisons above would fail had the clip
@@ -881,6 +880,17 @@ fn a_retargeter_wins_over_the_scenes_playing_animation_player() {
     assert!(app.world().get::<CreatureScene>(fox).is_none(), "the scene is released with its Retargeter");
     let (_, a) = bone_gap(&mut app, &c, &Transform::IDENTITY, &want.poses[t as usize]);
     assert!(a > 0.05, "the Fox's clip turns the bones {a} rad from the Retargeter's pose");
+}
+
+/// The Fox's Walk clip in its graph, played on every AnimationPlayer that appears.
+#[derive(Resource)]
+struct PlayWalk(Handle<bevy::animation::graph::AnimationGraph>, bevy::animation::graph::AnimationNodeIndex);
+
+fn play_walk(mut commands: Commands, walk: Res<PlayWalk>, mut players: Query<(Entity, &mut bevy::animation::AnimationPlayer), Added<bevy::animation::AnimationPlayer>>) {
+    for (e, mut player) in &mut players {
+        commands.entity(e).insert(bevy::animation::graph::AnimationGraphHandle(walk.0.clone()));
+        player.play(walk.1).repeat();
+    }
 }
 
 fn hound() -> Creature {
