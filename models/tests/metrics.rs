@@ -928,3 +928,17 @@ fn square_root_of_a_psd_matrix() {
     let r = &v * v.transpose();
     assert!((sqrt_psd(&r) * sqrt_psd(&r) - &r).norm() < 1e-6);
 }
+
+/// The UFR's thresholds are fractions of the character's body length: a half-metre character's are
+/// half a one-metre character's (the contact height divided by the body length instead of multiplied
+/// passed every other test: cargo-mutants).
+#[test]
+fn ufr_thresholds_scale_with_the_body_length() {
+    use ace_models::metrics::ufr::UfrConfig;
+    let c = UfrConfig::from_body_length(0.5);
+    assert_eq!(c.body_length, 0.5);
+    assert_eq!(c.collision_tolerance, 0.5 * UfrConfig::COLLISION_TOLERANCE);
+    assert_eq!(c.penetration_depth, 0.5 * UfrConfig::PENETRATION_DEPTH);
+    assert_eq!(c.contact_height, 0.5 * UfrConfig::CONTACT_HEIGHT);
+    assert_eq!(c.sliding_speed, 0.5 * UfrConfig::SLIDING_SPEED);
+}
