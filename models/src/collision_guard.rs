@@ -8,7 +8,9 @@
 //! ([`PoseChecks`]) — its joint positions are moved back along the straight line towards the previous
 //! frame's output (collision-free by induction) to the last collision-free point, found by bisection.
 //! The joints of the legs are left alone when moving the others suffices (the legs have just been
-//! planted by foot locking); wheels keep their angles. When the root itself came down into the ground,
+//! planted by foot locking), and when it does not, only the legs that move a body in the collision are
+//! moved (moving every leg back while the root goes on drags the planted feet of the others along the
+//! ground: all of Spot's sliding frames came from that); wheels keep their angles. When the root itself came down into the ground,
 //! it is lifted out — the only case the guard moves the root. The guard is causal, so a live stream and
 //! an offline clip agree frame for frame.
 
@@ -27,11 +29,15 @@ pub struct CollisionGuard {
     morph: Morphology,
     /// DoFs tried first: neither legs nor wheels.
     upper: Vec<usize>,
+    /// Per foot: the DoFs on its path from the root, and per link whether they move it.
+    legs: Vec<(Vec<usize>, Vec<bool>)>,
     /// DoFs tried when those do not suffice: all but wheels.
     all: Vec<usize>,
     /// Joint positions of the standing pose, where arms go when the last output's cannot clear the
     /// ground.
     standing: Vec<f32>,
+    /// The UFR's contact band (m): a penetration no deeper is undone by lifting the root.
+    contact_height: f32,
 }
 
 /// The guard's memory for one character being driven: its last output's joint positions.
@@ -46,23 +52,42 @@ pub struct GuardState {
 impl CollisionGuard {
     /// The guard for a character, with the UFR's tolerances.
     pub fn new(tree: &KinematicTree, morph: &Morphology) -> CollisionGuard {
-        let checks = PoseChecks::new(tree, morph, &UfrConfig::for_character(tree, morph));
+        let config = UfrConfig::for_character(tree, morph);
+        let checks = PoseChecks::new(tree, morph, &config);
         let dof_of = |l: usize| tree.links[l].joint.as_ref().and_then(|j| j.dof);
         let wheels: Vec<usize> = morph.wheels.iter().filter_map(|&l| dof_of(l)).collect();
         // Every DoF on a foot's path from the root, a spine's included: moving any of them moves a
         // foot the foot lock may hold planted, so they are the last resort.
-        let legs: Vec<usize> = morph
+        let per_leg: Vec<(Vec<usize>, Vec<bool>)> = morph
             .feet
             .iter()
-            .flat_map(|&f| Chain::new(tree, morph, f).active_dofs().collect::<Vec<_>>())
+            .map(|&f| {
+                let dofs: Vec<usize> = Chain::new(tree, morph, f).active_dofs().filter(|d| !wheels.contains(d)).collect();
+                let moves = (0..tree.links.len())
+                    .map(|l| {
+                        let mut at = Some(l);
+                        while let Some(k) = at {
+                            if dof_of(k).is_some_and(|d| dofs.contains(&d)) {
+                                return true;
+                            }
+                            at = tree.links[k].parent;
+                        }
+                        false
+                    })
+                    .collect();
+                (dofs, moves)
+            })
             .collect();
+        let legs: Vec<usize> = per_leg.iter().flat_map(|(d, _)| d.iter().copied()).collect();
         let all: Vec<usize> = (0..tree.dof()).filter(|d| !wheels.contains(d)).collect();
         CollisionGuard {
             checks,
             morph: morph.clone(),
             upper: all.iter().copied().filter(|d| !legs.contains(d)).collect(),
+            legs: per_leg,
             all,
             standing: tree.standing_pose().q,
+            contact_height: config.contact_height,
         }
     }
 
@@ -77,14 +102,37 @@ impl CollisionGuard {
         self.checks.collisions(scratch, |_| {}) > 0
     }
 
+    /// The DoFs of `upper` and of the legs that move a link [`PoseChecks::offending_links`] names in
+    /// the placed pose (with the ground's when `ground`).
+    fn upper_and_involved_legs(&self, scratch: &PoseScratch, ground: bool) -> Vec<usize> {
+        let mut involved = vec![false; self.legs.len()];
+        self.checks.offending_links(&self.morph, scratch, ground, |l| {
+            for (i, (_, moves)) in self.legs.iter().enumerate() {
+                involved[i] |= moves[l];
+            }
+        });
+        let mut dofs = self.upper.clone();
+        for ((leg, _), _) in self.legs.iter().zip(&involved).filter(|(_, i)| **i) {
+            dofs.extend(leg.iter().filter(|d| !dofs.contains(d)).copied().collect::<Vec<_>>());
+        }
+        dofs
+    }
+
+    /// Whether `pose` collides with itself, or reaches below the ground deeper than the contact band
+    /// (what lifting the root out would leave planted feet above the ground).
+    fn too_deep_for_the_root(&self, tree: &KinematicTree, pose: &CharacterPose, scratch: &mut PoseScratch) -> bool {
+        self.self_collides(tree, pose, scratch) || self.checks.depth_below_ground(&self.morph, scratch) > self.contact_height
+    }
+
     /// Guards one frame in place, advancing `state`:
-    /// 1. a self-collision is undone by moving joints back towards the last output (legs only when the
-    ///    others do not suffice; self-collision does not depend on the root, so this always succeeds
-    ///    once there is a last output);
+    /// 1. a self-collision is undone by moving joints back towards the last output: the legs' only
+    ///    when the others do not suffice, first only the legs that move a body in the collision, then
+    ///    all (self-collision does not depend on the root, so this always succeeds once there is a
+    ///    last output);
     /// 2. a ground penetration is undone the same way, towards the last output, else towards the
-    ///    standing pose — with the arms and other non-leg joints first, with the legs too when that is
-    ///    not enough — and when nothing is (the root itself came down) by lifting the root out of the
-    ///    ground.
+    ///    standing pose — with the arms and other non-leg joints first, then with the legs in the
+    ///    penetration, then with all legs — and when nothing is (the root itself came down) by lifting
+    ///    the root out of the ground.
     pub fn apply(&self, tree: &KinematicTree, state: &mut GuardState, pose: &mut CharacterPose) {
         let scratch = &mut state.scratch;
         if !self.collides(tree, pose, scratch) {
@@ -94,7 +142,8 @@ impl CollisionGuard {
         state.corrected += 1;
         if let Some(prev) = &state.last_free {
             if self.self_collides(tree, pose, scratch) {
-                for dofs in [&self.upper, &self.all] {
+                let involved = self.upper_and_involved_legs(scratch, false);
+                for dofs in [&self.upper, &involved, &self.all] {
                     if self.move_back(tree, pose, prev, dofs, scratch, &Self::self_collides) {
                         break;
                     }
@@ -103,8 +152,15 @@ impl CollisionGuard {
             // Towards the last output, else towards the standing pose: an arm reaching into the ground
             // of a body that came down is pulled up rather than the whole body lifted.
             // Legs only when the rest cannot do it (a leg the network pushed through the floor).
+            // The legs only for a penetration deeper than the contact band: a shallower one is lifted
+            // out with the root below, leaving planted feet at most that far above their anchors
+            // rather than dragging them.
             if self.collides(tree, pose, scratch) {
-                for dofs in [&self.upper, &self.all] {
+                let involved = self.upper_and_involved_legs(scratch, true);
+                for (stage, dofs) in [&self.upper, &involved, &self.all].into_iter().enumerate() {
+                    if stage > 0 && !self.too_deep_for_the_root(tree, pose, scratch) {
+                        break;
+                    }
                     if self.move_back(tree, pose, prev, dofs, scratch, &Self::collides)
                         || self.move_back(tree, pose, &self.standing, dofs, scratch, &Self::collides)
                     {
@@ -291,5 +347,97 @@ mod tests {
         assert!(!guard.collides(&tree, &sunk, &mut scratch));
         assert!((sunk.root.translation.z - standing.root.translation.z).abs() < 0.01, "{}", sunk.root.translation.z);
         assert_eq!(state.corrected, 1);
+    }
+
+    /// Spot, standing, then moved 5 cm forward with `dof` at `value` of its range and every other leg
+    /// joint 0.03 rad on (the legs move, as a network's do): the guard's output and the raw pose.
+    fn step_with(tree: &KinematicTree, guard: &CollisionGuard, dof: &str, value: f32) -> (CharacterPose, CharacterPose) {
+        let mut state = GuardState::default();
+        let mut first = tree.standing_pose();
+        guard.apply(tree, &mut state, &mut first);
+        let d = tree.dof_names().iter().position(|n| *n == dof).unwrap();
+        let mut raw = tree.standing_pose();
+        raw.root.translation.x += 0.05;
+        for (k, name) in tree.dof_names().iter().enumerate() {
+            if k != d && ["fl_", "fr_", "rl_", "rr_"].iter().any(|leg| name.starts_with(leg)) {
+                raw.q[k] += 0.03;
+            }
+        }
+        let l = tree.limits(d).unwrap();
+        raw.q[d] = l.lower + value * (l.upper - l.lower);
+        let mut out = raw.clone();
+        guard.apply(tree, &mut state, &mut out);
+        (raw, out)
+    }
+
+    /// A hind leg swung into the body is moved back alone: the other legs, whose feet foot locking may
+    /// hold planted while the root moves on, keep the network's joint values (moving them back too
+    /// made every one of Spot's held-out sliding frames).
+    #[test]
+    fn a_leg_in_a_collision_is_moved_back_alone() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
+        let (tree, morph) = load_character(&path).unwrap();
+        let guard = CollisionGuard::new(&tree, &morph);
+        let mut scratch = PoseScratch::default();
+        // The first abduction of the hind right hip (over its range) that puts its leg into the body.
+        let value = (0..=100)
+            .map(|k| k as f32 / 100.0)
+            .find(|&v| {
+                let (raw, _) = step_with(&tree, &guard, "rr_hip_x", v);
+                guard.self_collides(&tree, &raw, &mut scratch)
+            })
+            .expect("the hind right leg reaches the body");
+        let (raw, out) = step_with(&tree, &guard, "rr_hip_x", value);
+        assert!(!guard.collides(&tree, &out, &mut scratch), "the output is free");
+        let names = tree.dof_names();
+        for (d, name) in names.iter().enumerate() {
+            if name.starts_with("rr_") {
+                continue;
+            }
+            assert_eq!(out.q[d], raw.q[d], "{name} moved");
+        }
+        assert_ne!(out.q, raw.q, "the hind right leg moved back");
+        // (The root may be lifted out of a shallow penetration of the moved legs, never moved on the
+        // ground.)
+        assert_eq!((out.root.rotation, out.root.translation.x, out.root.translation.y), (raw.root.rotation, raw.root.translation.x, raw.root.translation.y));
+    }
+
+    /// A penetration no deeper than the contact band is undone by lifting the root, leaving the legs
+    /// (and so planted feet) as they are; a deeper one moves the leg in it back.
+    #[test]
+    fn a_shallow_penetration_lifts_the_root_and_a_deep_one_moves_the_leg() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
+        let (tree, morph) = load_character(&path).unwrap();
+        let guard = CollisionGuard::new(&tree, &morph);
+        let mut scratch = PoseScratch::default();
+        let standing = tree.standing_pose();
+        // The front left knee straightened or bent over its range: the foot goes below the ground.
+        let depth = |pose: &CharacterPose, scratch: &mut PoseScratch| {
+            guard.checks.place(&tree, pose, scratch);
+            guard.checks.depth_below_ground(&morph, scratch)
+        };
+        let mut found = (None, None);
+        for k in 0..=200 {
+            let (raw, _) = step_with(&tree, &guard, "fl_knee", k as f32 / 200.0);
+            let d = depth(&raw, &mut scratch);
+            let pen = guard.collides(&tree, &raw, &mut scratch) && !guard.self_collides(&tree, &raw, &mut scratch);
+            if pen && d < 0.8 * guard.contact_height && found.0.is_none() {
+                found.0 = Some(k as f32 / 200.0);
+            }
+            if pen && d > 2.0 * guard.contact_height && found.1.is_none() {
+                found.1 = Some(k as f32 / 200.0);
+            }
+        }
+        let (shallow, deep) = (found.0.expect("a shallow penetration"), found.1.expect("a deep penetration"));
+        let (raw, out) = step_with(&tree, &guard, "fl_knee", shallow);
+        assert!(!guard.collides(&tree, &out, &mut scratch));
+        assert_eq!(out.q, raw.q, "the joints are the network's");
+        let lift = out.root.translation.z - raw.root.translation.z;
+        assert!(lift > 0.0 && lift <= guard.contact_height, "lifted {lift} m");
+        let (raw, out) = step_with(&tree, &guard, "fl_knee", deep);
+        assert!(!guard.collides(&tree, &out, &mut scratch));
+        assert!((out.root.translation.z - standing.root.translation.z).abs() < 1e-6, "the root stays");
+        let knee = tree.dof_names().iter().position(|n| *n == "fl_knee").unwrap();
+        assert_ne!(out.q[knee], raw.q[knee], "the knee moved back");
     }
 }

@@ -260,16 +260,43 @@ impl PoseChecks {
     /// Whether any geometry of the placed pose lies below the penetration depth (mesh boxes on foot
     /// bodies excepted): [`PoseChecks::penetrates`] without the foot points.
     pub fn geometry_penetrates(&self, scratch: &PoseScratch) -> bool {
+        (0..self.collision.bodies().len()).any(|k| self.body_penetrates(k, scratch))
+    }
+
+    /// Whether body `k`'s geometry in the placed pose lies below the penetration depth.
+    fn body_penetrates(&self, k: usize, scratch: &PoseScratch) -> bool {
         let posed = &scratch.posed;
+        let (c, r) = posed.spheres[k];
+        c.z - r < self.below
+            && posed.primitives[k]
+                .iter()
+                .zip(&self.collision.bodies()[k].from_mesh)
+                .any(|(p, &mesh)| !(mesh && self.foot_body[k]) && p.lowest_z() < self.below)
+    }
+
+    /// Calls `hit(link)` with the link of every body in a colliding pair of the placed pose, and when
+    /// `ground`, of every body and foot point below the ground too (a link may come more than once):
+    /// what [`PoseChecks::is_unrealistic`] objects to, by link.
+    pub fn offending_links(&self, morph: &Morphology, scratch: &PoseScratch, ground: bool, mut hit: impl FnMut(usize)) {
         let bodies = self.collision.bodies();
-        (0..bodies.len()).any(|k| {
-            let (c, r) = posed.spheres[k];
-            c.z - r < self.below
-                && posed.primitives[k]
-                    .iter()
-                    .zip(&bodies[k].from_mesh)
-                    .any(|(p, &mesh)| !(mesh && self.foot_body[k]) && p.lowest_z() < self.below)
-        })
+        let pairs = self.collision.pairs();
+        self.collisions(scratch, |k| {
+            let (a, b) = pairs[k];
+            hit(bodies[a].link);
+            hit(bodies[b].link);
+        });
+        if ground {
+            for &f in &morph.feet {
+                if morph.ee_point(f, &scratch.links).z < self.below {
+                    hit(f);
+                }
+            }
+            for k in 0..bodies.len() {
+                if self.body_penetrates(k, scratch) {
+                    hit(bodies[k].link);
+                }
+            }
+        }
     }
 
     /// Turns each wheel (and what hangs below it) back to its joint's zero position.
