@@ -26,13 +26,14 @@ export PATH="$root/.local/cargo/bin:$PATH"
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 
 # Per file: the cargo-mutants options that build its crate (features) and the tests aimed at it (cargo
-# test arguments, then `--` and the test binaries' filter). Learning modules need the `learn` feature
+# test arguments, then `--` and the test binaries' filter). `ufr.rs` also runs the crate's unit tests:
+# its pose checks are the collision guard's and the foot lock's, tested there. Learning modules need the `learn` feature
 # (libtorch); the rest build without it, which is much faster. The learning modules' networks are
 # exercised by the training, retargeting and runtime tests of other modules, so all of the crate's unit
 # tests run for them (about 15 s).
 declare -A how=(
   [models/src/features.rs]="--no-default-features -- --test metrics"
-  [models/src/metrics/ufr.rs]="--no-default-features -- --test metrics"
+  [models/src/metrics/ufr.rs]="--no-default-features -- --test metrics --lib"
   [models/src/metrics/distribution.rs]="--no-default-features -- --test metrics"
   [models/src/foot_lock.rs]="--no-default-features -- --lib -- foot_lock"
   [models/src/collision_guard.rs]="--no-default-features -- --lib -- collision_guard"
