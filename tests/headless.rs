@@ -897,6 +897,15 @@ fn hound() -> Creature {
     load_creature(&creature_assets().join("creatures/hound.glb")).unwrap()
 }
 
+/// The hound and the bundled walk clip retargeted onto it offline by the tiny hound checkpoint.
+fn hound_walk() -> (Creature, RetargetedMotion) {
+    let c = hound();
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
+    let r = Offline::load(&creature_assets().join("checkpoints/hound")).unwrap();
+    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+    (c, want)
+}
+
 /// The world matrix (file frame and units) of each rig bone of `c` in `pose`, straight from the tree:
 /// `C⁻¹ · W_b · R_b⁻¹ · C · F_b` (see `ace_models::character::rig_pose`).
 fn bone_worlds(c: &Creature, pose: &CharacterPose) -> Vec<(String, Matrix4<f32>)> {
@@ -959,10 +968,7 @@ fn bone_gap(app: &mut App, c: &Creature, origin: &Transform, pose: &CharacterPos
 /// the entity.
 #[test]
 fn a_creature_scene_moves_as_ace_retarget_writes_it() {
-    let c = hound();
-    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
-    let r = Offline::load(&creature_assets().join("checkpoints/hound")).unwrap();
-    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+    let (c, want) = hound_walk();
     let size = 1.0 / c.rig.scale; // a metre in file units
 
     let mut app = creature_app();
@@ -1007,10 +1013,7 @@ fn a_creature_scene_moves_as_ace_retarget_writes_it() {
 /// skeleton stands at rest.
 #[test]
 fn a_scene_that_spawns_anew_is_driven_again() {
-    let c = hound();
-    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions::default()).unwrap();
-    let r = Offline::load(&creature_assets().join("checkpoints/hound")).unwrap();
-    let want = r.retarget_clip(&c.tree, &c.morphology, &clip).unwrap();
+    let (c, want) = hound_walk();
     let size = 1.0 / c.rig.scale;
     let mut app = creature_app();
     let player = paused_player(&mut app, "walk.bvh");

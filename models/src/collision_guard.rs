@@ -223,11 +223,15 @@ mod tests {
     use crate::metrics::ufr;
     use crate::morphology::load_character;
 
+    /// The bundled Spot.
+    fn spot() -> (KinematicTree, Morphology) {
+        load_character(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf")).unwrap()
+    }
+
     /// Spot, and its arm's DoF `name` swept over its range and back in 120 frames from the standing pose,
     /// with the DoFs of `fixed` held at the given fraction of their ranges.
     fn sweep(name: &str, fixed: &[(&str, f32)]) -> (KinematicTree, Morphology, Vec<CharacterPose>) {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-        let (tree, morph) = load_character(&path).unwrap();
+        let (tree, morph) = spot();
         let dof = |name: &str| tree.dof_names().iter().position(|n| *n == name).unwrap();
         let d = dof(name);
         let l = tree.limits(d).unwrap();
@@ -331,8 +335,7 @@ mod tests {
 
     #[test]
     fn a_root_sunk_into_the_ground_is_lifted_out() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-        let (tree, morph) = load_character(&path).unwrap();
+        let (tree, morph) = spot();
         let guard = CollisionGuard::new(&tree, &morph);
         let mut state = GuardState::default();
         let standing = tree.standing_pose();
@@ -375,8 +378,7 @@ mod tests {
     /// made every one of Spot's held-out sliding frames).
     #[test]
     fn a_leg_in_a_collision_is_moved_back_alone() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-        let (tree, morph) = load_character(&path).unwrap();
+        let (tree, morph) = spot();
         let guard = CollisionGuard::new(&tree, &morph);
         let mut scratch = PoseScratch::default();
         // The first abduction of the hind right hip (over its range) that puts its leg into the body.
@@ -406,8 +408,7 @@ mod tests {
     /// (and so planted feet) as they are; a deeper one moves the leg in it back.
     #[test]
     fn a_shallow_penetration_lifts_the_root_and_a_deep_one_moves_the_leg() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-        let (tree, morph) = load_character(&path).unwrap();
+        let (tree, morph) = spot();
         let guard = CollisionGuard::new(&tree, &morph);
         let mut scratch = PoseScratch::default();
         let standing = tree.standing_pose();

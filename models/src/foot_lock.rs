@@ -449,19 +449,22 @@ mod tests {
         }
     }
 
+    /// The shared Fox (`None`, where `ACE_ALLOW_MISSING_DATA` allows, without `../shared`).
+    fn shared_fox() -> Option<(KinematicTree, Morphology)> {
+        let path = crate::test_data::require(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/creatures/Fox/Fox.glb"),
+            "the shared Fox",
+        )?;
+        Some(load_character(&path).unwrap())
+    }
+
     /// A creature whose spine carries its legs (the shared Fox: spine DoFs between the root and every
     /// hip) standing while its trunk bends and sways and every joint jitters: planted feet stay put and
     /// the spine keeps the network's values. Solving each leg through the spine instead moved the hips
     /// of the legs already planted, and the Fox's held-out retargets slid in 36 % of their frames.
     #[test]
     fn planted_feet_hold_while_the_spine_that_carries_them_bends() {
-        let Some(path) = crate::test_data::require(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/creatures/Fox/Fox.glb"),
-            "the shared Fox",
-        ) else {
-            return;
-        };
-        let (tree, morph) = load_character(&path).unwrap();
+        let Some((tree, morph)) = shared_fox() else { return };
         assert!(morph.spine.len() >= 4, "the Fox's spine moves: {:?}", morph.spine);
         let legs: Vec<usize> = morph.feet.iter().flat_map(|&f| Chain::limb(&tree, &morph, f).0.active_dofs().collect::<Vec<_>>()).collect();
         assert!(legs.iter().all(|d| !morph.spine.contains(d)));
@@ -588,13 +591,7 @@ mod tests {
         // its feet go along and never cross. Held planted, its close-set legs end up crossed as the
         // body passes over them (37 frames of 90); they step out instead, crossed only in the first
         // frames of their swings.
-        let Some(path) = crate::test_data::require(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/creatures/Fox/Fox.glb"),
-            "the shared Fox",
-        ) else {
-            return;
-        };
-        let (tree, morph) = load_character(&path).unwrap();
+        let Some((tree, morph)) = shared_fox() else { return };
         let l = character_body_length(&tree, &morph);
         let standing = tree.standing_pose();
         let raw: Vec<CharacterPose> = (0..90)
