@@ -259,3 +259,31 @@ fn panels_show_paths_relative_to_the_working_directory() {
     assert_eq!(crate::ui::shown(outside), outside.display().to_string());
     assert_eq!(crate::ui::shown(&cwd), cwd.display().to_string());
 }
+
+/// The loss-weights panel shows a checkpoint's own weights and leaves them as trained: the crab's end
+/// effectors weigh 10, beyond the panel's old 0–5 sliders, which egui clamped on display, so that
+/// "Retrain briefly" would have continued with 5 unasked. A weight beyond the sliders' range stays too.
+#[test]
+fn the_weights_panel_leaves_a_checkpoints_weights_as_trained() {
+    use ace::models::features::FeatureBlock;
+    use ace::models::learn::ace::AceConfig;
+
+    use crate::retrain::{Retrain, Settings};
+
+    let text = std::fs::read_to_string(repo().join("assets/checkpoints/crab/ace.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let cfg: AceConfig = serde_json::from_value(json["config"].clone()).unwrap();
+    let links: Vec<String> = serde_json::from_value(json["correspondence"]["character_links"].clone()).unwrap();
+    let mut settings = Settings::of(&cfg, &links);
+    assert_eq!(settings.feature_weights.weight(FeatureBlock::EePositions), 10.0);
+    settings.w_fea = 250.0;
+    let mut retrain = Retrain::default();
+    retrain.settings = Some(settings.clone());
+    let preview = preview::Preview::default();
+    let ctx = bevy_egui::egui::Context::default();
+    for _ in 0..3 {
+        let mut out = ctx.run_ui(Default::default(), |ui| crate::ui::weights_and_retrain(ui, &preview, &mut retrain));
+        out.textures_delta.clear();
+    }
+    assert_eq!(retrain.settings, Some(settings));
+}

@@ -243,13 +243,22 @@ fn mapping(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retrain) {
     ui.small("Bold: the pairs this checkpoint was trained with. A change takes effect with \"Retrain briefly\".");
 }
 
-fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retrain) {
+/// A slider for a loss weight, 0 to 100 on a logarithmic scale (weights that matter range from 0.1 to
+/// tens: the crab's and Stretch's end effectors weigh 10). Only the user's edits are clamped: showing a
+/// checkpoint's settings never changes them, whatever they are.
+fn weight_slider<N: egui::emath::Numeric>(v: &mut N) -> egui::Slider<'_> {
+    egui::Slider::new(v, N::from_f64(0.0)..=N::from_f64(100.0))
+        .logarithmic(true)
+        .clamping(egui::SliderClamping::Edits)
+}
+
+pub(crate) fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain: &mut Retrain) {
     ui.heading("Loss weights");
     if let Some(s) = retrain.settings.as_mut() {
-        ui.add(egui::Slider::new(&mut s.w_adv, 0.0..=5.0).text("w_adv"));
-        ui.add(egui::Slider::new(&mut s.w_fea, 0.0..=50.0).text("w_fea"));
+        ui.add(weight_slider(&mut s.w_adv).text("w_adv"));
+        ui.add(weight_slider(&mut s.w_fea).text("w_fea"));
         for block in FeatureBlock::ALL {
-            ui.add(egui::Slider::new(s.feature_weights.weight_mut(block), 0.0..=5.0).text(block.name()));
+            ui.add(weight_slider(s.feature_weights.weight_mut(block)).text(block.name()));
         }
         ui.add(egui::Slider::new(&mut s.steps, 20..=2000).logarithmic(true).text("steps"));
     }
