@@ -942,3 +942,90 @@ fn ufr_thresholds_scale_with_the_body_length() {
     assert_eq!(c.contact_height, 0.5 * UfrConfig::CONTACT_HEIGHT);
     assert_eq!(c.sliding_speed, 0.5 * UfrConfig::SLIDING_SPEED);
 }
+
+/// Spot whose first `n` foot points are moved `dz` (m) straight down in the world at the standing
+/// pose (up when negative), its geometry left where it is: the foot points and the feet's geometry
+/// then disagree, so each criterion of the ground checks can be seen alone.
+fn spot_with_foot_points_moved(dz: f32, n: usize) -> (KinematicTree, Morphology) {
+    let (t, mut m) = character("spot");
+    let links = t.forward_kinematics(&t.standing_pose());
+    for foot in m.feet.clone().into_iter().take(n) {
+        let down = links[foot].rotation.inverse() * Vector3::new(0.0, 0.0, -dz);
+        *m.tip_offsets.entry(foot).or_insert_with(Vector3::zeros) += down;
+    }
+    (t, m)
+}
+
+/// A foot point below the ground is penetration on its own, with the foot's geometry above it: the
+/// detectors, `penetrates`, `depth_below_ground` and `offending_links` (exactly that foot) agree.
+#[test]
+fn a_foot_point_alone_below_the_ground_is_penetration() {
+    use ace_models::metrics::ufr::{PoseChecks, PoseScratch};
+    let cfg = UfrConfig::for_character(&character("spot").0, &character("spot").1);
+    let d = cfg.penetration_depth + 0.01;
+    let (t, m) = spot_with_foot_points_moved(d, 1);
+    let foot = m.feet[0];
+    let standing = vec![t.standing_pose(); 10];
+    let r = ufr(&t, &m, &standing, FPS, &cfg);
+    assert_eq!(count(&r.penetration), 10, "{:?}", r.summary());
+    assert_eq!(count(&r.self_collision) + count(&r.sliding), 0);
+    // The same standing Spot with its own foot points is clean.
+    let (t0, m0) = character("spot");
+    assert_eq!(count(&ufr(&t0, &m0, &standing, FPS, &cfg).penetration), 0);
+
+    let checks = PoseChecks::new(&t, &m, &cfg);
+    let mut scratch = PoseScratch::default();
+    checks.place(&t, &t.standing_pose(), &mut scratch);
+    assert!(checks.penetrates(&m, &scratch));
+    assert!(!checks.geometry_penetrates(&scratch), "the foot's geometry stays on the ground");
+    let depth = checks.depth_below_ground(&m, &scratch);
+    assert!((depth - d).abs() < 2e-3, "depth {depth} against the foot point's {d}");
+    let mut hit = Vec::new();
+    checks.offending_links(&m, &scratch, true, |l| hit.push(l));
+    assert_eq!(hit, vec![foot]);
+    hit.clear();
+    checks.offending_links(&m, &scratch, false, |l| hit.push(l));
+    assert!(hit.is_empty(), "{hit:?}");
+}
+
+/// The foot's geometry below the ground is penetration although its foot point is above: the foot
+/// body's primitives count (only mesh boxes on foot bodies are left out), in `geometry_penetrates`,
+/// `depth_below_ground` and `offending_links`; and a body other than a foot (Spot upside down, its
+/// back in the ground and its feet in the air) counts in the depth.
+#[test]
+fn a_foot_body_below_the_ground_is_penetration_whatever_its_foot_point() {
+    use ace_models::metrics::ufr::{PoseChecks, PoseScratch};
+    let (t0, m0) = character("spot");
+    let cfg = UfrConfig::for_character(&t0, &m0);
+    // The foot points 5 cm up; the whole Spot lowered by the penetration depth and 1 cm.
+    let (t, m) = spot_with_foot_points_moved(-0.05, 4);
+    let sink = cfg.penetration_depth + 0.01;
+    let mut pose = t.standing_pose();
+    pose.root.translation.vector.z -= sink;
+    let checks = PoseChecks::new(&t, &m, &cfg);
+    let mut scratch = PoseScratch::default();
+    checks.place(&t, &pose, &mut scratch);
+    assert!(m.feet.iter().all(|&f| m.ee_point(f, &scratch.links).z > cfg.ground_z), "the foot points are above the ground");
+    assert!(checks.geometry_penetrates(&scratch));
+    let depth = checks.depth_below_ground(&m, &scratch);
+    assert!((depth - sink).abs() < 2e-3, "depth {depth} against the sink {sink}");
+    // Every foot's body is in the ground, no foot point.
+    let mut hit = Vec::new();
+    checks.offending_links(&m, &scratch, true, |l| hit.push(l));
+    hit.sort_unstable();
+    let sc = checks.self_collision();
+    let mut want: Vec<usize> = m.feet.iter().map(|&f| sc.bodies()[sc.body_of(f)].link).collect();
+    want.sort_unstable();
+    assert_eq!(hit, want);
+
+    // Upside down at 5 cm: the body's box is in the ground, every foot point far above it.
+    let mut flipped = t0.standing_pose();
+    flipped.root = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.05), UnitQuaternion::from_euler_angles(PI, 0.0, 0.0));
+    let checks = PoseChecks::new(&t0, &m0, &cfg);
+    checks.place(&t0, &flipped, &mut scratch);
+    assert!(m0.feet.iter().all(|&f| m0.ee_point(f, &scratch.links).z > 0.2));
+    let lowest = scratch.links.iter().map(|l| l.translation.vector.z).fold(f32::INFINITY, f32::min);
+    let depth = checks.depth_below_ground(&m0, &scratch);
+    assert!(depth > 0.02 && depth > -lowest, "depth {depth}, lowest link origin {lowest}");
+    assert!(checks.penetrates(&m0, &scratch));
+}
