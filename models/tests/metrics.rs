@@ -305,6 +305,11 @@ fn spot_arm_folded_into_its_body_collides() {
     );
     let pair = &r.collision_pairs[0];
     assert!([&pair.a, &pair.b].contains(&&"body".to_string()), "{pair:?}");
+    // Only pairs that collided are listed, most frames first; the first collides in every frame from `first`.
+    assert!(!r.collision_pairs.is_empty() && r.collision_pairs.len() <= 10, "{:?}", r.collision_pairs);
+    assert!(r.collision_pairs.iter().all(|p| p.frames > 0), "{:?}", r.collision_pairs);
+    assert!(r.collision_pairs.windows(2).all(|w| w[0].frames >= w[1].frames), "{:?}", r.collision_pairs);
+    assert_eq!(pair.frames, 27 - first);
     assert!(pair.a.starts_with("arm") || pair.b.starts_with("arm"), "{pair:?}");
     assert_eq!(count(&r.penetration) + count(&r.sliding), 0);
     println!(
