@@ -226,7 +226,7 @@ pub fn evaluate(
     let human = HumanSource { psi: &human_psi, bodies: &bodies };
     for (name, motions) in &systems {
         let (states, poses, episodes) = concat(motions);
-        let psi = scorer.character_psi(&states);
+        let psi = scorer.shown_psi(tree, morph, &states, &poses);
         rows.push(Row {
             system: name.to_string(),
             metrics: scorer.report(tree, morph, &psi, Some(human), &poses, &episodes),

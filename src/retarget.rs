@@ -236,7 +236,7 @@ pub fn retarget_and_score(
     // x^h once: the generator's input and the source of the human Ψ for L_fea.
     let human: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
     let motion = retargeter.retarget_states(tree, morph, &human)?;
-    let psi = scorer.character_psi(&motion.states);
+    let psi = scorer.shown_psi(tree, morph, &motion.states, &motion.poses);
     let body = scorer.human_body(human_body_length(clip));
     let human_psi = scorer.human_psi(&human, body);
     let source = HumanSource { psi: &human_psi, bodies: &[body] };

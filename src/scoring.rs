@@ -7,7 +7,7 @@
 use std::ops::Range;
 use std::path::Path;
 
-use ace::models::character_state::CharacterLayout;
+use ace::models::character_state::{CharacterLayout, character_state};
 use ace::models::features::{
     EndEffectorMapping, FeatureBlock, FeatureLayout, FeatureWeights, centre_human_features, character_features, human_features,
     human_speed_factor, mean_feature_loss, scale_human_speed,
@@ -148,6 +148,36 @@ impl Scorer {
     /// Ψ of character states x^r.
     pub fn character_psi<R: AsRef<[f32]>>(&self, states: &[R]) -> Vec<Vec<f32>> {
         states.iter().map(|x| character_features(&self.layout, x.as_ref(), self.body, &self.mapping)).collect()
+    }
+
+    /// Ψ of what is shown: the states' entries, with the end-effector positions those of the poses'
+    /// joints. The cleanup writes them into the states already; without it the states carry the
+    /// generator's own predicted positions, which can disagree with its joints (Spot's gripper: FID
+    /// 0.18 from the predicted entries, 0.48 from the joints), and the joints are what is seen, exported
+    /// and sent to a robot.
+    ///
+    /// # Panics
+    /// If `states` and `poses` differ in length.
+    pub fn shown_psi<R: AsRef<[f32]>>(
+        &self,
+        tree: &KinematicTree,
+        morph: &Morphology,
+        states: &[R],
+        poses: &[CharacterPose],
+    ) -> Vec<Vec<f32>> {
+        assert_eq!(states.len(), poses.len(), "one pose per state");
+        let ee = self.layout.ee_positions();
+        states
+            .iter()
+            .zip(poses)
+            .map(|(x, pose)| {
+                // Positions do not depend on the previous pose.
+                let shown = character_state(tree, morph, pose, pose, 1.0 / PROJECT_FPS);
+                let mut x = x.as_ref().to_vec();
+                x[ee.clone()].copy_from_slice(&shown[ee.clone()]);
+                character_features(&self.layout, &x, self.body, &self.mapping)
+            })
+            .collect()
     }
 
     /// Ψ of human states x^h of a clip whose human has body length `clip_body` (m), brought to the

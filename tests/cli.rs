@@ -760,3 +760,57 @@ fn retarget_runs_the_networks_in_pure_rust_and_with_libtorch_alike() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("rust, tch"), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// Without the cleanup the states carry the generator's own predicted end-effector positions, which
+/// disagree with its joints on the shipped Spot's gripper; what is scored is what is shown, the joints'
+/// (`Scorer::shown_psi`), as the cleanup's states already are.
+#[test]
+fn scores_without_the_cleanup_are_of_the_joints_shown() {
+    use ace::models::character_state::{CharacterLayout, character_state};
+    use ace::models::cleanup::Cleanup;
+    use ace::models::features::{FeatureLayout, character_features, human_body_length, mean_feature_loss};
+    use ace::models::human::HumanClip;
+    use ace::models::human_set::HumanRow;
+    use ace::models::morphology::load_character;
+    use ace::retarget::{Backend, Networks, retarget_and_score, shipped_checkpoint};
+    use ace::scoring::Scorer;
+
+    let (tree, morph) = load_character(&root().join("assets/characters/spot.urdf")).unwrap();
+    let dir = shipped_checkpoint("spot");
+    let mut networks = Networks::load(&dir, Backend::Rust).unwrap();
+    let scorer = Scorer::new(networks.record(), networks.character(), &dir).unwrap();
+    let clip = HumanClip::from_bvh_file(&root().join("assets/motions/wave.bvh"), &Default::default()).unwrap();
+    let human: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
+    let human_psi = scorer.human_psi(&human, scorer.human_body(human_body_length(&clip)));
+    let layout = CharacterLayout::new(&tree, &morph);
+    let record = networks.record().clone();
+    let mapping = &record.correspondence.mapping;
+    let body = record.body_lengths.character;
+    for cleanup in [Cleanup::NONE, Cleanup::default()] {
+        networks.set_cleanup(cleanup);
+        let scored = retarget_and_score(&networks, &scorer, &tree, &morph, &clip).unwrap();
+        let m = &scored.motion;
+        // Ψ by hand: the states with the poses' own end-effector positions.
+        let joints: Vec<Vec<f32>> = m
+            .states
+            .iter()
+            .zip(&m.poses)
+            .map(|(x, p)| {
+                let mut x = x.clone();
+                let shown = character_state(&tree, &morph, p, p, 1.0 / 30.0);
+                x[layout.ee_positions()].copy_from_slice(&shown[layout.ee_positions()]);
+                character_features(&layout, &x, body, mapping)
+            })
+            .collect();
+        let predicted = scorer.character_psi(&m.states);
+        let weights = record.config.feature_weights;
+        let features = FeatureLayout::new(mapping);
+        let of = |psi: &[Vec<f32>]| mean_feature_loss(&features, psi, &human_psi, &weights);
+        let got = scored.report.feature_loss.unwrap();
+        assert!((got - of(&joints)).abs() < 1e-5, "{cleanup:?}: L_fea {got} against {} from the joints", of(&joints));
+        if cleanup == Cleanup::NONE {
+            let gap = (of(&predicted) - of(&joints)).abs();
+            assert!(gap > 0.01, "the predicted entries agree with the joints after all ({gap})");
+        }
+    }
+}
