@@ -427,6 +427,35 @@ mod tests {
             .collect()
     }
 
+    /// The root's horizontal speed, which sets the natural swing time, is the frame-to-frame speed
+    /// filtered with its time constant: from rest, each frame moves it the fraction
+    /// 1 − exp(−dt/τ) of the way to the speed of that frame (here along a diagonal away from the origin).
+    #[test]
+    fn the_root_speed_is_filtered_with_its_time_constant() {
+        let (tree, morph) = spot();
+        let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig::default());
+        let mut state = lock.start();
+        let mut scratch = FootLockScratch::default();
+        let standing = tree.standing_pose();
+        let (vx, vy, dt) = (0.6_f32, -0.8_f32, 1.0 / 30.0);
+        let gain = 1.0 - (-dt / SPEED_TIME_CONSTANT).exp();
+        let mut want = 0.0_f32;
+        for t in 0..40 {
+            let mut pose = standing.clone();
+            let k = if t < 20 { t as f32 } else { 20.0 };
+            pose.root.translation.vector.x = 2.0 + vx * dt * k;
+            pose.root.translation.vector.y = 1.0 + vy * dt * k;
+            lock.apply(&tree, &mut state, &mut pose, &mut scratch);
+            if t > 0 {
+                // 1 m/s for 20 frames, then standing still.
+                let v = if t <= 20 { 1.0 } else { 0.0 };
+                want += (v - want) * gain;
+            }
+            assert!((state.speed - want).abs() < 1e-4, "frame {t}: {} against {want}", state.speed);
+        }
+        assert!(want < 0.1, "the filter has come back down: {want}");
+    }
+
     #[test]
     fn planted_feet_stop_sliding_and_stay_above_the_ground() {
         let (tree, morph) = spot();
