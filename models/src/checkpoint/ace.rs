@@ -10,7 +10,7 @@ use serde_json::Value;
 
 use super::LearnError;
 use super::files::{CheckpointFiles, FileRecord, read_json};
-use super::prior::{CharacterInfo, DeviceChoice, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
+use super::prior::{CONFIG_FILE as PRIOR_CONFIG_FILE, CharacterInfo, DeviceChoice, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
 use crate::correspondence::Correspondence;
 use crate::features::FeatureWeights;
 use crate::human::{EndEffector, layout as human_layout};
@@ -295,6 +295,10 @@ pub struct AceRecord {
     pub discriminator: FileRecord,
     /// The prior's weights file G was trained against.
     pub prior: FileRecord,
+    /// The prior's `config.json` (its normalisation, state bounds and mask) G was trained against;
+    /// absent in checkpoints saved before it was recorded, which are not checked for it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior_config: Option<FileRecord>,
     /// Free-form record of how it was made (command line, data files, commit, …).
     pub provenance: Value,
 }
@@ -356,6 +360,9 @@ impl AceRecord {
         record
             .prior
             .verify(&files.path(PRIOR_WEIGHTS_FILE), &files.read(PRIOR_WEIGHTS_FILE)?, ACE_FILE)?;
+        if let Some(config) = &record.prior_config {
+            config.verify(&files.path(PRIOR_CONFIG_FILE), &files.read(PRIOR_CONFIG_FILE)?, ACE_FILE)?;
+        }
         Ok(record)
     }
 }

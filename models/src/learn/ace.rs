@@ -33,7 +33,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use tch::{Device, Kind, Tensor, nn};
 
-use super::checkpoint::{LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
+use super::checkpoint::{CONFIG_FILE as PRIOR_CONFIG_FILE, LearnError, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
 pub use super::files::FileRecord;
 use super::files::{CheckpointFiles, load_weights, read_file, write_synced};
 use super::nets::{Activation, Mlp};
@@ -220,6 +220,7 @@ impl AceRecord {
     ) -> Result<(), LearnError> {
         let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
         self.prior = FileRecord::of(PRIOR_WEIGHTS_FILE, &read_file(&prior_path)?);
+        self.prior_config = Some(FileRecord::of(PRIOR_CONFIG_FILE, &read_file(&dir.join(PRIOR_CONFIG_FILE))?));
         let pid = std::process::id();
         let mut moves: Vec<(PathBuf, PathBuf)> = Vec::new();
         let result = (|| {

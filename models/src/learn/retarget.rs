@@ -279,7 +279,7 @@ mod tests {
     use nalgebra::Vector2;
     use crate::human_set::DEFAULT_FOLDER;
     use crate::learn::ace::{ACE_FILE, DISCRIMINATOR_FILE, GENERATOR_FILE};
-    use crate::learn::checkpoint::WEIGHTS_FILE;
+    use crate::learn::checkpoint::{CONFIG_FILE, WEIGHTS_FILE};
     use crate::learn::prior::MotionPrior;
     use crate::learn::prior::test_support::{scratch_dir, spot};
     use crate::learn::train_ace::test_support::{bundled_humans, tiny_config, train_in, trained_ace_dir};
@@ -489,6 +489,7 @@ mod tests {
                 generator: FileRecord::default(),
                 discriminator: FileRecord::default(),
                 prior: FileRecord::default(),
+                prior_config: None,
                 provenance: serde_json::Value::Null,
             },
             generator,
@@ -621,6 +622,19 @@ mod tests {
         other.save(&dir).unwrap();
         let e = err(&dir);
         assert!(e.contains(WEIGHTS_FILE) && e.contains(ACE_FILE), "{e}");
+
+        // The prior's `config.json` edited (a normalisation mean moved, still plausible), its weights
+        // untouched: G was trained against the other statistics.
+        let dir = copy_of_trained("retarget_prior_config");
+        broken.push(dir.clone());
+        let config = dir.join(CONFIG_FILE);
+        let mut v: serde_json::Value = serde_json::from_str(&fs::read_to_string(&config).unwrap()).unwrap();
+        let m = v["mean"][0].as_f64().unwrap();
+        v["mean"][0] = serde_json::json!(m + 0.1);
+        fs::write(&config, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+        assert!(PriorCheckpoint::load(&dir, Device::Cpu).is_ok(), "the edited prior is well-formed on its own");
+        let e = err(&dir);
+        assert!(e.contains(CONFIG_FILE) && e.contains(ACE_FILE) && e.contains("not from the same save"), "{e}");
 
         // Another character than the checkpoint's.
         let (crab, crab_morph) = load_character(&asset("assets/characters/crab.urdf")).unwrap();

@@ -623,6 +623,7 @@ fn start_or_resume(
         generator: FileRecord::default(),
         discriminator: FileRecord::default(),
         prior: FileRecord::default(),
+        prior_config: None,
         provenance: inputs.provenance.clone(),
     };
     if !run_dir.join(ACE_FILE).exists() {
