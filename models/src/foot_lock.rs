@@ -781,6 +781,81 @@ mod tests {
         }
     }
 
+    /// Spot's first foot put by the network at each `(forward, up)` of `path` (body lengths from where
+    /// it stands), one per frame, after `stand` standing frames; whether the lock holds it planted
+    /// after each frame.
+    fn planted_along(stand: usize, path: &[(f32, f32)]) -> Vec<bool> {
+        planted_along_with(0.0, stand, path)
+    }
+
+    /// [`planted_along`] with the first foot's point `raised` metres above its standing geometry, so
+    /// that the foot stands above the ground: its heights count from there.
+    fn planted_along_with(raised: f32, stand: usize, path: &[(f32, f32)]) -> Vec<bool> {
+        let (tree, mut morph) = spot();
+        let foot = morph.feet[0];
+        let up = tree.forward_kinematics(&tree.standing_pose())[foot].rotation.inverse() * Vector3::z() * raised;
+        *morph.tip_offsets.entry(foot).or_insert_with(Vector3::zeros) += up;
+        let l = character_body_length(&tree, &morph);
+        let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig::default());
+        let standing = tree.standing_pose();
+        let chain = Chain::new(&tree, &morph, morph.feet[0]);
+        let mut cs = ChainScratch::default();
+        let start = chain.tip_point(&tree, &standing.q, &mut cs);
+        let (mut state, mut scratch) = (lock.start(), FootLockScratch::default());
+        for _ in 0..stand {
+            lock.apply(&tree, &mut state, &mut standing.clone(), &mut scratch);
+        }
+        path.iter()
+            .map(|&(forward, up)| {
+                let mut p = standing.clone();
+                let target = start + Vector3::new(forward * l, 0.0, up * l);
+                let missed = chain.solve(&tree, &mut p.q, &target, 1e-5, 60, &mut cs).error;
+                assert!(missed < 1e-3, "({forward}, {up}) is out of reach by {missed} m");
+                lock.apply(&tree, &mut state, &mut p, &mut scratch);
+                state.feet[0].anchor.is_some()
+            })
+            .collect()
+    }
+
+    /// Each rule that lifts a planted foot, alone (defaults: lift 0.06 L with a step of 0.1 L, or a raise
+    /// of 0.15 L, or a drift of 0.25 L), and the foot held where no rule applies.
+    #[test]
+    fn each_lift_off_rule_releases_a_planted_foot_and_nothing_else_does() {
+        let held = |forward: f32, up: f32| planted_along(3, &[(forward, up)])[0];
+        assert!(held(0.0, 0.0), "standing, planted");
+        // Up past the lift height: released only once also a step away.
+        assert!(held(0.05, 0.10));
+        assert!(!held(0.15, 0.10));
+        // A step away but low: held (drift below the limit).
+        assert!(held(0.15, 0.03));
+        // Raised high: released without moving away; below that, held.
+        assert!(held(0.0, 0.12));
+        assert!(!held(0.0, 0.20));
+        // Drifting along the ground: held up to the drift limit, released past it.
+        assert!(held(0.20, 0.0));
+        assert!(!held(0.30, 0.0));
+        // A foot that stands 3 cm up (its point above its geometry): heights count from there.
+        let raised = |forward: f32, up: f32| planted_along_with(0.03, 3, &[(forward, up)])[0];
+        assert!(raised(0.0, 0.0) && raised(0.0, 0.12) && !raised(0.0, 0.20));
+    }
+
+    /// A foot comes down and plants once it is low (below 0.04 L) and slow (below 1 L/s): hovering
+    /// above that height, or skimming the ground faster, it does not.
+    #[test]
+    fn a_foot_plants_once_low_and_slow() {
+        let hover = |up: f32| planted_along(0, &[(0.0, 0.3), (0.0, up), (0.0, up), (0.0, up)]);
+        assert_eq!(hover(0.03), [false, true, true, true]);
+        assert_eq!(hover(0.05), [false, false, false, false]);
+        // Along the ground at 0.5 and 1.5 L/s (1/60 and 1/20 L a frame) after coming down.
+        let skim = |per_frame: f32| {
+            let path: Vec<(f32, f32)> =
+                std::iter::once((0.0, 0.3)).chain((1..6).map(|k| (k as f32 * per_frame, 0.0))).collect();
+            planted_along(0, &path)
+        };
+        assert!(skim(1.0 / 60.0)[2..].iter().all(|&p| p), "{:?}", skim(1.0 / 60.0));
+        assert!(skim(1.0 / 20.0)[2..].iter().all(|&p| !p), "{:?}", skim(1.0 / 20.0));
+    }
+
     #[test]
     fn a_foot_that_only_needs_to_move_a_little_stays_planted() {
         let (tree, morph) = spot();
