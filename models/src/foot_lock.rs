@@ -856,6 +856,112 @@ mod tests {
         assert!(skim(1.0 / 20.0)[2..].iter().all(|&p| !p), "{:?}", skim(1.0 / 20.0));
     }
 
+    /// Spot's first foot put by the network at each `(forward, up)` of `path` (body lengths from where
+    /// it stands), one per frame, after three standing frames: the cleaned foot point, the network's,
+    /// and the lock's memory of that foot after each frame.
+    fn first_foot_along(
+        config: FootLockConfig,
+        path: &[(f32, f32)],
+    ) -> (Vec<Point3<f32>>, Vec<Point3<f32>>, Vec<FootMemory>) {
+        let (tree, morph) = spot();
+        let l = character_body_length(&tree, &morph);
+        let lock = FootLock::new(&tree, &morph, 30.0, config);
+        let standing = tree.standing_pose();
+        let chain = Chain::new(&tree, &morph, morph.feet[0]);
+        let mut cs = ChainScratch::default();
+        let start = chain.tip_point(&tree, &standing.q, &mut cs);
+        let (mut state, mut scratch) = (lock.start(), FootLockScratch::default());
+        for _ in 0..3 {
+            lock.apply(&tree, &mut state, &mut standing.clone(), &mut scratch);
+        }
+        let foot = |p: &CharacterPose| morph.ee_point(morph.feet[0], &tree.forward_kinematics(p));
+        let (mut clean, mut net, mut memory) = (Vec::new(), Vec::new(), Vec::new());
+        for &(forward, up) in path {
+            let mut p = standing.clone();
+            chain.solve(&tree, &mut p.q, &(start + Vector3::new(forward * l, 0.0, up * l)), 1e-5, 60, &mut cs);
+            net.push(foot(&p));
+            lock.apply(&tree, &mut state, &mut p, &mut scratch);
+            clean.push(foot(&p));
+            memory.push(state.feet[0].clone());
+        }
+        (clean, net, memory)
+    }
+
+    /// A foot the network keeps in the air after stepping: the cleaned swing waits before its descent,
+    /// hovering at least the swing clearance up, for at most another swing time; the swing then ends
+    /// in the air and the foot returns to the network's over the blend frames, the gap shrinking by the
+    /// same step each frame; when the network's foot then comes down during the blend, it plants where
+    /// the cleaned foot is, without a jump.
+    #[test]
+    fn a_swing_waits_for_a_foot_kept_up_then_blends_back_and_plants_where_it_is() {
+        let (tree, morph) = spot();
+        let l = character_body_length(&tree, &morph);
+        // A clearance above the swing's arc where it waits (0.08 L against about 0.05 L), so that both
+        // show.
+        let c = FootLockConfig { swing_clearance: 0.08, ..FootLockConfig::default() };
+        let ground = first_foot(&tree, &morph, &[tree.standing_pose()])[0].z;
+        let up = vec![(0.15, 0.10); 60];
+        let (clean, net, memory) = first_foot_along(c, &up);
+        // Lifted off at the first frame.
+        let frames = memory[0].swing.expect("released").frames;
+        assert!(frames >= c.min_swing_frames);
+        // Waiting: the swing's own frames stop while `held` counts up to another swing, the foot hovering.
+        let waiting: Vec<usize> = (1..memory.len())
+            .filter(|&t| {
+                let (a, b) = (memory[t - 1].swing, memory[t].swing);
+                matches!((a, b), (Some(a), Some(b)) if b.held == a.held + 1 && b.frame == a.frame)
+            })
+            .collect();
+        assert_eq!(waiting.len(), frames, "{memory:?}");
+        assert!(waiting.windows(2).all(|w| w[1] == w[0] + 1), "one wait, not several: {waiting:?}");
+        // Hovering on the swing's arc, or at the swing clearance where the arc is lower.
+        for &t in &waiting {
+            let sw = memory[t].swing.unwrap();
+            let s = sw.frame as f32 / sw.frames as f32;
+            let arc = sw.height * 16.0 * (s * (1.0 - s)).powi(2);
+            let want = arc.max(c.swing_clearance * l);
+            let z = clean[t].z - ground;
+            assert!((z - want).abs() < 1e-3, "frame {t}: {z} m up against {want} (arc {arc})");
+        }
+        assert!(
+            waiting.iter().any(|&t| clean[t].z - ground < c.swing_clearance * l + 1e-3),
+            "the clearance never held the foot up: the test would not see it"
+        );
+        // The swing ends in the air (2 × frames after lift-off); then the blend: the cleaned foot is
+        // the network's plus b/(b+1), (b−1)/(b+1), … 1/(b+1) of the offset it ended at, no lower than
+        // the swing clearance, then the network's.
+        let end = memory.iter().position(|m| m.swing.is_none()).expect("the swing ends");
+        assert_eq!(end + 1, 2 * frames, "{memory:?}");
+        let b = c.blend_frames;
+        let offset = memory[end].offset;
+        assert!(offset.norm() > 0.01, "the swing ended away from the network's foot: {offset:?}");
+        for k in 0..=b {
+            let t = end + 1 + k;
+            let mut want = net[t] + offset * (b - k) as f32 / (b + 1) as f32;
+            want.z = want.z.max(ground + c.swing_clearance * l);
+            let miss = (clean[t] - want).norm();
+            assert!(miss < 1e-3, "blend frame {k}: {:?} against {want:?}", clean[t]);
+        }
+        assert!((clean[end + b] - net[end + b]).norm() > 0.005, "still blending at frame {b}");
+
+        // Again, the network's foot moving on by 0.05 L once the wait is over and the landing point
+        // frozen (so the swing ends behind it), and coming down one frame into the blend: it
+        // plants where the cleaned foot is, the network's plus the part of the offset left.
+        let last_wait = *waiting.last().unwrap();
+        let mut path = up[..=last_wait + 1].to_vec();
+        path.extend(vec![(0.20, 0.10); end - last_wait]);
+        path.extend([(0.20, 0.0); 5]);
+        let (clean, net, memory) = first_foot_along(c, &path);
+        let t = end + 2;
+        assert!(memory[t - 1].anchor.is_none() && memory[t - 1].blend_left == b - 1, "{:?}", memory[t - 1]);
+        let offset = memory[t - 1].offset;
+        assert!(offset.xy().norm() > 0.02, "the swing ended behind the network's foot: {offset:?}");
+        let anchor = memory[t].anchor.expect("planted once down");
+        let want = net[t].xy() + offset.xy() * (b - 1) as f32 / b as f32;
+        assert!((anchor.xy() - want).norm() < 1e-3, "planted at {anchor:?}, not {want:?}");
+        assert!((clean[t + 4] - anchor).norm() < 2e-3, "held where it planted");
+    }
+
     #[test]
     fn a_foot_that_only_needs_to_move_a_little_stays_planted() {
         let (tree, morph) = spot();
