@@ -904,6 +904,14 @@ mod tests {
         let (clean, net, memory) = first_foot_along(c, &up);
         // Lifted off at the first frame.
         let frames = memory[0].swing.expect("released").frames;
+        // Standing (Froude number 0), a swing rises 0.7 of the swing height times the leg's length, or
+        // as high as the network's foot has when that is higher (0.10 L here, not 0.07 L).
+        let leg = FootLock::new(&tree, &morph, 30.0, c).legs[0].length;
+        let own = c.swing_height * leg * 0.7;
+        let lifted = |up: f32| first_foot_along(c, &[(0.15, up)]).2[0].swing.expect("released").height;
+        assert!((0.07 * l) < own && own < 0.10 * l, "{own} m");
+        assert!((lifted(0.07) - own).abs() < 1e-5, "{} against {own}", lifted(0.07));
+        assert!((lifted(0.10) - net[0].z + ground).abs() < 1e-4, "{} against the network's", lifted(0.10));
         assert!(frames >= c.min_swing_frames);
         // Waiting: the swing's own frames stop while `held` counts up to another swing, the foot hovering.
         let waiting: Vec<usize> = (1..memory.len())
