@@ -1034,3 +1034,16 @@ fn a_foot_body_below_the_ground_is_penetration_whatever_its_foot_point() {
     assert!(depth > 0.02 && depth > -lowest, "depth {depth}, lowest link origin {lowest}");
     assert!(checks.penetrates(&m0, &scratch));
 }
+
+/// Each feature block is named (in `ace eval`'s tables, the editor and the CSV columns) by the
+/// `[feature_weights]` key that sets its weight.
+#[test]
+fn each_feature_block_is_named_as_its_weight_key() {
+    for block in FeatureBlock::ALL {
+        let w: FeatureWeights = toml::from_str(&format!("{} = 7.0", block.name())).unwrap();
+        for other in FeatureBlock::ALL {
+            let want = if other == block { 7.0 } else { 1.0 };
+            assert_eq!(w.weight(other), want, "`{} = 7.0` set {}", block.name(), other.name());
+        }
+    }
+}
