@@ -1047,3 +1047,20 @@ fn each_feature_block_is_named_as_its_weight_key() {
         }
     }
 }
+
+/// Feature weights are finite and non-negative (a negative one would reward moving away from the
+/// human); the refusal names the block's key and the value. Zero is allowed: it leaves a block out.
+#[test]
+fn feature_weights_are_checked_block_by_block() {
+    assert_eq!(FeatureWeights::default().check(), Ok(()));
+    for block in FeatureBlock::ALL {
+        let mut w = FeatureWeights::default();
+        *w.weight_mut(block) = 0.0;
+        assert_eq!(w.check(), Ok(()), "{} = 0", block.name());
+        for bad in [-1.0, f32::NAN, f32::INFINITY] {
+            *w.weight_mut(block) = bad;
+            let e = w.check().expect_err(&format!("{} = {bad}", block.name()));
+            assert!(e.contains(&format!("feature_weights.{}", block.name())) && e.contains(&bad.to_string()), "{e}");
+        }
+    }
+}
