@@ -1064,3 +1064,58 @@ fn feature_weights_are_checked_block_by_block() {
         }
     }
 }
+
+/// The pieces that bring a human's Ψ to the character, each against a hand computation on Spot's
+/// layout: the mean of feature rows; the centring offset (character mean − human mean on the root
+/// height and the end effectors, nothing elsewhere) and its addition; the speed factor
+/// (`speed_scale · human body / character body`) on the root's linear velocity only; and a clip's body
+/// length (its height, or 1.7 m when it has none).
+#[test]
+fn the_human_feature_transforms_match_hand_computations() {
+    use ace_models::features::{
+        DEFAULT_HUMAN_HEIGHT, centre_human_features, centring_offset, human_body_length, human_speed_factor,
+        mean_features, scale_human_speed,
+    };
+    use ace_models::human::HumanClip;
+
+    let (t, m) = character("spot");
+    let layout = FeatureLayout::new(&EndEffectorMapping::by_side(&t, &m));
+    let dim = layout.dim();
+    assert_eq!(mean_features([vec![1.0, 2.0], vec![3.0, 6.0], vec![5.0, 1.0]]), [3.0, 3.0]);
+    assert!(mean_features(Vec::<Vec<f32>>::new()).is_empty());
+
+    let human: Vec<f32> = (0..dim).map(|i| i as f32 * 0.1).collect();
+    let character: Vec<f32> = (0..dim).map(|i| 1.0 + i as f32 * 0.3).collect();
+    let offset = centring_offset(&layout, &human, &character);
+    for i in 0..dim {
+        let centred = layout.root_height().contains(&i) || layout.ee_positions().contains(&i);
+        let want = if centred { character[i] - human[i] } else { 0.0 };
+        assert!((offset[i] - want).abs() < 1e-6, "entry {i}: {} against {want}", offset[i]);
+    }
+    let mut psi = human.clone();
+    centre_human_features(&mut psi, &offset);
+    for i in 0..dim {
+        assert!((psi[i] - (human[i] + offset[i])).abs() < 1e-6, "entry {i}");
+    }
+    let mut unchanged = human.clone();
+    centre_human_features(&mut unchanged, &[]);
+    assert_eq!(unchanged, human);
+
+    let factor = human_speed_factor(0.5, 1.7, 0.59);
+    assert!((factor - 0.5 * 1.7 / 0.59).abs() < 1e-6, "{factor}");
+    let mut psi = human.clone();
+    scale_human_speed(&mut psi, &layout, 3.0);
+    for i in 0..dim {
+        let want = if layout.root_linear_velocity().contains(&i) { 3.0 * human[i] } else { human[i] };
+        assert!((psi[i] - want).abs() < 1e-6, "entry {i}: {} against {want}", psi[i]);
+    }
+
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh");
+    let mut clip = HumanClip::from_bvh_file(&path, &Default::default()).unwrap();
+    assert!(clip.height_m > 1.0 && clip.height_m < 2.2, "{}", clip.height_m);
+    assert_eq!(human_body_length(&clip), clip.height_m);
+    for none in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        clip.height_m = none;
+        assert_eq!(human_body_length(&clip), DEFAULT_HUMAN_HEIGHT, "height {none}");
+    }
+}
