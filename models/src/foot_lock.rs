@@ -781,9 +781,8 @@ mod tests {
         }
     }
 
-    /// Spot's first foot put by the network at each `(forward, up)` of `path` (body lengths from where
-    /// it stands), one per frame, after `stand` standing frames; whether the lock holds it planted
-    /// after each frame.
+    /// Whether the lock holds Spot's first foot planted after each frame of `path` ([`first_foot_along`]
+    /// with the default configuration).
     fn planted_along(stand: usize, path: &[(f32, f32)]) -> Vec<bool> {
         planted_along_with(0.0, stand, path)
     }
@@ -791,30 +790,8 @@ mod tests {
     /// [`planted_along`] with the first foot's point `raised` metres above its standing geometry, so
     /// that the foot stands above the ground: its heights count from there.
     fn planted_along_with(raised: f32, stand: usize, path: &[(f32, f32)]) -> Vec<bool> {
-        let (tree, mut morph) = spot();
-        let foot = morph.feet[0];
-        let up = tree.forward_kinematics(&tree.standing_pose())[foot].rotation.inverse() * Vector3::z() * raised;
-        *morph.tip_offsets.entry(foot).or_insert_with(Vector3::zeros) += up;
-        let l = character_body_length(&tree, &morph);
-        let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig::default());
-        let standing = tree.standing_pose();
-        let chain = Chain::new(&tree, &morph, morph.feet[0]);
-        let mut cs = ChainScratch::default();
-        let start = chain.tip_point(&tree, &standing.q, &mut cs);
-        let (mut state, mut scratch) = (lock.start(), FootLockScratch::default());
-        for _ in 0..stand {
-            lock.apply(&tree, &mut state, &mut standing.clone(), &mut scratch);
-        }
-        path.iter()
-            .map(|&(forward, up)| {
-                let mut p = standing.clone();
-                let target = start + Vector3::new(forward * l, 0.0, up * l);
-                let missed = chain.solve(&tree, &mut p.q, &target, 1e-5, 60, &mut cs).error;
-                assert!(missed < 1e-3, "({forward}, {up}) is out of reach by {missed} m");
-                lock.apply(&tree, &mut state, &mut p, &mut scratch);
-                state.feet[0].anchor.is_some()
-            })
-            .collect()
+        let (_, _, memory) = first_foot_along(FootLockConfig::default(), raised, stand, path);
+        memory.iter().map(|m| m.anchor.is_some()).collect()
     }
 
     /// Each rule that lifts a planted foot, alone (defaults: lift 0.06 L with a step of 0.1 L, or a raise
@@ -857,28 +834,36 @@ mod tests {
     }
 
     /// Spot's first foot put by the network at each `(forward, up)` of `path` (body lengths from where
-    /// it stands), one per frame, after three standing frames: the cleaned foot point, the network's,
-    /// and the lock's memory of that foot after each frame.
+    /// it stands), one per frame, after `stand` standing frames, cleaned by a lock of `config`; with the
+    /// foot's point `raised` metres above its standing geometry. Returns the cleaned foot point, the
+    /// network's, and the lock's memory of that foot after each frame.
     fn first_foot_along(
         config: FootLockConfig,
+        raised: f32,
+        stand: usize,
         path: &[(f32, f32)],
     ) -> (Vec<Point3<f32>>, Vec<Point3<f32>>, Vec<FootMemory>) {
-        let (tree, morph) = spot();
+        let (tree, mut morph) = spot();
+        let first = morph.feet[0];
+        let up = tree.forward_kinematics(&tree.standing_pose())[first].rotation.inverse() * Vector3::z() * raised;
+        *morph.tip_offsets.entry(first).or_insert_with(Vector3::zeros) += up;
         let l = character_body_length(&tree, &morph);
         let lock = FootLock::new(&tree, &morph, 30.0, config);
         let standing = tree.standing_pose();
-        let chain = Chain::new(&tree, &morph, morph.feet[0]);
+        let chain = Chain::new(&tree, &morph, first);
         let mut cs = ChainScratch::default();
         let start = chain.tip_point(&tree, &standing.q, &mut cs);
         let (mut state, mut scratch) = (lock.start(), FootLockScratch::default());
-        for _ in 0..3 {
+        for _ in 0..stand {
             lock.apply(&tree, &mut state, &mut standing.clone(), &mut scratch);
         }
-        let foot = |p: &CharacterPose| morph.ee_point(morph.feet[0], &tree.forward_kinematics(p));
+        let foot = |p: &CharacterPose| morph.ee_point(first, &tree.forward_kinematics(p));
         let (mut clean, mut net, mut memory) = (Vec::new(), Vec::new(), Vec::new());
         for &(forward, up) in path {
             let mut p = standing.clone();
-            chain.solve(&tree, &mut p.q, &(start + Vector3::new(forward * l, 0.0, up * l)), 1e-5, 60, &mut cs);
+            let target = start + Vector3::new(forward * l, 0.0, up * l);
+            let missed = chain.solve(&tree, &mut p.q, &target, 1e-5, 60, &mut cs).error;
+            assert!(missed < 1e-3, "({forward}, {up}) is out of reach by {missed} m");
             net.push(foot(&p));
             lock.apply(&tree, &mut state, &mut p, &mut scratch);
             clean.push(foot(&p));
@@ -901,14 +886,14 @@ mod tests {
         let c = FootLockConfig { swing_clearance: 0.08, ..FootLockConfig::default() };
         let ground = first_foot(&tree, &morph, &[tree.standing_pose()])[0].z;
         let up = vec![(0.15, 0.10); 60];
-        let (clean, net, memory) = first_foot_along(c, &up);
+        let (clean, net, memory) = first_foot_along(c, 0.0, 3, &up);
         // Lifted off at the first frame.
         let frames = memory[0].swing.expect("released").frames;
         // Standing (Froude number 0), a swing rises 0.7 of the swing height times the leg's length, or
         // as high as the network's foot has when that is higher (0.10 L here, not 0.07 L).
         let leg = FootLock::new(&tree, &morph, 30.0, c).legs[0].length;
         let own = c.swing_height * leg * 0.7;
-        let lifted = |up: f32| first_foot_along(c, &[(0.15, up)]).2[0].swing.expect("released").height;
+        let lifted = |up: f32| first_foot_along(c, 0.0, 3, &[(0.15, up)]).2[0].swing.expect("released").height;
         assert!((0.07 * l) < own && own < 0.10 * l, "{own} m");
         assert!((lifted(0.07) - own).abs() < 1e-5, "{} against {own}", lifted(0.07));
         assert!((lifted(0.10) - net[0].z + ground).abs() < 1e-4, "{} against the network's", lifted(0.10));
@@ -942,7 +927,7 @@ mod tests {
         let end = memory.iter().position(|m| m.swing.is_none()).expect("the swing ends");
         assert_eq!(end + 1, 2 * frames, "{memory:?}");
         let d = FootLockConfig::default();
-        let (clean, net, memory) = first_foot_along(d, &up);
+        let (clean, net, memory) = first_foot_along(d, 0.0, 3, &up);
         assert_eq!(memory.iter().position(|m| m.swing.is_none()), Some(end), "the same swing");
         let b = d.blend_frames;
         let offset = memory[end].offset;
@@ -966,7 +951,7 @@ mod tests {
         let mut path = up[..=last_wait + 1].to_vec();
         path.extend(vec![(0.20, 0.10); end - last_wait]);
         path.extend([(0.20, 0.0); 5]);
-        let (clean, net, memory) = first_foot_along(c, &path);
+        let (clean, net, memory) = first_foot_along(c, 0.0, 3, &path);
         let t = end + 2;
         assert!(memory[t - 1].anchor.is_none() && memory[t - 1].blend_left == b - 1, "{:?}", memory[t - 1]);
         let offset = memory[t - 1].offset;
