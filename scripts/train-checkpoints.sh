@@ -6,7 +6,8 @@
 #
 # Work happens in out/checkpoints/<character> (resumable: rerunning continues an interrupted run) and
 # out/eval/<character>; assets/checkpoints/<character> is replaced only once a character is done.
-# Per character: `ace train-prior` (with assets/training/<character>.prior.toml when present),
+# Per character: `ace train-prior` (with assets/training/<character>.prior.toml and, for its dataset,
+# assets/training/<character>.dataset.toml when present),
 # `ace train` (with assets/training/<character>.toml when present), `ace eval`. libtorch uses one thread: on this project's 2-core machines that is the fastest setting.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,10 +23,12 @@ for c in "${characters[@]}"; do
     run="out/checkpoints/$c"
     prior_config=()
     [ -f "assets/training/$c.prior.toml" ] && prior_config=(--config "assets/training/$c.prior.toml")
+    dataset_config=()
+    [ -f "assets/training/$c.dataset.toml" ] && dataset_config=(--dataset-config "assets/training/$c.dataset.toml")
     config=()
     [ -f "assets/training/$c.toml" ] && config=(--config "assets/training/$c.toml")
     start=$(date +%s)
-    "$ace" --threads 1 train-prior --character "$c" --checkpoint "$run" "${prior_config[@]}"
+    "$ace" --threads 1 train-prior --character "$c" --checkpoint "$run" "${prior_config[@]}" "${dataset_config[@]}"
     prior_done=$(date +%s)
     "$ace" --threads 1 train --character "$c" --checkpoint "$run" "${config[@]}"
     done_at=$(date +%s)

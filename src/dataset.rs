@@ -1,7 +1,7 @@
 //! `ace dataset`: rolls out a character's kinematic controllers under random commands and writes the
 //! motion dataset the motion prior learns from (paper §4, §7.1), optionally with a picture report.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ace::models::dataset::{DatasetConfig, check_budget, check_config, generate};
@@ -20,6 +20,14 @@ pub struct DatasetArgs {
     pub report: Option<PathBuf>,
 }
 
+/// A dataset configuration file (TOML, any subset of [`DatasetConfig`]); errors name the file.
+pub fn read_config(path: &Path) -> Result<DatasetConfig> {
+    let text = crate::train::read_text(path)?;
+    let cfg = toml::from_str::<DatasetConfig>(&text).with_context(|| format!("{}: invalid dataset configuration", path.display()))?;
+    check_config(&cfg).with_context(|| path.display().to_string())?;
+    Ok(cfg)
+}
+
 /// Runs `ace dataset`.
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let (path, tree, morph) = characters::load(&args.character)?;
@@ -28,8 +36,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     let mut cfg = match &args.config {
         Some(p) => {
             outputs.input(p, "the dataset configuration");
-            let text = crate::train::read_text(p)?;
-            toml::from_str::<DatasetConfig>(&text).with_context(|| format!("{}: invalid dataset configuration", p.display()))?
+            read_config(p)?
         }
         None => DatasetConfig::default(),
     };

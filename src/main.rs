@@ -107,6 +107,10 @@ enum Command {
         /// Seed of the generated dataset [default: 0].
         #[arg(long)]
         seed: Option<u64>,
+        /// A TOML file with generator settings for the generated dataset (any subset of the dataset
+        /// configuration, as `ace dataset --config`).
+        #[arg(long, conflicts_with = "dataset")]
+        dataset_config: Option<PathBuf>,
     },
     /// Train ACE's generator and discriminator for a character whose prior is trained.
     Train {
@@ -228,7 +232,9 @@ fn main() -> ExitCode {
             out,
             report,
         }),
-        Command::TrainPrior { opts, frames, seed } => train::prior(&train_args(opts, frames, seed, None)),
+        Command::TrainPrior { opts, frames, seed, dataset_config } => {
+            train::prior(&train::TrainArgs { dataset_config, ..train_args(opts, frames, seed, None) })
+        }
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
         Command::Retarget { clip, character, checkpoint, out, jobs, no_human, keep_animations, animation_only, no_cleanup, mapping, backend } => {
             let one = retarget::RetargetArgs {
@@ -285,5 +291,6 @@ fn train_args(o: TrainOpts, frames: Option<usize>, seed: Option<u64>, humans: Op
         config: o.config,
         paper: o.paper,
         humans,
+        dataset_config: None,
     }
 }

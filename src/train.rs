@@ -45,6 +45,8 @@ pub struct TrainArgs {
     pub config: Option<PathBuf>,
     pub paper: bool,
     pub humans: Option<PathBuf>,
+    /// Generator settings for the dataset `train-prior` generates.
+    pub dataset_config: Option<PathBuf>,
 }
 
 /// The checkpoint directory used when `--out`/`--checkpoint` is not given.
@@ -161,12 +163,19 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
         &dir,
         &["config.json", "prior.safetensors", "prior_losses.csv", "prior_losses.png"],
         &urdf,
-        &[(args.config.as_deref(), "the configuration file"), (args.dataset.as_deref(), "the dataset")],
+        &[
+            (args.config.as_deref(), "the configuration file"),
+            (args.dataset.as_deref(), "the dataset"),
+            (args.dataset_config.as_deref(), "the dataset configuration"),
+        ],
     )?;
     check_no_ace_stage_over(&dir, cfg.steps)?;
     // Temporaries of killed runs go now, this run's on SIGINT or SIGTERM.
     crate::output::watch_dir(&dir);
-    let mut data_cfg = DatasetConfig::default();
+    let mut data_cfg = match &args.dataset_config {
+        Some(p) => crate::dataset::read_config(p)?,
+        None => DatasetConfig::default(),
+    };
     if let Some(n) = args.frames {
         data_cfg.frames = n;
     }

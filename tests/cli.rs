@@ -361,6 +361,35 @@ fn tiny_checkpoint_with(dir: &Path, character: &str, ace_lines: &str) -> (PathBu
 }
 
 #[test]
+fn train_prior_generates_its_dataset_with_the_given_settings_and_records_them() {
+    let dir = tmp("dataset-config");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (prior_cfg, ck) = (dir.join("prior.toml"), dir.join("ck"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    // Spot's own settings file, as scripts/train-checkpoints.sh passes it.
+    let settings = root().join("assets/training/spot.dataset.toml");
+    run_ok(&["--threads", "1", "train-prior", "--character", "spot", "--frames", "2000", "--config", &s(&prior_cfg), "--dataset-config", &s(&settings), "--checkpoint", &s(&ck)]);
+    let config: Value = serde_json::from_slice(&std::fs::read(ck.join("config.json")).unwrap()).unwrap();
+    let recorded = &config["provenance"]["dataset"]["config"];
+    assert_eq!(recorded["controller"]["reach"]["home_reach"].as_f64(), Some(0.25), "{recorded}");
+    assert_eq!(recorded["frames"], 2000, "--frames still wins: {recorded}");
+
+    // A setting out of range is refused before any work, naming the file and the key.
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[controller.reach]\nhome_reach = -1\n").unwrap();
+    let ck2 = dir.join("ck2");
+    let out = ace(&["--threads", "1", "train-prior", "--character", "spot", "--config", &s(&prior_cfg), "--dataset-config", &s(&bad), "--checkpoint", &s(&ck2)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("bad.toml") && err.contains("controller.reach.home_reach"), "{err}");
+    assert!(!ck2.exists(), "a refused run wrote its checkpoint folder");
+    // A dataset file carries its own settings.
+    let out = ace(&["train-prior", "--character", "spot", "--dataset", "x.npz", "--dataset-config", &s(&bad)]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--dataset-config"));
+}
+
+#[test]
 fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     let dir = tmp("pipeline");
     let (ck, stdout) = tiny_checkpoint(&dir, "stretch");

@@ -146,6 +146,7 @@ impl Retrain {
                 config: None,
                 paper: false,
                 humans: None,
+                dataset_config: None,
             };
             let outcome = train_prior_stage(&args).and_then(|()| {
                 let _ = tx.send(Message::Stage("training ACE".into()));

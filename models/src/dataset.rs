@@ -430,6 +430,9 @@ fn check_controller(c: &ControllerConfig) -> Result<(), String> {
     }
     probability(&f("local_probability"), r.local_probability)?;
     in_range(&f("local_fraction"), r.local_fraction, 0.0, 1.0, " (a fraction of each DoF's range)")?;
+    if let Some(h) = r.home_reach {
+        in_range(&f("home_reach"), h, 0.0, 10.0, " (a fraction of the arm's length)")?;
+    }
     in_range(&f("default_angular_speed"), r.default_angular_speed, 0.01, 100.0, " (rad/s)")?;
     in_range(&f("default_linear_speed"), r.default_linear_speed, 0.001, 10.0, " (m/s)")?;
     in_range(&f("min_duration"), r.min_duration, 0.01, 60.0, " (s)")?;

@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 
 use ace_models::character_state::CharacterLayout;
 use ace_models::controller::{
-    BaseMode, Chain, ChainScratch, Command, Controller, ControllerConfig, Rig, collide::Proxies,
+    BaseMode, Chain, ChainScratch, Command, Controller, ControllerConfig, ReachKind, Rig, collide::Proxies,
 };
 use ace_models::dataset::{DatasetConfig, MotionSet, generate};
 use ace_models::kinematics::{JointKind, KinematicTree};
@@ -651,4 +651,60 @@ fn a_fixed_base_only_reaches() {
         v.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) - v.iter().fold(f32::INFINITY, |a, &b| a.min(b))
     };
     assert!((0..3).any(|d| spread(d) > 0.3), "the arm hardly moves");
+}
+
+/// Where the gripper tip of Spot's arm is, in the root frame, on every frame of a dataset generated
+/// with `cfg`, and the arm's stowed tip and length (first moving joint to tip).
+fn spot_gripper_from_stowed(cfg: &DatasetConfig) -> (Vec<f32>, f32) {
+    let (tree, morph) = bundled("spot");
+    let set = generate(&tree, &morph, cfg, &mut |_| {}).unwrap();
+    let rig = Rig::new(&tree, &morph, &cfg.controller, cfg.fps).unwrap();
+    let arm = rig.reach.iter().find(|g| matches!(g.kind, ReachKind::Arm(_))).expect("Spot has an arm");
+    let ReachKind::Arm(tip) = arm.kind else { unreachable!() };
+    let at = |q: &[f32]| {
+        tree.forward_kinematics(&ace_models::kinematics::CharacterPose {
+            root: nalgebra::Isometry3::identity(),
+            q: q.to_vec(),
+        })
+    };
+    let stowed = at(&rig.nominal_q);
+    let home = stowed[tip].translation.vector;
+    let length = (home - stowed[tree.dof_link(arm.dofs[0])].translation.vector).norm();
+    let dof = tree.dof();
+    let distances = (0..set.len())
+        .map(|i| (at(&set.q[i * dof..(i + 1) * dof])[tip].translation.vector - home).norm() / length)
+        .collect();
+    (distances, length)
+}
+
+fn percentile(mut v: Vec<f32>, p: f32) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v[((v.len() - 1) as f32 * p).round() as usize]
+}
+
+#[test]
+fn an_arm_with_a_home_reach_stays_near_where_it_rests_and_still_moves() {
+    // The setting Spot's shipped dataset is generated with.
+    let text = std::fs::read_to_string(manifest().join("../assets/training/spot.dataset.toml")).unwrap();
+    let shipped: DatasetConfig = toml::from_str(&text).unwrap();
+    let reach = shipped.controller.reach.home_reach.expect("Spot's dataset limits its arm's reach");
+    let base = DatasetConfig {
+        frames: 3000,
+        seed: 7,
+        ..DatasetConfig::default()
+    };
+    let mut near = base.clone();
+    near.controller.reach = shipped.controller.reach.clone();
+    let (free, _) = spot_gripper_from_stowed(&base);
+    let (held, length) = spot_gripper_from_stowed(&near);
+    let (free95, held95, held_max) = (percentile(free, 0.95), percentile(held.clone(), 0.95), percentile(held.clone(), 1.0));
+    println!("Spot's gripper from where it rests, in arm lengths ({length:.2} m): 95th percentile {free95:.2} anywhere, {held95:.2} with home_reach {reach}; at most {held_max:.2}");
+    // Anywhere, the tip crosses the workspace (1.44 arm lengths at the 95th percentile); held, each DoF
+    // alone moves it at most `reach`, and several together a little more (1.8 times at the 95th
+    // percentile).
+    assert!(free95 > 0.8, "the arm's free targets stay near home: {free95}");
+    assert!(held95 < 2.0 * reach, "the arm strays {held95} arm lengths with home_reach {reach}");
+    assert!(held_max < 3.0 * reach, "the arm strays {held_max} arm lengths with home_reach {reach}");
+    // It still moves: a hand's small gestures, not a frozen arm.
+    assert!(percentile(held, 0.75) > 0.2 * reach, "the held arm hardly moves");
 }

@@ -127,6 +127,14 @@ pub struct ReachConfig {
     /// How far a near target may lie from the current configuration, per DoF, as a fraction of the
     /// DoF's range.
     pub local_fraction: f32,
+    /// How far an arm's targets may take its tip from where it is stowed, as a fraction of the arm's
+    /// length (its first moving joint to its tip, stowed); `None`: anywhere within the limits. Each
+    /// DoF draws within the angle (or travel) that moves the tip that far on its own, so a shoulder
+    /// turns a little and a wrist a lot. A person's hand moves within a few tenths of a body length of
+    /// where it rests; an arm that roams its whole workspace in the dataset is what the
+    /// discriminator then asks for, against the hand's motion that L_fea asks for. Other reach groups
+    /// (heads, tails) are not limited.
+    pub home_reach: Option<f32>,
     /// Velocity assumed for revolute joints without a limit (rad/s).
     pub default_angular_speed: f32,
     /// Velocity assumed for prismatic joints without a limit (m/s).
@@ -147,6 +155,7 @@ impl Default for ReachConfig {
             max_speed_fraction: 0.5,
             local_probability: 0.5,
             local_fraction: 0.15,
+            home_reach: None,
             default_angular_speed: 2.0,
             default_linear_speed: 0.5,
             min_duration: 0.6,
@@ -303,20 +312,20 @@ fn plan<R: rand::Rng + ?Sized>(
         }
     }
     let stowed: Vec<f32> = group.dofs.iter().map(|&d| rig.nominal_q[d]).collect();
+    let windows = home_windows(tree, rig, group, cfg.home_reach);
     let mut chosen = None;
     let local = rng.random::<f32>() < cfg.local_probability;
     for attempt in 0..ATTEMPTS {
         let target: Vec<f32> = if attempt == 0 && !local && rng.random::<f32>() < cfg.stow_probability {
             stowed.clone()
         } else {
-            group
-                .dofs
+            current
                 .iter()
-                .zip(&current)
-                .map(|(&d, &now)| {
-                    let (lo, hi) = finite_limits(tree, d, rig.nominal_q[d]);
+                .zip(&windows)
+                .map(|(&now, &(lo, hi))| {
                     if local {
                         let r = cfg.local_fraction * (hi - lo);
+                        let now = now.clamp(lo, hi);
                         uniform(rng, (now - r).max(lo), (now + r).min(hi))
                     } else {
                         uniform(rng, lo, hi)
@@ -365,6 +374,36 @@ fn plan<R: rand::Rng + ?Sized>(
         hold: uniform(rng, cfg.hold_seconds[0], cfg.hold_seconds[1]),
     };
     found
+}
+
+/// The range each DoF of `group` draws its targets from: its limits, narrowed for an arm by
+/// [`ReachConfig::home_reach`] to the values that move the tip at most that fraction of the arm's
+/// length from its stowed position on their own (to first order: the DoF's lever arm at the stowed
+/// configuration).
+fn home_windows(tree: &KinematicTree, rig: &Rig, group: &ReachGroup, home_reach: Option<f32>) -> Vec<(f32, f32)> {
+    let limits = group.dofs.iter().map(|&d| finite_limits(tree, d, rig.nominal_q[d]));
+    let (Some(fraction), ReachKind::Arm(tip)) = (home_reach, group.kind) else {
+        return limits.collect();
+    };
+    let stowed = fk_root(tree, &rig.nominal_q);
+    let first = tree.dof_link(group.dofs[0]);
+    let tip_at = |poses: &[Isometry3<f32>]| poses[tip].translation.vector;
+    let reach = fraction * (tip_at(&stowed) - stowed[first].translation.vector).norm();
+    const STEP: f32 = 1e-3;
+    let mut q = rig.nominal_q.clone();
+    group
+        .dofs
+        .iter()
+        .zip(limits)
+        .map(|(&d, (lo, hi))| {
+            q[d] += STEP;
+            let lever = (tip_at(&fk_root(tree, &q)) - tip_at(&stowed)).norm() / STEP;
+            q[d] = rig.nominal_q[d];
+            // A DoF that hardly moves the tip (a wrist roll) keeps its whole range.
+            let half = reach / lever.max(1e-6);
+            ((rig.nominal_q[d] - half).max(lo), (rig.nominal_q[d] + half).min(hi))
+        })
+        .collect()
 }
 
 /// Link poses in the root frame.

@@ -159,6 +159,10 @@ const BAD_DATASET_CONFIGS: &[(&str, &str)] = &[
         "`controller.reach.local_fraction` = -0.15 is out of range: expected 0 to 1 (a fraction of each DoF's range)",
     ),
     (
+        "[controller.reach]\nhome_reach = -0.25",
+        "`controller.reach.home_reach` = -0.25 is out of range: expected 0 to 10 (a fraction of the arm's length)",
+    ),
+    (
         "[controller.reach]\ndefault_angular_speed = 0",
         "`controller.reach.default_angular_speed` = 0 is out of range: expected 0.01 to 100 (rad/s)",
     ),
