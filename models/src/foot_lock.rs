@@ -14,17 +14,21 @@
 //!   [`FootLockConfig::raise_height`], or wanders more than [`FootLockConfig::max_drift`] from the
 //!   anchor. A foot that only needs to move a little thus stays planted instead of popping. When the
 //!   leg cannot hold it on its anchor (IK misses it by more than [`FootLockConfig::hold_tolerance`]:
-//!   the body has moved beyond the leg's reach or joint limits), it lifts from where it is, as the
-//!   controllers' stance feet do, instead of being dragged along the ground. So does a planted leg
+//!   the body has moved beyond the leg's reach or joint limits), it steps at once, as the
+//!   controllers' stance feet do, instead of being dragged along the ground: in that same frame it is
+//!   lifted above the UFR's contact band and moved toward the network's foot as far as the leg needs
+//!   to reach it (a swing foot the leg cannot reach is moved the same way). So does a planted leg
 //!   that holding would cross into another body where the network's own pose keeps them clear (the
 //!   body turned above close-set legs): held there, the collision guard that follows would pull it
 //!   along the ground;
 //! - a lifted foot **swings**: for at least the character's natural swing time at its current speed
 //!   ([`crate::dynamic_similarity::swing_time`], never under [`FootLockConfig::min_swing_frames`]) it
 //!   rises along `H·16 s²(1−s)²` (H = [`FootLockConfig::swing_height`] × the leg length, higher with
-//!   speed as in the controllers, and at least as high as the network's foot has risen), moves toward
-//!   the network's foot along a minimum-jerk profile after the first fifth of the swing and before the
-//!   last, and comes down with zero vertical speed where the network's foot was when the descent began
+//!   speed as in the controllers, at least as high as the network's foot has risen, and high enough
+//!   for its middle frame to clear the UFR's contact band), moves toward the network's foot along a
+//!   minimum-jerk profile after the first fifth of the swing and before the last, and never between
+//!   two frames within the contact band (a low arc's first and last frames are, on a small
+//!   character), and comes down with zero vertical speed where the network's foot was when the descent began
 //!   (the landing point is then frozen, so a low foot never slides). It never teleports.
 //!   Before the descent it waits, hovering, while the network's foot is still high (at most another
 //!   swing time; then it follows the network's foot); it plants where it lands;
@@ -93,7 +97,7 @@ impl Default for FootLockConfig {
             swing_height: LegConfig::default().swing_height,
             blend_frames: 4,
             swing_clearance: 0.04,
-            hold_tolerance: 0.005,
+            hold_tolerance: 0.003,
         }
     }
 }
@@ -118,6 +122,9 @@ pub struct FootLock {
     config: FootLockConfig,
     body_length: f32,
     hip_height: f32,
+    /// The top of the UFR's contact band (m): a swing foot moves horizontally only between frames
+    /// one of which is above it.
+    band: f32,
     dt: f32,
 }
 
@@ -144,6 +151,9 @@ struct SwingState {
     landing: Option<nalgebra::Point2<f32>>,
     /// Peak height above the ground (m).
     height: f32,
+    /// Lifted above the contact band to keep up with the body ([`FootLock::reach_toward`]): it
+    /// stays above it until the descent, rather than dip back into it and out again (a pop).
+    raised: bool,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -163,10 +173,17 @@ pub struct FootLockScratch {
     pose: PoseScratch,
     /// The pairs of bodies colliding in the network's pose.
     raw_pairs: Vec<usize>,
+    /// The joints before a leg is solved.
+    net_q: Vec<f32>,
 }
 
 /// Fraction of a swing at each end without horizontal motion (as in the controllers).
 const EDGE: f32 = 0.2;
+/// A swing frame counts as above the contact band when it is this many times the band's height up
+/// (the IK's tolerance and the foot's tilt).
+const BAND_MARGIN: f32 = 1.1;
+/// A foot moved to keep up with the body is lifted this many times the contact band's height.
+const REACH_MARGIN: f32 = 1.3;
 /// Time constant of the root speed filter (s).
 const SPEED_TIME_CONSTANT: f32 = 0.2;
 
@@ -182,7 +199,8 @@ impl FootLock {
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, config: FootLockConfig) -> FootLock {
         let standing = tree.standing_pose();
         let links = tree.forward_kinematics(&standing);
-        let checks = PoseChecks::new(tree, morph, &UfrConfig::for_character(tree, morph));
+        let ufr = UfrConfig::for_character(tree, morph);
+        let checks = PoseChecks::new(tree, morph, &ufr);
         let legs: Vec<Leg> = morph
             .feet
             .iter()
@@ -216,6 +234,7 @@ impl FootLock {
             config,
             body_length: character_body_length(tree, morph),
             hip_height: hip_height(tree, morph).unwrap_or(mean_leg).max(1e-3),
+            band: ufr.ground_z + ufr.contact_height,
             dt: 1.0 / fps,
         }
     }
@@ -244,7 +263,7 @@ impl FootLock {
         if self.legs.is_empty() {
             return;
         }
-        let FootLockScratch { chain: scratch, pose: checked, raw_pairs } = scratch;
+        let FootLockScratch { chain: scratch, pose: checked, raw_pairs, net_q } = scratch;
         self.checks.place(tree, pose, checked);
         raw_pairs.clear();
         self.checks.collisions(checked, |i| raw_pairs.push(i));
@@ -288,32 +307,38 @@ impl FootLock {
                 }
                 None => {}
             }
+            // A swing's horizontal progress and goal this frame.
+            let mut progress = None;
             let mut target = match (mem.anchor, &mut mem.swing) {
                 (Some(a), _) => a,
                 (None, Some(sw)) => {
+                    // The arc rises at least as high as the network's foot has.
+                    sw.height = sw.height.max(height);
+                    let (k0, k1, hold_at) = self.moving_frames(sw, leg);
                     // Before coming down, wait (at most another swing time) for the network's foot to
                     // come low, hovering clear of the ground.
-                    let hold_at = ((1.0 - EDGE) * sw.frames as f32).floor() as usize;
                     let hold = sw.frame >= hold_at && !low && sw.held < sw.frames;
                     if hold {
                         sw.held += 1;
                     } else {
                         sw.frame += 1;
                     }
-                    // The arc rises at least as high as the network's foot has.
-                    sw.height = sw.height.max(height);
                     let s = sw.frame as f32 / sw.frames as f32;
-                    let u = min_jerk((s - EDGE) / (1.0 - 2.0 * EDGE));
+                    let u = min_jerk((sw.frame as f32 - k0) / (k1 - k0));
                     // The landing point is frozen for the descent, so that a low foot never slides.
-                    if s >= 1.0 - EDGE && !hold && sw.landing.is_none() {
+                    if sw.frame as f32 >= k1 && !hold && sw.landing.is_none() {
                         sw.landing = Some(tip.xy());
                     }
                     let goal = sw.landing.unwrap_or(tip.xy());
+                    progress = Some((u, goal));
                     let xy = sw.from.xy() + (goal - sw.from.xy()) * u;
                     let s2 = s * (1.0 - s);
                     let mut z = sw.height * 16.0 * s2 * s2;
                     if hold {
                         z = z.max(c.swing_clearance * l);
+                    }
+                    if sw.raised && (sw.frame as f32) < k1 {
+                        z = z.max(REACH_MARGIN * self.band - leg.ground);
                     }
                     let p = Point3::new(xy.x, xy.y, leg.ground + z);
                     if sw.frame >= sw.frames {
@@ -340,12 +365,33 @@ impl FootLock {
             target.z = target.z.max(leg.ground);
             if (target - tip).norm() > 1e-4 {
                 let local = to_root.transform_point(&target);
+                net_q.clone_from(&pose.q);
                 let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
-                if mem.anchor.is_some() && missed > c.hold_tolerance * l {
-                    // Out of the leg's reach: step from where the foot is rather than drag it.
-                    let at = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
-                    mem.anchor = None;
-                    mem.swing = Some(self.swing(at, swing_frames, leg, fr));
+                if missed > c.hold_tolerance * l {
+                    match (mem.anchor, &mut mem.swing) {
+                        (Some(a), _) => {
+                            // Out of the leg's reach (the body has moved on): the foot steps from
+                            // its anchor at once, rather than be dragged along the ground.
+                            mem.anchor = None;
+                            let mut sw = self.swing(a, swing_frames, leg, fr);
+                            sw.frame = 1;
+                            let s = 1.0 / sw.frames as f32;
+                            let lift = Point3::new(a.x, a.y, leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2));
+                            sw.from = self.reach_toward(tree, leg, pose, net_q, lift, tip, scratch);
+                            sw.raised = true;
+                            mem.swing = Some(sw);
+                        }
+                        (None, Some(sw)) => {
+                            let at = self.reach_toward(tree, leg, pose, net_q, target, tip, scratch);
+                            sw.raised = true;
+                            // The swing goes on from where the foot got to.
+                            if let Some((u, goal)) = progress.filter(|(u, _)| *u < 0.9) {
+                                let from = (at.xy() - goal * u) / (1.0 - u);
+                                sw.from = Point3::new(from.x, from.y, sw.from.z);
+                            }
+                        }
+                        (None, None) => {}
+                    }
                 }
             }
         }
@@ -371,15 +417,74 @@ impl FootLock {
         }
     }
 
-    /// A swing of `frames` frames lifting off from `from`, at Froude number `fr`.
+    /// Solves a leg whose foot cannot reach `target`, on the network's joints `net_q`, for the first
+    /// of four points from `target` toward the network's foot `toward` that it reaches (the last if
+    /// none), raised above the contact band: a foot that must move to keep up with the body moves
+    /// in the air, not along the ground. Returns where the foot is.
+    #[allow(clippy::too_many_arguments)]
+    fn reach_toward(
+        &self,
+        tree: &KinematicTree,
+        leg: &Leg,
+        pose: &mut CharacterPose,
+        net_q: &[f32],
+        target: Point3<f32>,
+        toward: Point3<f32>,
+        scratch: &mut ChainScratch,
+    ) -> Point3<f32> {
+        let z = target.z.max(REACH_MARGIN * self.band);
+        let to_root = pose.root.inverse();
+        for k in 1..=4 {
+            let xy = target.xy() + (toward.xy() - target.xy()) * (k as f32 / 4.0);
+            for d in leg.chain.active_dofs() {
+                pose.q[d] = net_q[d];
+            }
+            let local = to_root.transform_point(&Point3::new(xy.x, xy.y, z));
+            let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
+            if missed <= self.config.hold_tolerance * self.body_length {
+                break;
+            }
+        }
+        pose.root * leg.chain.tip_point(tree, &pose.q, scratch)
+    }
+
+    /// A swing of `frames` frames lifting off from `from`, at Froude number `fr`: at least high
+    /// enough for its middle frame to clear the contact band.
     fn swing(&self, from: Point3<f32>, frames: usize, leg: &Leg, fr: f32) -> SwingState {
+        let middle = (frames / 2) as f32 / frames as f32;
+        let clear = (BAND_MARGIN * self.band - leg.ground) / (16.0 * (middle * (1.0 - middle)).powi(2));
         SwingState {
             from,
             frame: 0,
             frames,
             held: 0,
             landing: None,
-            height: self.config.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0)),
+            raised: false,
+            height: (self.config.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0))).max(1.01 * clear),
+        }
+    }
+
+    /// The frames `(k0, k1)` between which a swing's foot moves horizontally, and the frame from
+    /// which it waits for the network's foot to come low. Not in its first and last fifth (it lifts
+    /// and comes down), and never between two frames of its arc within the contact band, where the
+    /// UFR would see a foot sliding on the ground (a short swing of a small character skims through
+    /// the band on its first and last frames): the descent then waits above the band.
+    fn moving_frames(&self, sw: &SwingState, leg: &Leg) -> (f32, f32, usize) {
+        let n = sw.frames;
+        let (edge0, edge1) = (EDGE * n as f32, (1.0 - EDGE) * n as f32);
+        let above = |k: usize| {
+            let s = k as f32 / n as f32;
+            leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2) >= BAND_MARGIN * self.band
+        };
+        // The arc is symmetric: the last frame above the band mirrors the first. A swing is made
+        // high enough for its middle frame to clear it.
+        let first = (1..n).find(|&k| above(k)).unwrap_or(n / 2).max(1);
+        let (last_in, first_out) = ((first - 1) as f32, (n - first + 1) as f32);
+        if last_in <= edge0 && first_out >= edge1 {
+            (edge0, edge1, edge1.floor() as usize)
+        } else {
+            let (k0, k1) = (edge0.max(last_in), edge1.min(first_out));
+            if k0 < k1 { (k0, k1, k1 as usize - 1) } else { (first_out - 2.0, first_out, first_out as usize - 1) }
         }
     }
 
@@ -580,11 +685,11 @@ mod tests {
         };
         let mut clean = raw.clone();
         FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
-        // Feet are held, then step as soon as the legs cannot hold them: none is dragged along the ground
-        // for more than the frame it is released in and the two it rises through the contact band in.
+        // Feet are held, then step as soon as the legs cannot hold them, through the air: none is
+        // dragged along the ground, not even in the frame it is released in.
         assert_eq!(longest_slide(&tree, &morph, &raw), 89);
         let longest = longest_slide(&tree, &morph, &clean);
-        assert!(longest <= 3, "a foot was dragged for {longest} frames");
+        assert_eq!(longest, 0, "a foot was dragged for {longest} frames");
         // They do step to keep up: each foot ends near the network's, not left behind.
         let last = |p: &CharacterPose| {
             let links = tree.forward_kinematics(p);
@@ -751,6 +856,60 @@ mod tests {
         let mut clean = raw.clone();
         FootLock::new(&tree, &morph, 30.0, FootLockConfig::default()).apply_all(&tree, &mut clean);
         assert_eq!(ufr(&tree, &morph, &clean, 30.0, &cfg).rates.sliding, 0.0);
+    }
+
+    #[test]
+    fn a_small_characters_low_swing_moves_only_above_the_contact_band() {
+        // The hound's swing arc (3.4 cm) is twice its contact band (1.7 cm): its second and
+        // second-to-last frames are within the band. The network's foot barely lifts and slides on
+        // once down, and the lock releases it when it has strayed (so the arc is not raised to the
+        // network's foot).
+        let (tree, morph) = hound();
+        let raw = sliding_step(&tree, &morph, 0.05, 0.08, 0.005);
+        let cfg = UfrConfig::for_character(&tree, &morph);
+        assert!(ufr(&tree, &morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
+        let mut clean = raw.clone();
+        let c = FootLockConfig { max_drift: 0.1, ..FootLockConfig::default() };
+        FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
+        let feet = first_foot(&tree, &morph, &clean);
+        let band = cfg.ground_z + cfg.contact_height;
+        let top = feet.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+        assert!(top > band && top < 3.0 * band, "the swing's top: {top} m");
+        let moving = feet.windows(2).filter(|w| (w[1] - w[0]).xy().norm() > 1e-4).count();
+        assert!(moving >= 3, "the foot hardly moved: {moving} frames");
+        assert_eq!(ufr(&tree, &morph, &clean, 30.0, &cfg).rates.sliding, 0.0, "{feet:?}");
+    }
+
+    #[test]
+    fn a_swing_never_moves_between_two_frames_within_the_contact_band() {
+        // Every swing length and height the hound's legs can take, from the lowest a swing is made,
+        // with its own swing height and one far below the band.
+        let (tree, morph) = hound();
+        for swing_height in [FootLockConfig::default().swing_height, 0.01] {
+            let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig { swing_height, ..FootLockConfig::default() });
+            for leg in &lock.legs {
+                for frames in 4..=16 {
+                    let lowest = lock.swing(Point3::origin(), frames, leg, 0.0);
+                    for scale in [1.0, 1.2, 1.5, 2.0, 4.0] {
+                        let sw = SwingState { height: lowest.height * scale, ..lowest };
+                        let (k0, k1, hold_at) = lock.moving_frames(&sw, leg);
+                        assert!(hold_at < frames && k0 < k1, "{frames} frames: {k0} {k1} {hold_at}");
+                        // As `apply` moves it: progress along the minimum-jerk profile, frozen from `k1`.
+                        let u = |k: usize| if k as f32 >= k1 { 1.0 } else { min_jerk((k as f32 - k0) / (k1 - k0)) };
+                        let z = |k: usize| {
+                            let s = k as f32 / frames as f32;
+                            leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2)
+                        };
+                        assert!((1..frames).any(|k| z(k) >= lock.band), "{frames} frames: never above the band");
+                        for k in 1..=frames {
+                            if z(k - 1) < lock.band && z(k) < lock.band {
+                                assert_eq!(u(k), u(k - 1), "{frames} frames, ×{scale}: moves from frame {} to {k} within the band", k - 1);
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]
