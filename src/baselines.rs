@@ -78,6 +78,43 @@ fn steps_done(dir: &Path, slug: &str) -> usize {
     }
 }
 
+/// Fails when the run in `run` was trained (or started) against another motion prior than the
+/// checkpoint in `ace_dir`'s: its copy of the prior (the weights, and `config.json` but for the
+/// provenance, which the copy re-serialises) differs. A finished run of an earlier prior would
+/// otherwise be scored as this checkpoint's baseline, against a dataset it never saw.
+fn same_prior(run: &Path, ace_dir: &Path) -> Result<()> {
+    use ace::models::input::{MAX_DATA_BYTES, read_regular, read_text};
+    let (weights, config) = (run.join("prior.safetensors"), run.join("config.json"));
+    if !weights.exists() && !config.exists() {
+        return Ok(());
+    }
+    let bytes = |p: &Path| read_regular(p, MAX_DATA_BYTES).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()));
+    let record = |p: &Path| -> Result<serde_json::Value> {
+        let text = read_text(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+        let mut v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))?;
+        if let Some(o) = v.as_object_mut() {
+            o.remove("provenance");
+        }
+        Ok(v)
+    };
+    let differs = if bytes(&weights)? != bytes(&ace_dir.join("prior.safetensors"))? {
+        Some("prior.safetensors")
+    } else if record(&config)? != record(&ace_dir.join("config.json"))? {
+        Some("config.json")
+    } else {
+        None
+    };
+    if let Some(file) = differs {
+        anyhow::bail!(
+            "{}: this baseline was trained against another motion prior than {}'s ({file} differs); \
+             remove the folder to train it again, or give --runs another folder",
+            run.display(),
+            ace_dir.display()
+        );
+    }
+    Ok(())
+}
+
 /// Trains every baseline of the checkpoint in `ace_dir` that `runs` does not hold finished (with
 /// progress and wall times), then loads them all, in [`BASELINES`] order.
 pub fn train_missing(
@@ -90,6 +127,9 @@ pub fn train_missing(
 ) -> Result<Vec<(&'static str, Baseline)>> {
     let record = read_record(ace_dir).with_context(|| format!("{}: no ACE checkpoint to compare with", ace_dir.display()))?;
     let ace_cfg = &record.config;
+    for (_, slug) in BASELINES {
+        same_prior(&runs.join(slug), ace_dir)?;
+    }
     let missing: Vec<(&str, &str)> = BASELINES
         .into_iter()
         .filter(|(_, slug)| {

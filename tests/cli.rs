@@ -483,6 +483,17 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     // A second run finds the baselines trained.
     let stdout = run(&compare);
     assert!(!stdout.contains("trained in"), "{stdout}");
+    // Runs trained against another prior (here: its normalisation edited) are not scored as this
+    // checkpoint's baselines, and are left as they are.
+    let nkn_prior = runs.join("nkn/config.json");
+    let mut record: Value = serde_json::from_slice(&std::fs::read(&nkn_prior).unwrap()).unwrap();
+    record["mean"][0] = (record["mean"][0].as_f64().unwrap() + 0.5).into();
+    let text = serde_json::to_vec_pretty(&record).unwrap();
+    std::fs::write(&nkn_prior, &text).unwrap();
+    let out = ace(&compare);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains(&s(&runs.join("nkn"))) && err.contains("another motion prior"), "{err}");
+    assert_eq!(std::fs::read(&nkn_prior).unwrap(), text);
 
     // A checkpoint of another character is refused with the directory named.
     let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "crab", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))]);

@@ -154,6 +154,20 @@ struct SwingState {
     /// Lifted above the contact band to keep up with the body ([`FootLock::reach_toward`]): it
     /// stays above it until the descent, rather than dip back into it and out again (a pop).
     raised: bool,
+    /// Its horizontal progress (0 at `from`, 1 at `goal`) and goal on the last frame.
+    progress: f32,
+    goal: nalgebra::Point2<f32>,
+}
+
+impl SwingState {
+    /// Goes on from `at`, where the foot was moved to: the rest of the way to the goal starts there.
+    fn go_on_from(&mut self, at: Point3<f32>) {
+        self.raised = true;
+        if self.progress < 0.9 {
+            let from = (at.xy() - self.goal * self.progress) / (1.0 - self.progress);
+            self.from = Point3::new(from.x, from.y, self.from.z);
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -173,8 +187,10 @@ pub struct FootLockScratch {
     pose: PoseScratch,
     /// The pairs of bodies colliding in the network's pose.
     raw_pairs: Vec<usize>,
-    /// The joints before a leg is solved.
-    net_q: Vec<f32>,
+    /// The network's joints this frame.
+    raw_q: Vec<f32>,
+    /// The network's foot points this frame.
+    raw_tips: Vec<Point3<f32>>,
 }
 
 /// Fraction of a swing at each end without horizontal motion (as in the controllers).
@@ -263,7 +279,9 @@ impl FootLock {
         if self.legs.is_empty() {
             return;
         }
-        let FootLockScratch { chain: scratch, pose: checked, raw_pairs, net_q } = scratch;
+        let FootLockScratch { chain: scratch, pose: checked, raw_pairs, raw_q, raw_tips } = scratch;
+        raw_q.clone_from(&pose.q);
+        raw_tips.clear();
         self.checks.place(tree, pose, checked);
         raw_pairs.clear();
         self.checks.collisions(checked, |i| raw_pairs.push(i));
@@ -283,6 +301,7 @@ impl FootLock {
         let to_root = pose.root.inverse();
         for (leg, mem) in self.legs.iter().zip(&mut state.feet) {
             let tip = links[leg.chain.tip].transform_point(&Point3::from(leg.chain.tip_offset));
+            raw_tips.push(tip);
             let speed = mem.prev.map_or(0.0, |p| (tip - p).xy().norm() / self.dt);
             mem.prev = Some(tip);
             let height = tip.z - leg.ground;
@@ -307,8 +326,6 @@ impl FootLock {
                 }
                 None => {}
             }
-            // A swing's horizontal progress and goal this frame.
-            let mut progress = None;
             let mut target = match (mem.anchor, &mut mem.swing) {
                 (Some(a), _) => a,
                 (None, Some(sw)) => {
@@ -330,7 +347,7 @@ impl FootLock {
                         sw.landing = Some(tip.xy());
                     }
                     let goal = sw.landing.unwrap_or(tip.xy());
-                    progress = Some((u, goal));
+                    (sw.progress, sw.goal) = (u, goal);
                     let xy = sw.from.xy() + (goal - sw.from.xy()) * u;
                     let s2 = s * (1.0 - s);
                     let mut z = sw.height * 16.0 * s2 * s2;
@@ -365,9 +382,9 @@ impl FootLock {
             target.z = target.z.max(leg.ground);
             if (target - tip).norm() > 1e-4 {
                 let local = to_root.transform_point(&target);
-                net_q.clone_from(&pose.q);
                 let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
-                if missed > c.hold_tolerance * l {
+                let hold = c.hold_tolerance * l;
+                if missed > hold {
                     match (mem.anchor, &mut mem.swing) {
                         (Some(a), _) => {
                             // Out of the leg's reach (the body has moved on): the foot steps from
@@ -375,30 +392,35 @@ impl FootLock {
                             mem.anchor = None;
                             let mut sw = self.swing(a, swing_frames, leg, fr);
                             sw.frame = 1;
-                            let s = 1.0 / sw.frames as f32;
-                            let lift = Point3::new(a.x, a.y, leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2));
-                            sw.from = self.reach_toward(tree, leg, pose, net_q, lift, tip, scratch);
-                            sw.raised = true;
+                            let lift = self.lift(&sw, a, leg);
+                            let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, |_, m| m <= hold);
+                            sw.go_on_from(at);
                             mem.swing = Some(sw);
                         }
                         (None, Some(sw)) => {
-                            let at = self.reach_toward(tree, leg, pose, net_q, target, tip, scratch);
-                            sw.raised = true;
-                            // The swing goes on from where the foot got to.
-                            if let Some((u, goal)) = progress.filter(|(u, _)| *u < 0.9) {
-                                let from = (at.xy() - goal * u) / (1.0 - u);
-                                sw.from = Point3::new(from.x, from.y, sw.from.z);
-                            }
+                            let at = self.reach_toward(tree, leg, pose, raw_q, target, tip, scratch, |_, m| m <= hold);
+                            sw.go_on_from(at);
                         }
                         (None, None) => {}
                     }
                 }
             }
         }
-        // A planted leg held into another body (a pair the network's own pose keeps clear: the body
-        // turned above crossed front legs, a hind leg into the tail) steps, as the animal would, rather
-        // than be held there for the collision guard to pull along the ground.
-        if state.feet.iter().any(|m| m.anchor.is_some()) {
+        // A leg the lock holds into another body (a pair the network's own pose keeps clear: the body
+        // turned above crossed front legs, a hind leg into the tail, the body moving on over a foot
+        // still lifting off) steps toward the network's foot at once, as the animal would, rather
+        // than stay there for the collision guard to pull along the ground.
+        if state.feet.iter().any(|m| m.anchor.is_some() || m.swing.is_some()) {
+            let crossing = |checked: &mut PoseScratch, pose: &CharacterPose, bodies: &[usize]| {
+                self.checks.place(tree, pose, checked);
+                let pairs = self.checks.self_collision().pairs();
+                let mut crossed = false;
+                self.checks.collisions(checked, |i| {
+                    let (x, y) = pairs[i];
+                    crossed |= !raw_pairs.contains(&i) && (bodies.contains(&x) || bodies.contains(&y));
+                });
+                crossed
+            };
             self.checks.place(tree, pose, checked);
             let pairs = self.checks.self_collision().pairs();
             let mut crossed: Vec<(usize, usize)> = Vec::new();
@@ -407,45 +429,69 @@ impl FootLock {
                     crossed.push(pairs[i]);
                 }
             });
-            for (leg, mem) in self.legs.iter().zip(&mut state.feet) {
-                let Some(a) = mem.anchor else { continue };
-                if crossed.iter().any(|(x, y)| leg.bodies.contains(x) || leg.bodies.contains(y)) {
-                    mem.anchor = None;
-                    mem.swing = Some(self.swing(a, swing_frames, leg, fr));
+            for ((leg, mem), &tip) in self.legs.iter().zip(&mut state.feet).zip(raw_tips.iter()) {
+                let held = mem.anchor.is_some() || mem.swing.is_some();
+                if !held || !crossed.iter().any(|(x, y)| leg.bodies.contains(x) || leg.bodies.contains(y)) {
+                    continue;
+                }
+                let mut clear = |p: &CharacterPose, _: f32| !crossing(checked, p, &leg.bodies);
+                match (mem.anchor, &mut mem.swing) {
+                    (Some(a), _) => {
+                        mem.anchor = None;
+                        let mut sw = self.swing(a, swing_frames, leg, fr);
+                        sw.frame = 1;
+                        let lift = self.lift(&sw, a, leg);
+                        let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, &mut clear);
+                        sw.go_on_from(at);
+                        mem.swing = Some(sw);
+                    }
+                    (None, Some(sw)) => {
+                        let now = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
+                        let at = self.reach_toward(tree, leg, pose, raw_q, now, tip, scratch, &mut clear);
+                        sw.go_on_from(at);
+                    }
+                    (None, None) => {}
                 }
             }
         }
     }
 
-    /// Solves a leg whose foot cannot reach `target`, on the network's joints `net_q`, for the first
-    /// of four points from `target` toward the network's foot `toward` that it reaches (the last if
-    /// none), raised above the contact band: a foot that must move to keep up with the body moves
-    /// in the air, not along the ground. Returns where the foot is.
+    /// Solves a leg from the network's joints `raw_q` for points a quarter, half, three quarters and
+    /// all of the way from `target` toward the network's foot `toward`, raised above the contact
+    /// band, until `done(pose, IK miss)`: a foot that must move to keep up with the body moves in
+    /// the air, not along the ground. Returns where the foot is.
     #[allow(clippy::too_many_arguments)]
     fn reach_toward(
         &self,
         tree: &KinematicTree,
         leg: &Leg,
         pose: &mut CharacterPose,
-        net_q: &[f32],
+        raw_q: &[f32],
         target: Point3<f32>,
         toward: Point3<f32>,
         scratch: &mut ChainScratch,
+        mut done: impl FnMut(&CharacterPose, f32) -> bool,
     ) -> Point3<f32> {
         let z = target.z.max(REACH_MARGIN * self.band);
         let to_root = pose.root.inverse();
         for k in 1..=4 {
             let xy = target.xy() + (toward.xy() - target.xy()) * (k as f32 / 4.0);
             for d in leg.chain.active_dofs() {
-                pose.q[d] = net_q[d];
+                pose.q[d] = raw_q[d];
             }
             let local = to_root.transform_point(&Point3::new(xy.x, xy.y, z));
             let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
-            if missed <= self.config.hold_tolerance * self.body_length {
+            if done(pose, missed) {
                 break;
             }
         }
         pose.root * leg.chain.tip_point(tree, &pose.q, scratch)
+    }
+
+    /// Where swing `sw` lifting off from `from` is on its frame.
+    fn lift(&self, sw: &SwingState, from: Point3<f32>, leg: &Leg) -> Point3<f32> {
+        let s = sw.frame as f32 / sw.frames as f32;
+        Point3::new(from.x, from.y, leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2))
     }
 
     /// A swing of `frames` frames lifting off from `from`, at Froude number `fr`: at least high
@@ -460,6 +506,8 @@ impl FootLock {
             held: 0,
             landing: None,
             raised: false,
+            progress: 0.0,
+            goal: from.xy(),
             height: (self.config.swing_height * leg.length * (0.7 + 0.3 * fr.min(1.0))).max(1.01 * clear),
         }
     }
