@@ -20,12 +20,20 @@ pub struct DatasetArgs {
     pub report: Option<PathBuf>,
 }
 
-/// A dataset configuration file (TOML, any subset of [`DatasetConfig`]); errors name the file.
+/// A dataset configuration file (TOML, any subset of [`DatasetConfig`]); errors name the file. Its
+/// values are checked by [`check_with_options`] once the command line's are applied.
 pub fn read_config(path: &Path) -> Result<DatasetConfig> {
     let text = crate::train::read_text(path)?;
-    let cfg = toml::from_str::<DatasetConfig>(&text).with_context(|| format!("{}: invalid dataset configuration", path.display()))?;
-    check_config(&cfg).with_context(|| path.display().to_string())?;
-    Ok(cfg)
+    toml::from_str::<DatasetConfig>(&text).with_context(|| format!("{}: invalid dataset configuration", path.display()))
+}
+
+/// Checks a dataset configuration read from `file` (if any) with the command-line options applied,
+/// naming the file.
+pub fn check_with_options(cfg: &DatasetConfig, file: Option<&Path>) -> Result<()> {
+    check_config(cfg).with_context(|| match file {
+        Some(p) => format!("{} (with the command-line options)", p.display()),
+        None => "the command-line options".to_string(),
+    })
 }
 
 /// Runs `ace dataset`.
@@ -47,7 +55,8 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         cfg.seed = s;
     }
     // Bounds and outputs are checked before any work.
-    check_config(&cfg).and_then(|()| check_budget(&cfg, &tree, &morph)).with_context(|| match &args.config {
+    check_with_options(&cfg, args.config.as_deref())?;
+    check_budget(&cfg, &tree, &morph).with_context(|| match &args.config {
         Some(p) => format!("{} (with the command-line options)", p.display()),
         None => "the command-line options".to_string(),
     })?;

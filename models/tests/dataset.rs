@@ -467,15 +467,19 @@ fn arms_make_small_and_large_moves_at_varied_speeds_within_their_velocity_limits
     assert!(small > 0.45, "{:.0} % of {} lift moves are under 15 % of its range", 100.0 * small, moves.len());
 }
 
-/// The shipped crab and Stretch priors' recorded dataset configurations regenerate their datasets
-/// exactly (the normalisation statistics in `config.json` were computed from the very dataset they
-/// were trained on), so that a change to the generator that would make `ace train` and the editor's
-/// Retrain refuse a shipped checkpoint is caught here. (The shipped Spot and hound were trained on
-/// datasets of earlier generators and no longer regenerate.)
+/// The shipped Spot, crab and Stretch priors' recorded dataset configurations regenerate their
+/// datasets exactly (the normalisation statistics in `config.json` were computed from the very
+/// dataset they were trained on), so that a change to the generator that would make `ace train` and
+/// the editor's Retrain refuse a shipped checkpoint is caught here. (The shipped hound was trained on
+/// a dataset of an earlier generator and no longer regenerates.)
 #[test]
 fn shipped_priors_regenerate_their_datasets() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    for (name, file) in [("crab", "assets/characters/crab.urdf"), ("stretch", "assets/characters/stretch.urdf")] {
+    for (name, file) in [
+        ("spot", "assets/characters/spot.urdf"),
+        ("crab", "assets/characters/crab.urdf"),
+        ("stretch", "assets/characters/stretch.urdf"),
+    ] {
         let text = std::fs::read_to_string(root.join(format!("assets/checkpoints/{name}/config.json"))).unwrap();
         let record: serde_json::Value = serde_json::from_str(&text).unwrap();
         let cfg = DatasetConfig::from_record(record["provenance"]["dataset"]["config"].clone()).unwrap();
