@@ -996,8 +996,8 @@ fn a_prior_config_with_absurd_means_bounds_or_mask_is_refused_naming_it() {
          "`mean` entry 2 is 1000.5; a state entry's mean is finite and at most 1000 in magnitude"),
         ("swapped", |v| { v["bounds"]["lo"][4] = serde_json::json!(2.0); v["bounds"]["hi"][4] = serde_json::json!(-2.0); },
          "`bounds` entry 4 is [2, -2]; each entry's bounds are finite, with `lo` ≤ `hi`"),
-        ("infinite-bound", |v| v["bounds"]["hi"][4] = serde_json::json!(1e39),
-         "`bounds` entry 4 is [-1.7834841, inf]; each entry's bounds are finite, with `lo` ≤ `hi`"),
+        ("infinite-bound", |v| { v["bounds"]["lo"][4] = serde_json::json!(-2.0); v["bounds"]["hi"][4] = serde_json::json!(1e39); },
+         "`bounds` entry 4 is [-2, inf]; each entry's bounds are finite, with `lo` ≤ `hi`"),
         ("mask", |v| v["mask"][1] = serde_json::json!(0.5), "`mask` entry 1 is 0.5; the mask holds 0 or 1"),
         ("mask-negative", |v| v["mask"][1] = serde_json::json!(-1.0), "`mask` entry 1 is -1; the mask holds 0 or 1"),
     ];
