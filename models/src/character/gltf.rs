@@ -886,10 +886,33 @@ pub fn open_bytes(
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(fail(GltfProblem::TooLarge(bytes.len() as u64)));
     }
-    let gltf =
-        ::gltf::Gltf::from_slice(bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
-    let buffers = read_buffers(&gltf.document, path, gltf.blob, file)?;
-    Ok((gltf.document, buffers))
+    let parse = |e: ::gltf::Error| fail(GltfProblem::Parse(e.to_string()));
+    let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
+    check_position_accessors(unchecked.document.as_json()).map_err(fail)?;
+    let document = ::gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    let buffers = read_buffers(&document, path, unchecked.blob, file)?;
+    Ok((document, buffers))
+}
+
+/// Every primitive's `POSITION` accessor exists: the `gltf` crate's validation reads it before it
+/// checks that (and panics on a file whose index is out of range).
+fn check_position_accessors(root: &::gltf::json::Root) -> Result<(), GltfProblem> {
+    use ::gltf::json::mesh::Semantic;
+    use ::gltf::json::validation::Checked;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(i) = primitive.attributes.get(&Checked::Valid(Semantic::Positions))
+                && i.value() >= root.accessors.len()
+            {
+                return Err(GltfProblem::Parse(format!(
+                    "meshes[{m}].primitives[{p}].attributes.POSITION names accessor {}, but the file has {}",
+                    i.value(),
+                    root.accessors.len()
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every buffer's bytes, with errors that name the buffer and its URI.
@@ -1086,6 +1109,17 @@ pub fn fit_capsule(points: &[Point3<f32>], along: Option<Vector3<f32>>) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_primitive_naming_a_missing_position_accessor_is_refused() {
+        // Found by fuzzing: the `gltf` crate's validation indexed the accessor and panicked.
+        let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":3}}]}]}"#;
+        let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
+        assert!(
+            e.starts_with("bad.gltf: ") && e.contains("meshes[0].primitives[0].attributes.POSITION names accessor 3, but the file has 0"),
+            "{e}"
+        );
+    }
 
     /// The capsule's axis in the frame of the points.
     fn axis(g: &Geometry) -> Vector3<f32> {
