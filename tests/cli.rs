@@ -171,10 +171,11 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
         // paper's 3 % (the README's promise; the networks' raw output is above 90 %).
         assert!(m["ufr"]["rates"]["ufr"].as_f64().unwrap() <= 0.03, "{r}");
         let c = r["character"].as_str().unwrap().to_string();
-        // Stretch's arm and the crab's right claw follow the hand the bundled wave clip raises
-        // (0.93 and 0.98 when shipped).
+        // Stretch's arm, Spot's arm and the crab's right claw follow the hand the bundled wave clip
+        // raises (0.93, 0.93 and 0.95 when shipped).
         let follower = match c.as_str() {
             "stretch" => Some("grasp_center"),
+            "spot" => Some("gripper_tip"),
             "crab" => Some("arm_r_claw_tip"),
             _ => None,
         };

@@ -890,8 +890,72 @@ pub fn open_bytes(
     let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
     check_position_accessors(unchecked.document.as_json()).map_err(fail)?;
     let document = ::gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    check_accessor_types(&document).map_err(fail)?;
     let buffers = read_buffers(&document, path, unchecked.blob, file)?;
     Ok((document, buffers))
+}
+
+/// The accessors a creature is read from have the types the glTF specification gives them (a vertex
+/// position three floats, a joint set four small integers, an animation's times scalar floats, …),
+/// and their buffer views' strides hold a whole element: the `gltf` crate reads them as those types,
+/// asserting it in debug builds and reading garbage otherwise.
+fn check_accessor_types(doc: &::gltf::Document) -> Result<(), GltfProblem> {
+    use ::gltf::Semantic;
+    use ::gltf::accessor::{DataType, DataType::*, Dimensions, Dimensions::*};
+    use ::gltf::animation::Property;
+    let check = |a: ::gltf::Accessor, what: &dyn Fn() -> String, dims: Dimensions, types: &[DataType]| {
+        if a.dimensions() != dims || !types.contains(&a.data_type()) {
+            return Err(GltfProblem::Parse(format!(
+                "{}: accessor {} holds {:?} of {:?}; expected {dims:?} of {}",
+                what(),
+                a.index(),
+                a.dimensions(),
+                a.data_type(),
+                types.iter().map(|t| format!("{t:?}")).collect::<Vec<_>>().join(" or ")
+            )));
+        }
+        match a.view().and_then(|v| v.stride()) {
+            Some(stride) if stride < a.size() => Err(GltfProblem::Parse(format!(
+                "{}: accessor {}'s buffer view strides {stride} bytes, less than its {}-byte elements",
+                what(),
+                a.index(),
+                a.size()
+            ))),
+            _ => Ok(()),
+        }
+    };
+    for mesh in doc.meshes() {
+        for p in mesh.primitives() {
+            for (semantic, a) in p.attributes() {
+                let what = || format!("meshes[{}].primitives[{}].attributes.{}", mesh.index(), p.index(), semantic.to_string());
+                match semantic {
+                    Semantic::Positions => check(a, &what, Vec3, &[F32])?,
+                    Semantic::Joints(_) => check(a, &what, Vec4, &[U8, U16])?,
+                    Semantic::Weights(_) => check(a, &what, Vec4, &[F32, U8, U16])?,
+                    _ => {}
+                }
+            }
+        }
+    }
+    for skin in doc.skins() {
+        if let Some(a) = skin.inverse_bind_matrices() {
+            check(a, &|| format!("skins[{}].inverseBindMatrices", skin.index()), Mat4, &[F32])?;
+        }
+    }
+    for anim in doc.animations() {
+        for ch in anim.channels() {
+            let sampler = ch.sampler();
+            let what = |end: &str| format!("animations[{}].samplers[{}].{end}", anim.index(), sampler.index());
+            check(sampler.input(), &|| what("input"), Scalar, &[F32])?;
+            let (dims, types): (Dimensions, &[DataType]) = match ch.target().property() {
+                Property::Translation | Property::Scale => (Vec3, &[F32]),
+                Property::Rotation => (Vec4, &[F32, I8, U8, I16, U16]),
+                Property::MorphTargetWeights => (Scalar, &[F32, I8, U8, I16, U16]),
+            };
+            check(sampler.output(), &|| what("output"), dims, types)?;
+        }
+    }
+    Ok(())
 }
 
 /// Every primitive's `POSITION` accessor exists: the `gltf` crate's validation reads it before it
@@ -1109,6 +1173,50 @@ pub fn fit_capsule(points: &[Point3<f32>], along: Option<Vector3<f32>>) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bundled hound with its JSON edited by `edit`, as a `.glb`'s bytes.
+    fn edited_hound(edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
+        let glb = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb")).unwrap();
+        let n = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + n]).unwrap();
+        edit(&mut json);
+        let mut text = serde_json::to_vec(&json).unwrap();
+        while text.len() % 4 != 0 {
+            text.push(b' ');
+        }
+        let bin = &glb[20 + n..];
+        let mut out = b"glTF".to_vec();
+        out.extend(2u32.to_le_bytes());
+        out.extend(((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
+        out.extend((text.len() as u32).to_le_bytes());
+        out.extend(b"JSON");
+        out.extend(text);
+        out.extend(bin);
+        out
+    }
+
+    #[test]
+    fn accessors_of_the_wrong_type_are_refused_naming_them() {
+        // Found by fuzzing: the `gltf` crate asserts the element size when it reads (debug builds).
+        let open = |bytes: &[u8]| open_bytes(bytes, Path::new("hound.glb"), &|_| Err("no files".into())).map(|_| ());
+        assert!(open(&edited_hound(|_| {})).is_ok());
+        // Vertex joints read from the inverse bind matrices' accessor (5: MAT4).
+        let e = open(&edited_hound(|j| j["meshes"][0]["primitives"][0]["attributes"]["JOINTS_0"] = 5.into())).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "hound.glb: malformed glTF: meshes[0].primitives[0].attributes.JOINTS_0: accessor 5 holds Mat4 of F32; expected Vec4 of U8 or U16"
+        );
+        // An animation whose times are the vertex positions (accessor 0: VEC3).
+        let e = open(&edited_hound(|j| {
+            j["animations"] = serde_json::json!([{
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+                "samplers": [{"input": 0, "output": 1}]
+            }]);
+        }))
+        .unwrap_err()
+        .to_string();
+        assert_eq!(e, "hound.glb: malformed glTF: animations[0].samplers[0].input: accessor 0 holds Vec3 of F32; expected Scalar of F32");
+    }
 
     #[test]
     fn a_primitive_naming_a_missing_position_accessor_is_refused() {
