@@ -888,7 +888,7 @@ pub fn open_bytes(
     }
     let parse = |e: ::gltf::Error| fail(GltfProblem::Parse(e.to_string()));
     let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
-    check_position_accessors(unchecked.document.as_json()).map_err(fail)?;
+    check_what_validation_misses(unchecked.document.as_json()).map_err(fail)?;
     let document = ::gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
     check_accessor_types(&document).map_err(fail)?;
     let buffers = read_buffers(&document, path, unchecked.blob, file)?;
@@ -958,13 +958,35 @@ fn check_accessor_types(doc: &::gltf::Document) -> Result<(), GltfProblem> {
     Ok(())
 }
 
-/// Every primitive's `POSITION` accessor exists: the `gltf` crate's validation reads it before it
-/// checks that (and panics on a file whose index is out of range).
-fn check_position_accessors(root: &::gltf::json::Root) -> Result<(), GltfProblem> {
+/// What the `gltf` crate's validation reads before checking, or does not check, and its accessors
+/// then unwrap (a panic on a bad file): every primitive's attributes are ones glTF knows and its
+/// `POSITION` accessor exists, and every animation channel targets a node that exists with a
+/// property glTF knows.
+fn check_what_validation_misses(root: &::gltf::json::Root) -> Result<(), GltfProblem> {
     use ::gltf::json::mesh::Semantic;
     use ::gltf::json::validation::Checked;
+    for (a, anim) in root.animations.iter().enumerate() {
+        for (c, ch) in anim.channels.iter().enumerate() {
+            let at = format!("animations[{a}].channels[{c}].target");
+            if ch.target.node.value() >= root.nodes.len() {
+                return Err(GltfProblem::Parse(format!(
+                    "{at}.node names node {}, but the file has {}",
+                    ch.target.node.value(),
+                    root.nodes.len()
+                )));
+            }
+            if let Checked::Invalid = ch.target.path {
+                return Err(GltfProblem::Parse(format!(
+                    "{at}.path is not translation, rotation, scale or weights"
+                )));
+            }
+        }
+    }
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if primitive.attributes.keys().any(|k| matches!(k, Checked::Invalid)) {
+                return Err(GltfProblem::Parse(format!("meshes[{m}].primitives[{p}].attributes names an attribute glTF does not know")));
+            }
             if let Some(i) = primitive.attributes.get(&Checked::Valid(Semantic::Positions))
                 && i.value() >= root.accessors.len()
             {
@@ -1219,6 +1241,29 @@ mod tests {
     }
 
     #[test]
+    fn an_animation_channel_with_a_bad_target_is_refused() {
+        // Found by fuzzing: the `gltf` crate does not validate channel targets and unwraps them.
+        let open = |bytes: &[u8]| open_bytes(bytes, Path::new("hound.glb"), &|_| Err("no files".into())).map(|_| ()).unwrap_err().to_string();
+        let animation = |target: serde_json::Value| {
+            edited_hound(move |j| {
+                j["accessors"].as_array_mut().unwrap().push(serde_json::json!({"componentType": 5126, "count": 1, "type": "SCALAR"}));
+                j["animations"] = serde_json::json!([{
+                    "channels": [{"sampler": 0, "target": target}],
+                    "samplers": [{"input": 6, "output": 6}]
+                }]);
+            })
+        };
+        assert_eq!(
+            open(&animation(serde_json::json!({"node": 0, "path": "wobble"}))),
+            "hound.glb: malformed glTF: animations[0].channels[0].target.path is not translation, rotation, scale or weights"
+        );
+        assert_eq!(
+            open(&animation(serde_json::json!({"node": 99, "path": "rotation"}))),
+            "hound.glb: malformed glTF: animations[0].channels[0].target.node names node 99, but the file has 22"
+        );
+    }
+
+    #[test]
     fn a_primitive_naming_a_missing_position_accessor_is_refused() {
         // Found by fuzzing: the `gltf` crate's validation indexed the accessor and panicked.
         let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":3}}]}]}"#;
@@ -1227,6 +1272,9 @@ mod tests {
             e.starts_with("bad.gltf: ") && e.contains("meshes[0].primitives[0].attributes.POSITION names accessor 3, but the file has 0"),
             "{e}"
         );
+        let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"WOBBLE":0}}]}]}"#;
+        let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
+        assert!(e.contains("meshes[0].primitives[0].attributes names an attribute glTF does not know"), "{e}");
     }
 
     /// The capsule's axis in the frame of the points.
