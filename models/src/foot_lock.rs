@@ -894,15 +894,27 @@ mod tests {
         );
     }
 
+    /// [`sliding_step`] (which must slide by the UFR's rule) cleaned with `config`, and the UFR's
+    /// thresholds.
+    fn cleaned_sliding_step(
+        tree: &KinematicTree,
+        morph: &Morphology,
+        (lift, forward, slide): (f32, f32, f32),
+        config: FootLockConfig,
+    ) -> (Vec<CharacterPose>, UfrConfig) {
+        let raw = sliding_step(tree, morph, lift, forward, slide);
+        let cfg = UfrConfig::for_character(tree, morph);
+        assert!(ufr(tree, morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
+        let mut clean = raw;
+        FootLock::new(tree, morph, 30.0, config).apply_all(tree, &mut clean);
+        (clean, cfg)
+    }
+
     #[test]
     fn a_swinging_foot_comes_down_without_sliding_where_the_network_foot_slides() {
         let (tree, morph) = spot();
         // The network's foot slides at 0.15 L/s once down: 1.5 times the UFR's sliding speed.
-        let raw = sliding_step(&tree, &morph, 0.1, 0.3, 0.005);
-        let cfg = UfrConfig::for_character(&tree, &morph);
-        assert!(ufr(&tree, &morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
-        let mut clean = raw.clone();
-        FootLock::new(&tree, &morph, 30.0, FootLockConfig::default()).apply_all(&tree, &mut clean);
+        let (clean, cfg) = cleaned_sliding_step(&tree, &morph, (0.1, 0.3, 0.005), FootLockConfig::default());
         assert_eq!(ufr(&tree, &morph, &clean, 30.0, &cfg).rates.sliding, 0.0);
     }
 
@@ -913,12 +925,8 @@ mod tests {
         // once down, and the lock releases it when it has strayed (so the arc is not raised to the
         // network's foot).
         let (tree, morph) = hound();
-        let raw = sliding_step(&tree, &morph, 0.05, 0.08, 0.005);
-        let cfg = UfrConfig::for_character(&tree, &morph);
-        assert!(ufr(&tree, &morph, &raw, 30.0, &cfg).rates.sliding > 0.5);
-        let mut clean = raw.clone();
         let c = FootLockConfig { max_drift: 0.1, ..FootLockConfig::default() };
-        FootLock::new(&tree, &morph, 30.0, c).apply_all(&tree, &mut clean);
+        let (clean, cfg) = cleaned_sliding_step(&tree, &morph, (0.05, 0.08, 0.005), c);
         let feet = first_foot(&tree, &morph, &clean);
         let band = cfg.ground_z + cfg.contact_height;
         let top = feet.iter().map(|p| p.z).fold(f32::MIN, f32::max);
