@@ -886,6 +886,15 @@ pub fn open_bytes(
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(fail(GltfProblem::TooLarge(bytes.len() as u64)));
     }
+    // The `gltf` crate subtracts the header's 12 bytes from the length a GLB declares before it checks it.
+    if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
+        let declared = u32::from_le_bytes(declared.try_into().expect("four bytes"));
+        if declared < 12 {
+            return Err(fail(GltfProblem::Parse(format!(
+                "the GLB header declares a length of {declared} bytes, less than its own 12"
+            ))));
+        }
+    }
     let parse = |e: ::gltf::Error| fail(GltfProblem::Parse(e.to_string()));
     let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
     check_what_validation_misses(unchecked.document.as_json()).map_err(fail)?;
@@ -1272,6 +1281,9 @@ mod tests {
             e.starts_with("bad.gltf: ") && e.contains("meshes[0].primitives[0].attributes.POSITION names accessor 3, but the file has 0"),
             "{e}"
         );
+        let glb = [b"glTF".as_slice(), &2u32.to_le_bytes(), &4u32.to_le_bytes()].concat();
+        let e = open_bytes(&glb, Path::new("bad.glb"), &|_| Err("no files".into())).unwrap_err().to_string();
+        assert!(e.contains("the GLB header declares a length of 4 bytes, less than its own 12"), "{e}");
         let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"WOBBLE":0}}]}]}"#;
         let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
         assert!(e.contains("meshes[0].primitives[0].attributes names an attribute glTF does not know"), "{e}");
