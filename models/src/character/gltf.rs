@@ -1273,7 +1273,7 @@ mod tests {
     }
 
     #[test]
-    fn a_primitive_naming_a_missing_position_accessor_is_refused() {
+    fn malformed_files_the_gltf_crate_would_panic_on_are_refused() {
         // Found by fuzzing: the `gltf` crate's validation indexed the accessor and panicked.
         let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":3}}]}]}"#;
         let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
