@@ -950,6 +950,9 @@ mod tests {
                         let sw = SwingState { height: lowest.height * scale, ..lowest };
                         let (k0, k1, hold_at) = lock.moving_frames(&sw, leg);
                         assert!(hold_at < frames && k0 < k1, "{frames} frames: {k0} {k1} {hold_at}");
+                        // The first and last fifths lift and come down without moving on.
+                        let n = frames as f32;
+                        assert!(k0 >= EDGE * n - 1e-4 && k1 <= (1.0 - EDGE) * n + 1e-4, "{frames} frames: {k0} {k1}");
                         // As `apply` moves it: progress along the minimum-jerk profile, frozen from `k1`.
                         let u = |k: usize| if k as f32 >= k1 { 1.0 } else { min_jerk((k as f32 - k0) / (k1 - k0)) };
                         let z = |k: usize| {
@@ -966,6 +969,46 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_swing_high_above_the_band_moves_between_its_first_and_last_fifth() {
+        // Spot's swings clear its contact band (1.5 cm) by far: the band does not bind, and the foot
+        // moves on from a fifth of the way through to four fifths, waiting (if it must) from there.
+        let (tree, morph) = spot();
+        let lock = FootLock::new(&tree, &morph, 30.0, FootLockConfig::default());
+        for frames in [5, 8, 10, 13] {
+            let sw = lock.swing(Point3::origin(), frames, &lock.legs[0], 0.0);
+            let n = frames as f32;
+            let (k0, k1, hold_at) = lock.moving_frames(&sw, &lock.legs[0]);
+            assert_eq!((k0, k1, hold_at), (EDGE * n, (1.0 - EDGE) * n, ((1.0 - EDGE) * n).floor() as usize));
+        }
+    }
+
+    #[test]
+    fn a_swing_moved_to_keep_up_goes_on_from_where_the_foot_got_to() {
+        let sw = SwingState {
+            from: Point3::new(0.0, 0.0, 0.0),
+            frame: 3,
+            frames: 10,
+            held: 0,
+            landing: None,
+            height: 0.05,
+            raised: false,
+            progress: 0.5,
+            goal: nalgebra::Point2::new(1.0, 0.0),
+        };
+        // Half-way: the rest of the way to the goal now starts so that this frame is where the foot is.
+        let at = Point3::new(0.7, 0.2, 0.03);
+        let mut moved = sw;
+        moved.go_on_from(at);
+        assert!(moved.raised);
+        let here = moved.from.xy() + (moved.goal - moved.from.xy()) * moved.progress;
+        assert!((here - at.xy()).norm() < 1e-6, "{here:?}");
+        // Nearly there (from 90 %): the start is left alone, the landing close.
+        let mut late = SwingState { progress: 0.9, ..sw };
+        late.go_on_from(at);
+        assert!(late.raised && late.from == sw.from);
     }
 
     #[test]
