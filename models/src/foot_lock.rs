@@ -524,15 +524,16 @@ impl FootLock {
             let s = k as f32 / n as f32;
             leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2) >= BAND_MARGIN * self.band
         };
-        // The arc is symmetric: the last frame above the band mirrors the first. A swing is made
-        // high enough for its middle frame to clear it.
+        // The arc is symmetric: the last frame above the band mirrors the first, so the band binds at
+        // both ends or at neither. A swing is made high enough for its middle frame to clear it
+        // ([`FootLock::swing`]), so `first ≤ n / 2` and `k0 < k1`.
         let first = (1..n).find(|&k| above(k)).unwrap_or(n / 2).max(1);
         let (last_in, first_out) = ((first - 1) as f32, (n - first + 1) as f32);
-        if last_in <= edge0 && first_out >= edge1 {
+        if last_in <= edge0 {
             (edge0, edge1, edge1.floor() as usize)
         } else {
-            let (k0, k1) = (edge0.max(last_in), edge1.min(first_out));
-            if k0 < k1 { (k0, k1, k1 as usize - 1) } else { (first_out - 2.0, first_out, first_out as usize - 1) }
+            let k1 = edge1.min(first_out);
+            (last_in, k1, k1 as usize - 1)
         }
     }
 
@@ -960,9 +961,15 @@ mod tests {
                             leg.ground + sw.height * 16.0 * (s * (1.0 - s)).powi(2)
                         };
                         assert!((1..frames).any(|k| z(k) >= lock.band), "{frames} frames: never above the band");
+                        let band = BAND_MARGIN * lock.band;
                         for k in 1..=frames {
-                            if z(k - 1) < lock.band && z(k) < lock.band {
+                            let (a, b) = (z(k - 1), z(k));
+                            if a < lock.band && b < lock.band {
                                 assert_eq!(u(k), u(k - 1), "{frames} frames, ×{scale}: moves from frame {} to {k} within the band", k - 1);
+                            }
+                            // It uses every frame it may: out of the first and last fifths, one end clear of the band.
+                            if (a >= band || b >= band) && (k - 1) as f32 >= EDGE * n && k as f32 <= (1.0 - EDGE) * n {
+                                assert!(u(k) > u(k - 1), "{frames} frames, ×{scale}: waits from frame {} to {k}", k - 1);
                             }
                         }
                     }
