@@ -20,9 +20,10 @@ fn fresh(name: &str) -> PathBuf {
     d
 }
 
-/// Four real clips of three skeleton conventions in nested folders, and a clip cut off in its header.
-fn library() -> Option<PathBuf> {
-    let lib = fresh("library");
+/// Four real clips of three skeleton conventions in nested folders, and a clip cut off in its header,
+/// in a folder of the test's own (`name`): the tests run in parallel.
+fn library(name: &str) -> Option<PathBuf> {
+    let lib = fresh(name);
     let clips = [
         ("bandai_namco/dataset-1_walk_normal_002.bvh", "walks/bandai/walk.bvh"),
         ("bandai_namco/dataset-2_wave-left-hand_active_011.bvh", "gestures/wave.bvh"),
@@ -43,7 +44,7 @@ fn library() -> Option<PathBuf> {
 
 #[test]
 fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
-    let Some(lib) = library() else { return };
+    let Some(lib) = library("library-run") else { return };
     let out = fresh("out");
     let o = ace(&["retarget", lib.to_str().unwrap(), "--character", "spot", "--out", out.to_str().unwrap(), "--jobs", "2"]);
     let stderr = String::from_utf8_lossy(&o.stderr);
@@ -99,7 +100,7 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
 
 #[test]
 fn a_folder_run_refuses_outputs_it_cannot_write_before_any_work() {
-    let Some(lib) = library() else { return };
+    let Some(lib) = library("library-refused") else { return };
     let before = folder_bytes(&lib);
     let cases: [(Vec<String>, &str); 4] = [
         // Inside the input folder: it would write among the clips.
