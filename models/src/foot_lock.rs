@@ -383,8 +383,8 @@ impl FootLock {
             if (target - tip).norm() > 1e-4 {
                 let local = to_root.transform_point(&target);
                 let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
-                let hold = c.hold_tolerance * l;
-                if missed > hold {
+                let tolerance = c.hold_tolerance * l;
+                if missed > tolerance {
                     match (mem.anchor, &mut mem.swing) {
                         (Some(a), _) => {
                             // Out of the leg's reach (the body has moved on): the foot steps from
@@ -393,12 +393,12 @@ impl FootLock {
                             let mut sw = self.swing(a, swing_frames, leg, fr);
                             sw.frame = 1;
                             let lift = self.lift(&sw, a, leg);
-                            let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, |_, m| m <= hold);
+                            let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, |_, m| m <= tolerance);
                             sw.go_on_from(at);
                             mem.swing = Some(sw);
                         }
                         (None, Some(sw)) => {
-                            let at = self.reach_toward(tree, leg, pose, raw_q, target, tip, scratch, |_, m| m <= hold);
+                            let at = self.reach_toward(tree, leg, pose, raw_q, target, tip, scratch, |_, m| m <= tolerance);
                             sw.go_on_from(at);
                         }
                         (None, None) => {}
