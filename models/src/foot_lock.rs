@@ -180,6 +180,15 @@ struct FootMemory {
     prev: Option<Point3<f32>>,
 }
 
+/// What a foot stepping at once ([`FootLock::step_toward_network`]) moves toward and swings for: the
+/// network's joints and foot this frame, the natural swing's frames and the Froude number.
+struct Reach<'a> {
+    raw_q: &'a [f32],
+    tip: Point3<f32>,
+    swing_frames: usize,
+    fr: f32,
+}
+
 /// Reusable buffers of [`FootLock::apply`] (no allocation per frame once sized).
 #[derive(Clone, Debug, Default)]
 pub struct FootLockScratch {
@@ -384,25 +393,11 @@ impl FootLock {
                 let local = to_root.transform_point(&target);
                 let missed = leg.chain.solve(tree, &mut pose.q, &local, 2e-4, 30, scratch).error;
                 let tolerance = c.hold_tolerance * l;
+                // Out of the leg's reach (the body has moved on): the foot steps at once, rather than
+                // be dragged along the ground.
                 if missed > tolerance {
-                    match (mem.anchor, &mut mem.swing) {
-                        (Some(a), _) => {
-                            // Out of the leg's reach (the body has moved on): the foot steps from
-                            // its anchor at once, rather than be dragged along the ground.
-                            mem.anchor = None;
-                            let mut sw = self.swing(a, swing_frames, leg, fr);
-                            sw.frame = 1;
-                            let lift = self.lift(&sw, a, leg);
-                            let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, |_, m| m <= tolerance);
-                            sw.go_on_from(at);
-                            mem.swing = Some(sw);
-                        }
-                        (None, Some(sw)) => {
-                            let at = self.reach_toward(tree, leg, pose, raw_q, target, tip, scratch, |_, m| m <= tolerance);
-                            sw.go_on_from(at);
-                        }
-                        (None, None) => {}
-                    }
+                    let reach = Reach { raw_q, tip, swing_frames, fr };
+                    self.step_toward_network(tree, leg, mem, pose, target, &reach, scratch, |_, m| m <= tolerance);
                 }
             }
         }
@@ -411,48 +406,66 @@ impl FootLock {
         // still lifting off) steps toward the network's foot at once, as the animal would, rather
         // than stay there for the collision guard to pull along the ground.
         if state.feet.iter().any(|m| m.anchor.is_some() || m.swing.is_some()) {
-            let crossing = |checked: &mut PoseScratch, pose: &CharacterPose, bodies: &[usize]| {
+            // The pairs colliding in `pose` that the network's own pose keeps clear.
+            let crossed_pairs = |checked: &mut PoseScratch, pose: &CharacterPose| {
                 self.checks.place(tree, pose, checked);
                 let pairs = self.checks.self_collision().pairs();
-                let mut crossed = false;
+                let mut crossed: Vec<(usize, usize)> = Vec::new();
                 self.checks.collisions(checked, |i| {
-                    let (x, y) = pairs[i];
-                    crossed |= !raw_pairs.contains(&i) && (bodies.contains(&x) || bodies.contains(&y));
+                    if !raw_pairs.contains(&i) {
+                        crossed.push(pairs[i]);
+                    }
                 });
                 crossed
             };
-            self.checks.place(tree, pose, checked);
-            let pairs = self.checks.self_collision().pairs();
-            let mut crossed: Vec<(usize, usize)> = Vec::new();
-            self.checks.collisions(checked, |i| {
-                if !raw_pairs.contains(&i) {
-                    crossed.push(pairs[i]);
-                }
-            });
+            let involves = |leg: &Leg, pairs: &[(usize, usize)]| {
+                pairs.iter().any(|(x, y)| leg.bodies.contains(x) || leg.bodies.contains(y))
+            };
+            let crossed = crossed_pairs(checked, pose);
             for ((leg, mem), &tip) in self.legs.iter().zip(&mut state.feet).zip(raw_tips.iter()) {
-                let held = mem.anchor.is_some() || mem.swing.is_some();
-                if !held || !crossed.iter().any(|(x, y)| leg.bodies.contains(x) || leg.bodies.contains(y)) {
+                if mem.anchor.is_none() && mem.swing.is_none() || !involves(leg, &crossed) {
                     continue;
                 }
-                let mut clear = |p: &CharacterPose, _: f32| !crossing(checked, p, &leg.bodies);
-                match (mem.anchor, &mut mem.swing) {
-                    (Some(a), _) => {
-                        mem.anchor = None;
-                        let mut sw = self.swing(a, swing_frames, leg, fr);
-                        sw.frame = 1;
-                        let lift = self.lift(&sw, a, leg);
-                        let at = self.reach_toward(tree, leg, pose, raw_q, lift, tip, scratch, &mut clear);
-                        sw.go_on_from(at);
-                        mem.swing = Some(sw);
-                    }
-                    (None, Some(sw)) => {
-                        let now = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
-                        let at = self.reach_toward(tree, leg, pose, raw_q, now, tip, scratch, &mut clear);
-                        sw.go_on_from(at);
-                    }
-                    (None, None) => {}
-                }
+                // A swinging foot moves on from where it is now.
+                let now = pose.root * leg.chain.tip_point(tree, &pose.q, scratch);
+                let reach = Reach { raw_q, tip, swing_frames, fr };
+                self.step_toward_network(tree, leg, mem, pose, now, &reach, scratch, |p, _| {
+                    !involves(leg, &crossed_pairs(checked, p))
+                });
             }
+        }
+    }
+
+    /// Moves a foot the lock holds toward the network's foot at once, in the air, until `done`
+    /// ([`FootLock::reach_toward`]): a planted foot starts a swing from its anchor (its first frame
+    /// now), a swinging one is moved from `swinging_from` and its swing goes on from there.
+    #[allow(clippy::too_many_arguments)]
+    fn step_toward_network(
+        &self,
+        tree: &KinematicTree,
+        leg: &Leg,
+        mem: &mut FootMemory,
+        pose: &mut CharacterPose,
+        swinging_from: Point3<f32>,
+        reach: &Reach<'_>,
+        scratch: &mut ChainScratch,
+        done: impl FnMut(&CharacterPose, f32) -> bool,
+    ) {
+        match (mem.anchor, &mut mem.swing) {
+            (Some(a), _) => {
+                mem.anchor = None;
+                let mut sw = self.swing(a, reach.swing_frames, leg, reach.fr);
+                sw.frame = 1;
+                let lift = self.lift(&sw, a, leg);
+                let at = self.reach_toward(tree, leg, pose, reach.raw_q, lift, reach.tip, scratch, done);
+                sw.go_on_from(at);
+                mem.swing = Some(sw);
+            }
+            (None, Some(sw)) => {
+                let at = self.reach_toward(tree, leg, pose, reach.raw_q, swinging_from, reach.tip, scratch, done);
+                sw.go_on_from(at);
+            }
+            (None, None) => {}
         }
     }
 
