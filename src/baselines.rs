@@ -78,39 +78,59 @@ fn steps_done(dir: &Path, slug: &str) -> usize {
     }
 }
 
-/// Fails when the run in `run` was trained (or started) against another motion prior than the
-/// checkpoint in `ace_dir`'s: its copy of the prior (the weights, and `config.json` but for the
-/// provenance, which the copy re-serialises) differs. A finished run of an earlier prior would
-/// otherwise be scored as this checkpoint's baseline, against a dataset it never saw.
-fn same_prior(run: &Path, ace_dir: &Path) -> Result<()> {
-    use ace::models::input::{MAX_DATA_BYTES, read_regular, read_text};
-    let (weights, config) = (run.join("prior.safetensors"), run.join("config.json"));
-    if !weights.exists() && !config.exists() {
-        return Ok(());
-    }
-    let bytes = |p: &Path| read_regular(p, MAX_DATA_BYTES).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()));
-    let record = |p: &Path| -> Result<serde_json::Value> {
-        let text = read_text(p).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-        let mut v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))?;
-        if let Some(o) = v.as_object_mut() {
+/// A motion prior's files as the baselines compare them: the weights' bytes and `config.json` but for
+/// its provenance (which a copy re-serialises).
+struct PriorFiles {
+    weights: Vec<u8>,
+    record: serde_json::Value,
+}
+
+impl PriorFiles {
+    /// The prior in `dir`, or `None` when `dir` holds neither of its files.
+    fn read(dir: &Path) -> Result<Option<PriorFiles>> {
+        use ace::models::input::{MAX_DATA_BYTES, read_regular, read_text};
+        let (weights, config) = (dir.join("prior.safetensors"), dir.join("config.json"));
+        if !weights.exists() && !config.exists() {
+            return Ok(None);
+        }
+        let weights = read_regular(&weights, MAX_DATA_BYTES).map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
+        let text = read_text(&config).map_err(|e| anyhow::anyhow!("{}: {e}", config.display()))?;
+        let mut record: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", config.display()))?;
+        if let Some(o) = record.as_object_mut() {
             o.remove("provenance");
         }
-        Ok(v)
-    };
-    let differs = if bytes(&weights)? != bytes(&ace_dir.join("prior.safetensors"))? {
-        Some("prior.safetensors")
-    } else if record(&config)? != record(&ace_dir.join("config.json"))? {
-        Some("config.json")
-    } else {
-        None
-    };
-    if let Some(file) = differs {
-        anyhow::bail!(
-            "{}: this baseline was trained against another motion prior than {}'s ({file} differs); \
-             remove the folder to train it again, or give --runs another folder",
-            run.display(),
-            ace_dir.display()
-        );
+        Ok(Some(PriorFiles { weights, record }))
+    }
+}
+
+/// Fails when a baseline run in `runs` was trained (or started) against another motion prior than
+/// the checkpoint in `ace_dir`'s: its copy of the prior differs. A finished run of an earlier prior
+/// would otherwise be scored as this checkpoint's baseline, against a dataset it never saw.
+fn check_runs_share_the_prior(runs: &Path, ace_dir: &Path) -> Result<()> {
+    let mut compared: Option<PriorFiles> = None;
+    for (_, slug) in BASELINES {
+        let run = runs.join(slug);
+        let Some(copy) = PriorFiles::read(&run)? else { continue };
+        if compared.is_none() {
+            compared = PriorFiles::read(ace_dir)?;
+        }
+        let ours = compared.as_ref().with_context(|| format!("{}: no motion prior", ace_dir.display()))?;
+        let differs = if copy.weights != ours.weights {
+            Some("prior.safetensors")
+        } else if copy.record != ours.record {
+            Some("config.json")
+        } else {
+            None
+        };
+        if let Some(file) = differs {
+            anyhow::bail!(
+                "{}: this baseline was trained against another motion prior than {}'s ({file} differs); \
+                 remove the folder to train it again, or give --runs another folder",
+                run.display(),
+                ace_dir.display()
+            );
+        }
     }
     Ok(())
 }
@@ -127,9 +147,7 @@ pub fn train_missing(
 ) -> Result<Vec<(&'static str, Baseline)>> {
     let record = read_record(ace_dir).with_context(|| format!("{}: no ACE checkpoint to compare with", ace_dir.display()))?;
     let ace_cfg = &record.config;
-    for (_, slug) in BASELINES {
-        same_prior(&runs.join(slug), ace_dir)?;
-    }
+    check_runs_share_the_prior(runs, ace_dir)?;
     let missing: Vec<(&str, &str)> = BASELINES
         .into_iter()
         .filter(|(_, slug)| {

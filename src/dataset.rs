@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ace::models::dataset::{DatasetConfig, check_budget, check_config, generate};
+use ace::models::kinematics::KinematicTree;
+use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 
 use crate::output::Outputs;
@@ -28,9 +30,9 @@ pub fn read_config(path: &Path) -> Result<DatasetConfig> {
 }
 
 /// Checks a dataset configuration read from `file` (if any) with the command-line options applied,
-/// naming the file.
-pub fn check_with_options(cfg: &DatasetConfig, file: Option<&Path>) -> Result<()> {
-    check_config(cfg).with_context(|| match file {
+/// its values and its size for the character, naming the file.
+pub fn check_with_options(cfg: &DatasetConfig, file: Option<&Path>, tree: &KinematicTree, morph: &Morphology) -> Result<()> {
+    check_config(cfg).and_then(|()| check_budget(cfg, tree, morph)).with_context(|| match file {
         Some(p) => format!("{} (with the command-line options)", p.display()),
         None => "the command-line options".to_string(),
     })
@@ -55,11 +57,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         cfg.seed = s;
     }
     // Bounds and outputs are checked before any work.
-    check_with_options(&cfg, args.config.as_deref())?;
-    check_budget(&cfg, &tree, &morph).with_context(|| match &args.config {
-        Some(p) => format!("{} (with the command-line options)", p.display()),
-        None => "the command-line options".to_string(),
-    })?;
+    check_with_options(&cfg, args.config.as_deref(), &tree, &morph)?;
     outputs.check(&args.out)?;
     if let Some(dir) = &args.report {
         outputs.check_dir(dir)?;

@@ -182,7 +182,7 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
     if let Some(s) = args.seed {
         data_cfg.seed = s;
     }
-    crate::dataset::check_with_options(&data_cfg, args.dataset_config.as_deref())?;
+    crate::dataset::check_with_options(&data_cfg, args.dataset_config.as_deref(), &tree, &morph)?;
     let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;
     println!("character {} ({}): dataset of {} frames, x^r of {} values", tree.name, urdf.display(), set.len(), set.layout.dim());
     let record = json!({
