@@ -76,12 +76,44 @@ pub fn groups(
                 links,
                 floor: GROUND_MARGIN.min(standing_low - 1e-3),
                 tolerated: Vec::new(),
+                windows: Vec::new(),
             }
         })
         .collect()
 }
 
 impl ReachGroup {
+    /// Sets the range each DoF draws its targets from: its limits, narrowed for an arm by
+    /// [`ReachConfig::home_reach`] to the values that move the tip at most that fraction of the arm's
+    /// length from its stowed position (`nominal`, the whole joint vector) on their own (to first
+    /// order: the DoF's lever arm at the stowed configuration).
+    pub fn set_home_windows(&mut self, tree: &KinematicTree, nominal: &[f32], home_reach: Option<f32>) {
+        let limits = self.dofs.iter().map(|&d| finite_limits(tree, d, nominal[d]));
+        let (Some(fraction), ReachKind::Arm(tip)) = (home_reach, self.kind) else {
+            self.windows = limits.collect();
+            return;
+        };
+        let stowed = fk_root(tree, nominal);
+        let first = tree.dof_link(self.dofs[0]);
+        let tip_at = |poses: &[Isometry3<f32>]| poses[tip].translation.vector;
+        let reach = fraction * (tip_at(&stowed) - stowed[first].translation.vector).norm();
+        const STEP: f32 = 1e-3;
+        let mut q = nominal.to_vec();
+        self.windows = self
+            .dofs
+            .iter()
+            .zip(limits)
+            .map(|(&d, (lo, hi))| {
+                q[d] += STEP;
+                let lever = (tip_at(&fk_root(tree, &q)) - tip_at(&stowed)).norm() / STEP;
+                q[d] = nominal[d];
+                // A DoF that hardly moves the tip (a wrist roll) keeps its whole range.
+                let half = reach / lever.max(1e-6);
+                ((nominal[d] - half).max(lo), (nominal[d] + half).min(hi))
+            })
+            .collect();
+    }
+
     /// Marks the obstacles the group already touches in its stowed configuration (`nominal`, root
     /// frame), grown by `margin`.
     pub fn tolerate(&mut self, proxies: &Proxies, nominal: &[Isometry3<f32>], obstacles: &[Obstacle], margin: f32) {
@@ -312,7 +344,6 @@ fn plan<R: rand::Rng + ?Sized>(
         }
     }
     let stowed: Vec<f32> = group.dofs.iter().map(|&d| rig.nominal_q[d]).collect();
-    let windows = home_windows(tree, rig, group, cfg.home_reach);
     let mut chosen = None;
     let local = rng.random::<f32>() < cfg.local_probability;
     for attempt in 0..ATTEMPTS {
@@ -321,7 +352,7 @@ fn plan<R: rand::Rng + ?Sized>(
         } else {
             current
                 .iter()
-                .zip(&windows)
+                .zip(&group.windows)
                 .map(|(&now, &(lo, hi))| {
                     if local {
                         let r = cfg.local_fraction * (hi - lo);
@@ -374,36 +405,6 @@ fn plan<R: rand::Rng + ?Sized>(
         hold: uniform(rng, cfg.hold_seconds[0], cfg.hold_seconds[1]),
     };
     found
-}
-
-/// The range each DoF of `group` draws its targets from: its limits, narrowed for an arm by
-/// [`ReachConfig::home_reach`] to the values that move the tip at most that fraction of the arm's
-/// length from its stowed position on their own (to first order: the DoF's lever arm at the stowed
-/// configuration).
-fn home_windows(tree: &KinematicTree, rig: &Rig, group: &ReachGroup, home_reach: Option<f32>) -> Vec<(f32, f32)> {
-    let limits = group.dofs.iter().map(|&d| finite_limits(tree, d, rig.nominal_q[d]));
-    let (Some(fraction), ReachKind::Arm(tip)) = (home_reach, group.kind) else {
-        return limits.collect();
-    };
-    let stowed = fk_root(tree, &rig.nominal_q);
-    let first = tree.dof_link(group.dofs[0]);
-    let tip_at = |poses: &[Isometry3<f32>]| poses[tip].translation.vector;
-    let reach = fraction * (tip_at(&stowed) - stowed[first].translation.vector).norm();
-    const STEP: f32 = 1e-3;
-    let mut q = rig.nominal_q.clone();
-    group
-        .dofs
-        .iter()
-        .zip(limits)
-        .map(|(&d, (lo, hi))| {
-            q[d] += STEP;
-            let lever = (tip_at(&fk_root(tree, &q)) - tip_at(&stowed)).norm() / STEP;
-            q[d] = rig.nominal_q[d];
-            // A DoF that hardly moves the tip (a wrist roll) keeps its whole range.
-            let half = reach / lever.max(1e-6);
-            ((rig.nominal_q[d] - half).max(lo), (rig.nominal_q[d] + half).min(hi))
-        })
-        .collect()
 }
 
 /// Link poses in the root frame.

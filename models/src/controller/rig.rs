@@ -133,6 +133,8 @@ pub struct ReachGroup {
     /// (nominal) configuration — coarse boxes of neighbouring parts often do — so that paths are not
     /// refused for it.
     pub tolerated: Vec<bool>,
+    /// The range each DoF draws its targets from ([`ReachGroup::set_home_windows`]).
+    pub windows: Vec<(f32, f32)>,
 }
 
 /// A collision box of a link that does not belong to some group, in the root frame.
@@ -360,6 +362,7 @@ impl Rig {
         swept.extend(spine::swept(tree, &proxies, &spine, &nominal_q, |l| !in_reach[l] && !on_leg[l]));
         for g in &mut reach {
             g.tolerate(&proxies, &nominal_links, &swept, cfg.reach.margin);
+            g.set_home_windows(tree, &nominal_q, cfg.reach.home_reach);
         }
 
         let mut rig = Rig {
