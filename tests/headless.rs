@@ -192,26 +192,49 @@ fn an_unreadable_checkpoint_file_is_not_reported_missing() {
 }
 
 /// Files over the core's bound for their kind fail their load as the CLI refuses them, once that many
-/// bytes are read (an asset source need not know a file's size): a URDF and a checkpoint's `ace.json`
-/// of more than [`ace::models::input::MAX_TEXT_BYTES`] (sparse files of zeros).
+/// bytes are read or, from a file source, from their size (an asset source need not know a file's
+/// size): a URDF and a checkpoint's `ace.json` of more than [`ace::models::input::MAX_TEXT_BYTES`], and
+/// the files read beside one: a profile, a clip's joint mapping and a checkpoint's generator weights
+/// (of more than [`ace::models::input::MAX_DATA_BYTES`]; sparse files of zeros, refused unread).
 #[test]
 fn asset_files_over_their_kinds_bound_fail_to_load() {
-    use ace::models::input::MAX_TEXT_BYTES;
+    use ace::models::input::{MAX_DATA_BYTES, MAX_TEXT_BYTES};
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-huge");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.join("ck")).unwrap();
-    std::fs::File::create(dir.join("huge.urdf")).unwrap().set_len(MAX_TEXT_BYTES + 1).unwrap();
-    std::fs::File::create(dir.join("ck/ace.json")).unwrap().set_len(MAX_TEXT_BYTES + 1).unwrap();
-    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/characters/spot.urdf"), dir.join("spot.urdf")).unwrap();
+    std::fs::create_dir_all(dir.join("crab")).unwrap();
+    let sparse = |name: &str, len: u64| std::fs::File::create(dir.join(name)).unwrap().set_len(len).unwrap();
+    sparse("huge.urdf", MAX_TEXT_BYTES + 1);
+    sparse("ck/ace.json", MAX_TEXT_BYTES + 1);
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(manifest.join("assets/characters/spot.urdf"), dir.join("spot.urdf")).unwrap();
+    std::fs::copy(manifest.join("assets/characters/spot.urdf"), dir.join("profiled.urdf")).unwrap();
+    sparse("profiled.profile.toml", MAX_TEXT_BYTES + 1);
+    std::fs::copy(manifest.join("assets/motions/walk.bvh"), dir.join("walk.bvh")).unwrap();
+    sparse("walk.mapping.toml", MAX_TEXT_BYTES + 1);
+    for name in ["ace.json", "config.json", "prior.safetensors"] {
+        std::fs::copy(manifest.join("assets/checkpoints/crab").join(name), dir.join("crab").join(name)).unwrap();
+    }
+    sparse("crab/generator.safetensors", MAX_DATA_BYTES + 1);
     let mut app = app_with_assets(dir.to_str().unwrap());
     let server = app.world().resource::<AssetServer>().clone();
     let spot: Handle<CharacterAsset> = server.load("spot.urdf");
     assert!(matches!(settled(&mut app, &spot), LoadState::Loaded));
     let urdf: Handle<CharacterAsset> = server.load("huge.urdf");
+    let profiled: Handle<CharacterAsset> = server.load("profiled.urdf");
     let checkpoint: Handle<CheckpointAsset> = server.load("ck/ace.json");
-    for (state, file) in [(settled(&mut app, &urdf), "huge.urdf"), (settled(&mut app, &checkpoint), "ck/ace.json")] {
-        let LoadState::Failed(err) = state else { panic!("{file} loaded") };
-        let want = format!("{file}: the file has more than the {MAX_TEXT_BYTES} bytes this kind of file may have");
+    let crab: Handle<CheckpointAsset> = server.load("crab/ace.json");
+    let clip: Handle<BvhAsset> = server.load("walk.bvh");
+    let states = [
+        (settled(&mut app, &urdf), "huge.urdf", MAX_TEXT_BYTES),
+        (settled(&mut app, &profiled), "profiled.profile.toml", MAX_TEXT_BYTES),
+        (settled(&mut app, &checkpoint), "ck/ace.json", MAX_TEXT_BYTES),
+        (settled(&mut app, &crab), "crab/generator.safetensors", MAX_DATA_BYTES),
+        (settled(&mut app, &clip), "walk.mapping.toml", MAX_TEXT_BYTES),
+    ];
+    for (state, file, max) in states {
+        let LoadState::Failed(err) = state else { panic!("loaded over the bound of {file}") };
+        let want = format!("{file}: the file has more than the {max} bytes this kind of file may have");
         assert!(err.to_string().contains(&want), "{err}");
     }
 }

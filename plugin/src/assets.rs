@@ -17,7 +17,7 @@ use ace_models::human::{HumanClip, ImportOptions, JointMapping};
 use ace_models::kinematics::KinematicTree;
 use ace_models::morphology::{Morphology, Profile};
 use bevy::asset::io::{AssetReaderError, Reader};
-use bevy::asset::{Asset, AssetLoader, AssetPath, LoadContext, ReadAssetBytesError};
+use bevy::asset::{Asset, AssetLoader, AssetPath, AssetServer, AssetServerMode, LoadContext, ReadAssetBytesError};
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
@@ -73,19 +73,78 @@ pub(crate) fn beside(ctx: &LoadContext<'_>, path: PathBuf) -> AssetPath<'static>
 
 /// The bytes of `reader` (the file `path`), refused once more than `max` are read (the core's bound
 /// for the file's kind, [`ace_models::input`]): an asset source need not know a file's size
-/// beforehand, and a mistaken path must not fill memory.
+/// beforehand, and a mistaken path must not fill memory. A seekable reader (a file source's) is
+/// refused from its size before anything is read.
 pub(crate) async fn read_bounded(reader: &mut dyn Reader, path: &str, max: u64) -> Result<Vec<u8>, AceAssetError> {
     use bevy::asset::AsyncReadExt;
+    let too_big = || AceAssetError::Import { path: path.to_string(), message: too_big_message(max) };
+    if size_of(reader).await.is_some_and(|size| size > max) {
+        return Err(too_big());
+    }
     let mut bytes = Vec::new();
     AsyncReadExt::take(&mut *reader, max + 1)
         .read_to_end(&mut bytes)
         .await
         .map_err(|source| AceAssetError::Io { path: path.to_string(), source })?;
     if bytes.len() as u64 > max {
-        let message = format!("the file has more than the {max} bytes this kind of file may have");
-        return Err(AceAssetError::Import { path: path.to_string(), message });
+        return Err(too_big());
     }
     Ok(bytes)
+}
+
+fn too_big_message(max: u64) -> String {
+    format!("the file has more than the {max} bytes this kind of file may have")
+}
+
+/// The size of a seekable reader's file (left at its start), `None` when it cannot seek.
+async fn size_of(reader: &mut dyn Reader) -> Option<u64> {
+    use bevy::asset::AsyncSeekExt;
+    let seekable = reader.seekable().ok()?;
+    let end = seekable.seek(std::io::SeekFrom::End(0)).await.ok()?;
+    seekable.seek(std::io::SeekFrom::Start(0)).await.ok()?;
+    Some(end)
+}
+
+/// A file beside the one `ctx` loads (a profile, a glTF's buffer, a joint mapping, a checkpoint's
+/// other files), from `path` ([`beside`]), with the bound of [`read_bounded`]: `Ok(None)` when it is
+/// not there, `Err` with the problem otherwise. [`LoadContext::read_asset_bytes`] has no bound, so the
+/// file is opened here first and its size checked; one within the bound is then read through the
+/// context, which registers it as a dependency (an edited profile hot-reloads its character). A
+/// source that cannot seek is read here, bounded, and not registered.
+pub(crate) async fn read_beside(
+    server: &AssetServer,
+    ctx: &mut LoadContext<'_>,
+    path: AssetPath<'static>,
+    max: u64,
+) -> Result<Option<Vec<u8>>, String> {
+    let source = server.get_source(path.source()).map_err(|e| e.to_string())?;
+    let reader = match server.mode() {
+        AssetServerMode::Unprocessed => source.reader(),
+        AssetServerMode::Processed => source.processed_reader().map_err(|e| e.to_string())?,
+    };
+    let mut file = match reader.read(path.path()).await {
+        Ok(file) => file,
+        Err(AssetReaderError::NotFound(_)) => return Ok(None),
+        Err(e) => return Err(e.to_string()),
+    };
+    match size_of(&mut *file).await {
+        Some(size) if size > max => Err(too_big_message(max)),
+        Some(_) => {
+            drop(file);
+            ctx.read_asset_bytes(path).await.map(Some).map_err(|e| match e {
+                // Gone between the two opens.
+                ReadAssetBytesError::AssetReaderError(AssetReaderError::NotFound(_)) => "the file vanished while read".to_string(),
+                e => e.to_string(),
+            })
+        }
+        None => {
+            let shown = path.path().display().to_string();
+            read_bounded(&mut *file, &shown, max).await.map(Some).map_err(|e| match e {
+                AceAssetError::Import { message, .. } => message,
+                e => e.to_string(),
+            })
+        }
+    }
 }
 
 async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<String, AceAssetError> {
@@ -96,8 +155,11 @@ async fn read_text(reader: &mut dyn Reader, ctx: &LoadContext<'_>) -> Result<Str
 
 /// Loads `.urdf` files, and `.glb`/`.gltf` files when a [`CharacterAsset`] is asked for (see the module
 /// docs), into [`CharacterAsset`]s.
-#[derive(Default, TypePath)]
-pub struct CharacterLoader;
+#[derive(TypePath)]
+pub struct CharacterLoader {
+    /// Reads the files beside a character ([`read_beside`]).
+    pub(crate) server: AssetServer,
+}
 
 impl AssetLoader for CharacterLoader {
     type Asset = CharacterAsset;
@@ -114,19 +176,19 @@ impl AssetLoader for CharacterLoader {
         let import = |message: String| AceAssetError::Import { path: path.clone(), message };
         let profile_path = Profile::path_beside(ctx.path().path());
         let profile_asset = beside(ctx, profile_path.clone());
-        let profile = match ctx.read_asset_bytes(profile_asset).await {
-            Ok(bytes) => {
+        let profile = match read_beside(&self.server, ctx, profile_asset, ace_models::input::MAX_TEXT_BYTES).await {
+            Ok(Some(bytes)) => {
                 let text = ace_models::input::text_from_bytes(bytes)
                     .map_err(|e| import(format!("profile {}: {e}", profile_path.display())))?;
                 Some(Profile::from_toml(&text, &profile_path.display().to_string()).map_err(|e| import(e.to_string()))?)
             }
             // No profile beside the file: the automatic body plan. A profile that is there but cannot
             // be read is an error, not a silently different body plan.
-            Err(ReadAssetBytesError::AssetReaderError(AssetReaderError::NotFound(_))) => None,
+            Ok(None) => None,
             Err(e) => return Err(import(format!("profile {}: {e}", profile_path.display()))),
         };
         if is_gltf(ctx.path().path()) {
-            return load_creature(reader, ctx, profile.unwrap_or_default()).await;
+            return load_creature(&self.server, reader, ctx, profile.unwrap_or_default()).await;
         }
         let xml = read_text(reader, ctx).await?;
         let file = FileRecord::of(&path, xml.as_bytes());
@@ -150,6 +212,7 @@ impl AssetLoader for CharacterLoader {
 
 /// A rigged glTF creature, its buffers in other files read through the asset reader.
 async fn load_creature(
+    server: &AssetServer,
     reader: &mut dyn Reader,
     ctx: &mut LoadContext<'_>,
     profile: Profile,
@@ -166,7 +229,9 @@ async fn load_creature(
             continue;
         }
         let buffer = beside(ctx, dir.join(&uri));
-        let data = ctx.read_asset_bytes(buffer).await.map_err(|e| e.to_string());
+        let data = read_beside(server, ctx, buffer, gltf::MAX_FILE_BYTES)
+            .await
+            .and_then(|bytes| bytes.ok_or_else(|| "no such file".to_string()));
         external.push((uri, data));
     }
     let find = |uri: &str| {
@@ -195,15 +260,22 @@ pub struct BvhSettings {
 
 /// The joint mapping of the clip `ctx` loads: `settings.mapping`'s, which must be there, or the one
 /// beside the clip, if any.
-async fn read_mapping(settings: &BvhSettings, ctx: &mut LoadContext<'_>) -> Result<Option<JointMapping>, AceAssetError> {
+async fn read_mapping(
+    server: &AssetServer,
+    settings: &BvhSettings,
+    ctx: &mut LoadContext<'_>,
+) -> Result<Option<JointMapping>, AceAssetError> {
     let (path, required) = match &settings.mapping {
         Some(p) => (p.clone(), true),
         None => (mapping_path_beside(ctx.path().path()), false),
     };
-    let bytes = match ctx.read_asset_bytes(beside(ctx, path.clone())).await {
-        Ok(bytes) => bytes,
-        Err(_) if !required => return Ok(None),
-        Err(e) => return Err(AceAssetError::Import { path: path.display().to_string(), message: e.to_string() }),
+    let asset = beside(ctx, path.clone());
+    let bytes = match read_beside(server, ctx, asset, ace_models::input::MAX_TEXT_BYTES).await {
+        Ok(Some(bytes)) => bytes,
+        Ok(None) if !required => return Ok(None),
+        Ok(None) => return Err(AceAssetError::Import { path: path.display().to_string(), message: "no such file".into() }),
+        // A mapping that is there but cannot be read is an error, not a clip read without it.
+        Err(message) => return Err(AceAssetError::Import { path: path.display().to_string(), message }),
     };
     let file = path.display().to_string();
     let text = ace_models::input::text_from_bytes(bytes).map_err(|e| AceAssetError::NotText { path: file.clone(), problem: e.to_string() })?;
@@ -211,8 +283,11 @@ async fn read_mapping(settings: &BvhSettings, ctx: &mut LoadContext<'_>) -> Resu
 }
 
 /// Loads `.bvh` files into [`BvhAsset`]s.
-#[derive(Default, TypePath)]
-pub struct BvhLoader;
+#[derive(TypePath)]
+pub struct BvhLoader {
+    /// Reads the joint mapping beside a clip ([`read_beside`]).
+    pub(crate) server: AssetServer,
+}
 
 impl AssetLoader for BvhLoader {
     type Asset = BvhAsset;
@@ -230,7 +305,7 @@ impl AssetLoader for BvhLoader {
         // Decoded as the CLI decodes a clip (Latin-1 names read, UTF-16 refused with a hint).
         let text = decode_text(&bytes, &path).map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
         let name = ctx.path().path().file_stem().map_or_else(|| path.clone(), |s| s.to_string_lossy().into_owned());
-        let opts = ImportOptions { fps: settings.fps, mapping: read_mapping(settings, ctx).await? };
+        let opts = ImportOptions { fps: settings.fps, mapping: read_mapping(&self.server, settings, ctx).await? };
         let clip = HumanClip::from_bvh_str(&text, &name, &opts)
             .map_err(|e| AceAssetError::Import { path, message: e.to_string() })?;
         Ok(BvhAsset { clip: Arc::new(clip) })

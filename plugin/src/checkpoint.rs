@@ -23,11 +23,12 @@ use ace_models::checkpoint::ace::{ACE_FILE, GENERATOR_FILE, other_character_file
 use ace_models::checkpoint::prior::{CONFIG_FILE, WEIGHTS_FILE};
 use ace_models::checkpoint::{CharacterInfo, CheckpointFiles, FileRecord};
 use ace_models::runtime::Retargeter;
-use bevy::asset::io::{AssetReaderError, Reader};
-use bevy::asset::{Asset, AssetLoader, LoadContext, ReadAssetBytesError};
+use ace_models::input::{MAX_DATA_BYTES, MAX_TEXT_BYTES};
+use bevy::asset::io::Reader;
+use bevy::asset::{Asset, AssetLoader, AssetServer, LoadContext};
 use bevy::reflect::TypePath;
 
-use crate::assets::{AceAssetError, CharacterAsset, beside};
+use crate::assets::{AceAssetError, CharacterAsset, beside, read_beside};
 
 /// The files of a trained checkpoint (prior and generator), checked to load and to belong together.
 /// The networks themselves live in the plugin's worker threads, one per checkpoint in use.
@@ -58,8 +59,11 @@ impl CheckpointAsset {
 }
 
 /// Loads a checkpoint's `ace.json` and its siblings into a [`CheckpointAsset`].
-#[derive(Default, TypePath)]
-pub struct CheckpointLoader;
+#[derive(TypePath)]
+pub struct CheckpointLoader {
+    /// Reads the files beside `ace.json` ([`crate::assets::read_beside`]).
+    pub(crate) server: AssetServer,
+}
 
 /// The files inference needs besides `ace.json`.
 const SIBLINGS: [&str; 3] = [CONFIG_FILE, WEIGHTS_FILE, GENERATOR_FILE];
@@ -78,17 +82,18 @@ impl AssetLoader for CheckpointLoader {
         let path = ctx.path().to_string();
         let dir: PathBuf = ctx.path().path().parent().map(Path::to_path_buf).unwrap_or_default();
         let mut files = BTreeMap::new();
-        let bytes = crate::assets::read_bounded(reader, &path, ace_models::input::MAX_TEXT_BYTES).await?;
+        let bytes = crate::assets::read_bounded(reader, &path, MAX_TEXT_BYTES).await?;
         files.insert(ACE_FILE.to_string(), bytes);
         for name in SIBLINGS {
             // From the asset source `ace.json` came from. A missing file is left out: loading names
             // it (`dir/<file>` is missing). A file that is there but cannot be read says why.
             let sibling = beside(ctx, dir.join(name));
-            match ctx.read_asset_bytes(sibling).await {
-                Ok(bytes) => {
+            let max = if name.ends_with(".json") { MAX_TEXT_BYTES } else { MAX_DATA_BYTES };
+            match read_beside(&self.server, ctx, sibling, max).await {
+                Ok(Some(bytes)) => {
                     files.insert(name.to_string(), bytes);
                 }
-                Err(ReadAssetBytesError::AssetReaderError(AssetReaderError::NotFound(_))) => {}
+                Ok(None) => {}
                 Err(e) => {
                     let message = format!("{}: {e}", dir.join(name).display());
                     return Err(AceAssetError::Import { path: path.clone(), message });

@@ -85,10 +85,12 @@ pub struct AcePlugin;
 
 impl Plugin for AcePlugin {
     fn build(&self, app: &mut App) {
+        // The loaders read files beside the one loaded through the asset server (bounded reads).
+        let server = app.world().resource::<AssetServer>().clone();
         app.init_asset::<assets::CharacterAsset>()
             .init_asset::<assets::BvhAsset>()
-            .register_asset_loader(assets::CharacterLoader)
-            .register_asset_loader(assets::BvhLoader)
+            .register_asset_loader(assets::CharacterLoader { server: server.clone() })
+            .register_asset_loader(assets::BvhLoader { server: server.clone() })
             .configure_sets(
                 PostUpdate,
                 (AceSystems::Spawn, AceSystems::Advance, AceSystems::Retarget, AceSystems::Apply)
@@ -106,7 +108,7 @@ impl Plugin for AcePlugin {
             );
         #[cfg(feature = "runtime")]
         app.init_asset::<checkpoint::CheckpointAsset>()
-            .register_asset_loader(checkpoint::CheckpointLoader)
+            .register_asset_loader(checkpoint::CheckpointLoader { server })
             .init_resource::<retarget::Workers>()
             .add_message::<retarget::LiveHumanFrame>()
             .add_message::<retarget::RetargetError>()
