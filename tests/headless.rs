@@ -174,6 +174,25 @@ fn an_unreadable_profile_beside_a_character_is_an_error() {
     assert!(err.to_string().contains("spot.profile.toml"), "{err}");
 }
 
+/// A joint mapping beside a clip that cannot be read (here a folder by its name) fails the clip's
+/// load, naming it, rather than reading the clip as though it had none.
+#[test]
+fn an_unreadable_mapping_beside_a_clip_is_an_error() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-unreadable-mapping");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("walk.mapping.toml")).unwrap();
+    for name in ["walk.bvh", "plain.bvh"] {
+        std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/motions/walk.bvh"), dir.join(name)).unwrap();
+    }
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    let server = app.world().resource::<AssetServer>().clone();
+    let plain: Handle<BvhAsset> = server.load("plain.bvh");
+    assert!(matches!(settled(&mut app, &plain), LoadState::Loaded), "no mapping: the clip's own names");
+    let walk: Handle<BvhAsset> = server.load("walk.bvh");
+    let LoadState::Failed(err) = settled(&mut app, &walk) else { panic!("loaded without its mapping") };
+    assert!(err.to_string().contains("walk.mapping.toml"), "{err}");
+}
+
 /// A checkpoint file that is there but cannot be read (here a folder in the prior's place) fails the
 /// load with the reader's error, not as a missing file.
 #[test]
