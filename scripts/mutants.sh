@@ -25,25 +25,33 @@ export PATH="$root/.local/cargo/bin:$PATH"
 # One libtorch thread per test, as in scripts/test.sh.
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 
-# Per file: the cargo-mutants options that build its crate (features) and the tests aimed at it (cargo
-# test arguments, then `--` and the test binaries' filter). `ufr.rs` also runs the crate's unit tests:
-# its pose checks are the collision guard's and the foot lock's, tested there. Learning modules need the `learn` feature
-# (libtorch); the rest build without it, which is much faster. The learning modules' networks are
-# exercised by the training, retargeting and runtime tests of other modules, so all of the crate's unit
-# tests run for them (about 15 s).
+# Per file: the cargo-mutants options that build its crate (package, features, and for the learning
+# modules the functions mutated) and the tests aimed at it (cargo test arguments, then `--` and the test
+# binaries' filter). `ufr.rs` also runs the crate's unit tests: its pose checks are the collision guard's
+# and the foot lock's, tested there. Learning modules need the `learn` feature (libtorch); the rest of
+# the core builds without it, which is much faster. The learning modules' networks are exercised by the
+# training, retargeting and runtime tests of other modules, so all of the crate's unit tests run for
+# them (about 15 s); in `train_ace.rs` and `prior.rs` only the code that starts, resumes or fine-tunes a
+# run is mutated (each mutant relinks libtorch, about a minute; the training loops themselves are
+# checked by the end-to-end runs). The plugin's retargeting systems are tested headless in the `ace`
+# package (`tests/headless.rs`).
+core="--package ace_models --no-default-features"
+learn="--package ace_models --features learn"
 declare -A how=(
-  [models/src/features.rs]="--no-default-features -- --test metrics"
-  [models/src/metrics/ufr.rs]="--no-default-features -- --test metrics --lib"
-  [models/src/metrics/distribution.rs]="--no-default-features -- --test metrics"
-  [models/src/foot_lock.rs]="--no-default-features -- --lib -- foot_lock"
-  [models/src/collision_guard.rs]="--no-default-features -- --lib -- collision_guard"
-  [models/src/learn/ace.rs]="--features learn -- --lib"
-  [models/src/learn/train_ace.rs]="--features learn -- --lib"
-  [models/src/learn/prior.rs]="--features learn -- --lib"
+  [models/src/features.rs]="$core -- --test metrics"
+  [models/src/metrics/ufr.rs]="$core -- --test metrics --lib"
+  [models/src/metrics/distribution.rs]="$core -- --test metrics"
+  [models/src/foot_lock.rs]="$core -- --lib -- foot_lock"
+  [models/src/collision_guard.rs]="$core -- --lib -- collision_guard"
+  [models/src/learn/ace.rs]="$learn -- --lib"
+  [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
+  [models/src/learn/prior.rs]="$learn --re start_or_resume -- --lib"
+  [plugin/src/retarget.rs]="--package bevy_ace --test-package ace -- --test headless"
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs
-       models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs)
+       models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
+       plugin/src/retarget.rs)
 files=("$@")
 [ ${#files[@]} -eq 0 ] && files=("${order[@]}")
 
@@ -63,8 +71,7 @@ for f in "${files[@]}"; do
   read -r -a opts <<< "${how[$f]}"
   echo "mutants: $f"
   # Exit status 2 means missed mutants, 3 timeouts: the table below says which; go on to the next file.
-  (cd "$tree" && cargo mutants --in-place --package ace_models --file "$f" --output "$out" \
-    --timeout-multiplier 3 "${opts[@]}") || true
+  (cd "$tree" && cargo mutants --in-place --file "$f" --output "$out" --timeout-multiplier 3 "${opts[@]}") || true
 done
 
 printf '\n| file | mutants | caught | missed | timeouts | unviable |\n|---|---:|---:|---:|---:|---:|\n'
