@@ -380,6 +380,15 @@ pub fn following_score(m: &MetricsReport) -> Option<f32> {
     m.following.as_ref().and_then(|f| f.score)
 }
 
+/// How far the character travels and turns while the human stands
+/// ([`ace::models::metrics::following`]), "0.012 BL/s, 1.3°/s", or "n/a" where the human never stands.
+pub fn standing(m: &MetricsReport) -> String {
+    match m.following.as_ref().map(|f| (f.standing_travel, f.standing_turn)) {
+        Some((Some(travel), Some(turn))) => format!("{travel:.3} BL/s, {turn:.1}°/s"),
+        _ => "n/a".into(),
+    }
+}
+
 fn opt(v: Option<f32>) -> String {
     v.map_or("n/a".into(), |v| format!("{v:.3}"))
 }
@@ -430,6 +439,19 @@ pub fn markdown(e: &Evaluation) -> String {
                     opt(p.combined),
                     opt(p.stillness)
                 );
+            }
+        }
+    }
+    if e.rows.iter().any(|r| r.metrics.following.as_ref().is_some_and(|f| f.standing_clips > 0)) {
+        let clips = e.rows.iter().filter_map(|r| r.metrics.following.as_ref()).map(|f| f.standing_clips).max().unwrap_or(0);
+        let _ = writeln!(
+            s,
+            "\nStanding (medians over the {clips} held-out clips where the human's root stays within 5 cm and 10° for 1 s): how far the character's root travels (its body lengths per second) and turns meanwhile:\n\n| system | travel ↓ | turning ↓ |\n|---|---:|---:|"
+        );
+        for r in &e.rows {
+            if let Some(f) = &r.metrics.following {
+                let turn = f.standing_turn.map_or("n/a".into(), |v| format!("{v:.1}°/s"));
+                let _ = writeln!(s, "| {} | {} | {turn} |", r.system, opt(f.standing_travel));
             }
         }
     }

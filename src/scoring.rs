@@ -242,7 +242,9 @@ impl Scorer {
                 .zip(human.bodies)
                 .map(|(e, &body)| {
                     let (c, h) = (&psi[e.clone()], &human.psi[e.clone()]);
-                    (following(&self.features, &self.pairs, c, h, body, &config), body)
+                    // The factor `human_psi` multiplied the human's velocity by.
+                    let speed = self.speed_scale.map_or(1.0, |s| human_speed_factor(s, body, self.body));
+                    (following(&self.features, &self.pairs, c, h, body, speed, &config), body)
                 })
                 .collect(),
         )

@@ -179,6 +179,16 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
             "crab" => Some("arm_r_claw_tip"),
             _ => None,
         };
+        // The human stands through the whole wave clip: the report says how far each character's root
+        // travels and turns meanwhile (the crab stands, Stretch drives off: docs/following.md).
+        if r["clip"] == "wave" {
+            let f = &m["following"];
+            assert_eq!(f["standing_clips"], 1, "{c}: {f}");
+            for k in ["standing_travel", "standing_turn"] {
+                assert!(f[k].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{c}: {k} in {f}");
+            }
+            assert!(md.contains(&format!("BL/s, {:.1}°/s", f["standing_turn"].as_f64().unwrap())), "{md}");
+        }
         if let (Some(link), true) = (follower, r["clip"] == "wave") {
             let pairs = m["following"]["clips"][0][0]["pairs"].as_array().unwrap();
             let pair = pairs.iter().find(|p| p["character"] == link).unwrap();

@@ -318,6 +318,9 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState)
             ui.end_row();
         }
     });
+    if r.following.is_some() {
+        ui.label(format!("While the human stands (root within 5 cm and 10° for 1 s), the character's root: {}", ace::eval::standing(r)));
+    }
     if let Some(clip) = r.following.as_ref().and_then(|f| f.clips.first()) {
         ui.label("Following the human (correlation 1 = does what the human does; amplitude 1 = same size; stillness: body lengths moved while the human's is still):");
         egui::Grid::new("following").striped(true).show(ui, |ui| {

@@ -7,12 +7,13 @@ use std::path::PathBuf;
 use ace_models::character_state::{CharacterLayout, character_state};
 use ace_models::features::{
     EndEffectorMapping, FeatureLayout, character_body_length, character_features, human_body_length, human_features,
+    scale_human_speed,
 };
 use ace_models::human::{EndEffector, HumanClip, ImportOptions, layout as hl};
 use ace_models::kinematics::{CharacterPose, KinematicTree};
 use ace_models::metrics::{FollowingConfig, FollowingReport, FollowingSummary, following};
 use ace_models::morphology::{Morphology, load_character};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 const FPS: f32 = 30.0;
 
@@ -63,6 +64,18 @@ impl Fixture {
                 p
             })
             .collect();
+        self.score_poses(&poses, 1.0)
+    }
+
+    /// Stretch at `poses` scored against the clip, the human's velocity in Ψ multiplied by `speed`
+    /// (as L_fea's speed scale does) and the factor passed on.
+    fn score_poses(&self, poses: &[CharacterPose], speed: f32) -> FollowingReport {
+        self.score_scaled(poses, speed, speed)
+    }
+
+    /// [`Fixture::score_poses`] with the human's velocity multiplied by `speed` and `told` passed as
+    /// the factor.
+    fn score_scaled(&self, poses: &[CharacterPose], speed: f32, told: f32) -> FollowingReport {
         let layout = CharacterLayout::new(&self.tree, &self.morph);
         let psi: Vec<Vec<f32>> = (0..poses.len())
             .map(|t| {
@@ -70,10 +83,26 @@ impl Fixture {
                 character_features(&layout, &x, self.character_body, &self.mapping)
             })
             .collect();
-        let human_psi: Vec<Vec<f32>> =
-            self.human.iter().map(|x| human_features(x, self.human_body, &self.mapping)).collect();
+        let features = FeatureLayout::new(&self.mapping);
+        let human_psi: Vec<Vec<f32>> = self
+            .human
+            .iter()
+            .map(|x| {
+                let mut psi = human_features(x, self.human_body, &self.mapping);
+                scale_human_speed(&mut psi, &features, speed);
+                psi
+            })
+            .collect();
         let pairs = [("grasp_center".to_string(), EndEffector::RightHand)];
-        following(&FeatureLayout::new(&self.mapping), &pairs, &psi, &human_psi, self.human_body, &FollowingConfig::new(FPS))
+        following(&features, &pairs, &psi, &human_psi, self.human_body, told, &FollowingConfig::new(FPS))
+    }
+
+    /// The human standing in the clip's first pose for 4 s, its root moving at `v` m/s forward.
+    fn standing_human(&mut self, v: f32) {
+        let mut first = self.human[0].clone();
+        first[hl::ROOT_LINEAR_VELOCITY].copy_from_slice(&[v, 0.0, 0.0]);
+        first[hl::ROOT_ANGULAR_VELOCITY].fill(0.0);
+        self.human = vec![first; 120];
     }
 
     /// The lift that moves the gripper up and down as the hand does, scaled from the human's body to
@@ -150,4 +179,52 @@ fn a_summary_takes_medians_over_the_clips_where_the_hand_moves() {
     let tiny = FollowingSummary::new(vec![(with, f.human_body / 10.0)]);
     assert_eq!(tiny.pairs[0].moving_clips, 0);
     assert_eq!(tiny.pairs[0].vertical_correlation, None);
+}
+
+/// A character that drives off or turns while the human stands (its root within 5 cm and 10° for
+/// 1 s) is caught by the standing measure, in its body lengths and degrees per second; one that
+/// stands scores 0, and a walking human gives no standing windows.
+#[test]
+fn a_character_that_drives_off_while_the_human_stands_is_caught_by_standing() {
+    let mut f = fixture();
+    f.standing_human(0.0);
+    let n = f.human.len();
+    let at = |x: f32, yaw_deg: f32| {
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_deg.to_radians());
+        f.tree.neutral_pose(Isometry3::from_parts(Translation3::new(x, 0.0, 0.0), yaw))
+    };
+    let (v, w) = (0.3, 30.0); // m/s, °/s
+    let driving: Vec<CharacterPose> = (0..n).map(|t| at(v * t as f32 / FPS, 0.0)).collect();
+    let turning: Vec<CharacterPose> = (0..n).map(|t| at(0.0, w * t as f32 / FPS)).collect();
+    let still: Vec<CharacterPose> = (0..n).map(|_| at(0.0, 0.0)).collect();
+    let r = f.score_poses(&driving, 1.0);
+    let expected = v / f.character_body;
+    // The first window counts the first frame, which has no motion before it, as still.
+    assert!((r.standing_travel.unwrap() - expected).abs() < 0.04 * expected, "{r:?} against {expected}");
+    assert!(r.standing_turn.unwrap() < 1e-3, "{r:?}");
+    let r = f.score_poses(&turning, 1.0);
+    assert!((r.standing_turn.unwrap() - w).abs() < 0.04 * w, "{r:?}");
+    assert!(r.standing_travel.unwrap() < 1e-3, "{r:?}");
+    let r = f.score_poses(&still, 1.0);
+    assert_eq!((r.standing_travel, r.standing_turn), (Some(0.0), Some(0.0)));
+    // A human walking at 1 m/s never stands.
+    f.standing_human(1.0);
+    let r = f.score_poses(&driving, 1.0);
+    assert_eq!((r.standing_travel, r.standing_turn), (None, None));
+    // 4 cm in a second is standing at any speed scale L_fea brings it to, once the scale is known.
+    f.standing_human(0.04);
+    assert!(f.score_poses(&driving, 1.0).standing_travel.is_some());
+    assert!(f.score_poses(&driving, 2.0).standing_travel.is_some());
+    assert_eq!(f.score_scaled(&driving, 2.0, 1.0).standing_travel, None, "8 cm in a second is not standing");
+    // Summaries take the median over the clips where the human stands.
+    f.standing_human(0.0);
+    let clips = [&driving, &turning, &still].map(|p| (f.score_poses(p, 1.0), f.human_body));
+    let s = FollowingSummary::new(clips.to_vec());
+    assert_eq!(s.standing_clips, 3);
+    assert!(s.standing_travel.unwrap() < 1e-3 && s.standing_turn.unwrap() < 1e-3, "{s:?}");
+    f.standing_human(1.0);
+    let walking = (f.score_poses(&driving, 1.0), f.human_body);
+    let s = FollowingSummary::new(vec![walking, clips[0].clone()]);
+    assert_eq!(s.standing_clips, 1);
+    assert_eq!(s.standing_travel, clips[0].0.standing_travel);
 }

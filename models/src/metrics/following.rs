@@ -22,6 +22,13 @@
 //!   [`FollowingConfig::still_extent_m`] metres, median over those windows (`None` when there is no
 //!   such window). 0 is a character that stays still when the human does.
 //!
+//! - **Standing** (the whole body, not a pair): the character's root travel (its body lengths per
+//!   second, horizontal) and turning (degrees per second, about the vertical) within the windows where
+//!   the human's root travels at most [`FollowingConfig::still_extent_m`] and turns at most
+//!   [`FollowingConfig::still_turn_deg`], median over those windows. The end effectors' stillness is
+//!   measured from the root and cannot see a character that walks or drives off while the human stands
+//!   and waves; this can. 0 is a character that stands where the human stands.
+//!
 //! A clip's [`FollowingReport::score`] is the mean combined score of its pairs. Over many clips,
 //! [`FollowingSummary`] gives per pair the median vertical correlation and amplitude ratio over the
 //! clips where the human's end effector moves at least [`MOVING_VERTICAL_M`] up and down, and the
@@ -40,6 +47,9 @@ pub struct FollowingConfig {
     pub min_motion: f32,
     /// The human's largest extent (m) within a window for it to count as still.
     pub still_extent_m: f32,
+    /// The human's largest turning (degrees, summed over a window) for the window to count as
+    /// standing.
+    pub still_turn_deg: f32,
     /// Length of the stillness windows (s); consecutive windows overlap by half.
     pub window_s: f32,
     /// Frame rate of the poses (frames per second).
@@ -48,11 +58,12 @@ pub struct FollowingConfig {
 
 impl FollowingConfig {
     /// The project's thresholds at `fps`: axes where the human moves at least 0.02 body lengths,
-    /// still when within 5 cm over 1 s.
+    /// still when within 5 cm (and, for the root, turning at most 10°) over 1 s.
     pub fn new(fps: f32) -> Self {
         FollowingConfig {
             min_motion: 0.02,
             still_extent_m: 0.05,
+            still_turn_deg: 10.0,
             window_s: 1.0,
             fps,
         }
@@ -112,26 +123,37 @@ pub struct FollowingReport {
     pub pairs: Vec<PairFollowing>,
     /// Mean combined correlation over the pairs that have one.
     pub score: Option<f32>,
+    /// The character's median root travel (its body lengths per second) while the human stands;
+    /// `None` when the human never stands for a window.
+    #[serde(default)]
+    pub standing_travel: Option<f32>,
+    /// The character's median turning (degrees per second) while the human stands.
+    #[serde(default)]
+    pub standing_turn: Option<f32>,
 }
 
 /// The following of a clip from the character's Ψ and the human's Ψ (same [`FeatureLayout`], aligned
-/// frame for frame; centring and speed scaling of the human's Ψ do not matter), with `pairs` naming
-/// the mapped pairs in Ψ's end-effector order and `human_body` the human's body length (m).
+/// frame for frame; centring of the human's Ψ does not matter), with `pairs` naming the mapped pairs
+/// in Ψ's end-effector order, `human_body` the human's body length (m) and `human_speed` the factor
+/// the human's root linear velocity entries were multiplied by
+/// ([`crate::features::human_speed_factor`]; 1 when they were not).
 ///
 /// # Panics
 /// If the two sequences differ in length, a row is shorter than the layout, `pairs` does not match the
-/// layout's end effectors, or `human_body` is not positive.
+/// layout's end effectors, or `human_body` or `human_speed` is not positive.
 pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
     layout: &FeatureLayout,
     pairs: &[(String, EndEffector)],
     character: &[R],
     human: &[S],
     human_body: f32,
+    human_speed: f32,
     config: &FollowingConfig,
 ) -> FollowingReport {
     assert_eq!(character.len(), human.len(), "character and human features must be aligned");
     assert_eq!(pairs.len(), layout.end_effectors, "one pair per end effector of Ψ");
     assert!(human_body > 0.0, "the human's body length must be positive");
+    assert!(human_speed > 0.0, "the human's speed factor must be positive");
     let ee = layout.ee_positions().start;
     let track = |rows: &[Vec<f32>], k: usize, axis: usize| -> Vec<f32> { rows.iter().map(|r| r[3 * k + axis]).collect() };
     let (c_rows, h_rows) = (cut_rows(character, ee, pairs.len()), cut_rows(human, ee, pairs.len()));
@@ -172,9 +194,33 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
         })
         .collect();
     let combined: Vec<f32> = out.iter().filter_map(|p| p.combined).collect();
+    // Standing: per window, the human's root travel in metres and turning in degrees; the character's
+    // in its body lengths and degrees, both per second of the window.
+    let (lin, ang) = (layout.root_linear_velocity().start, layout.root_angular_velocity().start);
+    let dt = 1.0 / config.fps;
+    let travel = |rows: &[R], w: &std::ops::Range<usize>| -> f32 {
+        rows[w.clone()].iter().map(|r| r.as_ref()[lin].hypot(r.as_ref()[lin + 1]) * dt).sum()
+    };
+    let turn = |rows: &[R], w: &std::ops::Range<usize>| -> f32 {
+        rows[w.clone()].iter().map(|r| r.as_ref()[ang + 2].abs().to_degrees() * dt).sum()
+    };
+    let human_travel = |w: &std::ops::Range<usize>| -> f32 {
+        human[w.clone()].iter().map(|r| r.as_ref()[lin].hypot(r.as_ref()[lin + 1]) * dt).sum::<f32>() / human_speed * human_body
+    };
+    let human_turn =
+        |w: &std::ops::Range<usize>| -> f32 { human[w.clone()].iter().map(|r| r.as_ref()[ang + 2].abs().to_degrees() * dt).sum() };
+    let standing: Vec<std::ops::Range<usize>> = windows(character.len(), window)
+        .filter(|w| human_travel(w) <= config.still_extent_m && human_turn(w) <= config.still_turn_deg)
+        .collect();
+    let per_second = |f: &dyn Fn(&std::ops::Range<usize>) -> f32| -> Option<f32> {
+        let mut v: Vec<f32> = standing.iter().map(|w| f(w) / (w.len() as f32 * dt)).collect();
+        (!v.is_empty()).then(|| median(&mut v))
+    };
     FollowingReport {
         score: (!combined.is_empty()).then(|| combined.iter().sum::<f32>() / combined.len() as f32),
         pairs: out,
+        standing_travel: per_second(&|w| travel(character, w)),
+        standing_turn: per_second(&|w| turn(character, w)),
     }
 }
 
@@ -254,6 +300,15 @@ pub struct FollowingSummary {
     pub score: Option<f32>,
     /// Per pair, in character end-effector order.
     pub pairs: Vec<PairSummary>,
+    /// Clips where the human stands for at least one window.
+    #[serde(default)]
+    pub standing_clips: usize,
+    /// Median of those clips' [`FollowingReport::standing_travel`] (character body lengths per second).
+    #[serde(default)]
+    pub standing_travel: Option<f32>,
+    /// Median of those clips' [`FollowingReport::standing_turn`] (degrees per second).
+    #[serde(default)]
+    pub standing_turn: Option<f32>,
     /// Each clip's report, in order, with its human's body length (m).
     pub clips: Vec<(FollowingReport, f32)>,
 }
@@ -287,9 +342,13 @@ impl FollowingSummary {
                 }
             })
             .collect();
+        let standing: Vec<&FollowingReport> = clips.iter().map(|c| &c.0).filter(|r| r.standing_travel.is_some()).collect();
         FollowingSummary {
             score: med(clips.iter().filter_map(|c| c.0.score).collect()),
             pairs,
+            standing_clips: standing.len(),
+            standing_travel: med(standing.iter().filter_map(|r| r.standing_travel).collect()),
+            standing_turn: med(standing.iter().filter_map(|r| r.standing_turn).collect()),
             clips,
         }
     }
@@ -300,6 +359,15 @@ impl std::fmt::Display for FollowingSummary {
         let opt = |v: Option<f32>| v.map_or("n/a".to_string(), |v| format!("{v:.2}"));
         write!(f, "following {} (median correlation of the end effectors with the human's)", opt(self.score))?;
         let single = self.clips.len() == 1;
+        write!(
+            f,
+            "\n        standing (the human's root still for 1 s): travel {} body lengths/s, turning {}°/s",
+            opt(self.standing_travel),
+            self.standing_turn.map_or("n/a".to_string(), |v| format!("{v:.1}"))
+        )?;
+        if !single {
+            write!(f, " ({} clips)", self.standing_clips)?;
+        }
         for (k, p) in self.pairs.iter().enumerate() {
             if single {
                 let c = &self.clips[0].0.pairs[k];
