@@ -19,12 +19,14 @@ pub fn frames(s: &str) -> Result<usize, String> {
         .ok_or_else(|| format!("expected a frame count from 1 to {max}"))
 }
 
-/// `--seconds`: more than 0, at most [`MAX_SECONDS`].
+/// `--seconds`: at least one frame at the project's rate (a rollout of 0 frames has nothing to
+/// score), at most [`MAX_SECONDS`].
 pub fn seconds(s: &str) -> Result<f32, String> {
+    let fps = ace::models::human_set::PROJECT_FPS;
     s.parse::<f32>()
         .ok()
-        .filter(|v| *v > 0.0 && *v <= MAX_SECONDS)
-        .ok_or_else(|| format!("expected seconds greater than 0 and at most {MAX_SECONDS}"))
+        .filter(|v| (*v * fps).round() >= 1.0 && *v <= MAX_SECONDS)
+        .ok_or_else(|| format!("expected seconds from one frame (1/{fps}) to {MAX_SECONDS}"))
 }
 
 /// A count of at least 1.

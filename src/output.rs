@@ -21,6 +21,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+use ace::models::temporary::pid_of as temporary_pid;
 use anyhow::{Context, Result, bail};
 
 /// Temporaries of this process not yet renamed into place, for the signal handler.
@@ -29,9 +30,6 @@ static LIVE: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
 /// Folders whose writers make their own temporaries (training's checkpoint directories), swept by the
 /// signal handler for this process' ([`watch_dir`]).
 static WATCHED: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
-
-/// The marker of this module's temporaries in a file name.
-const TMP_MARK: &str = ".ace-tmp-";
 
 /// Installs a SIGINT/SIGTERM handler that removes this process' live temporaries (and those in the
 /// [`watch_dir`] folders) and exits with status 130. Call once, at start-up.
@@ -286,10 +284,7 @@ impl Outputs {
         let name = out
             .file_name()
             .with_context(|| format!("{}: not a file name", out.display()))?;
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!("{TMP_MARK}{}", std::process::id()));
-        let tmp = parent.join(tmp_name);
+        let tmp = ace::models::temporary::beside(&parent.join(name), None);
         LIVE.lock().unwrap_or_else(|e| e.into_inner()).insert(tmp.clone());
         if tmp.is_dir() {
             let _ = fs::remove_dir_all(&tmp);
@@ -433,9 +428,9 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Removes temporaries left in `dir` by runs that no longer exist (killed with SIGKILL, say): files
-/// and folders named `.<name>.ace-tmp-<pid>`, and the writers' own `.<name>.tmp-<pid>`,
-/// `.<name>.<pid>.tmp[.ext]`, whose process is gone. Only where processes can be looked up (`/proc`).
+/// Removes temporaries left in `dir` by runs that no longer exist (killed with SIGKILL, say): the
+/// files and folders named as [`ace::models::temporary`] names them whose process is gone. Only
+/// where processes can be looked up (`/proc`).
 pub fn remove_stale_temporaries(dir: &Path) {
     if !Path::new("/proc/self").exists() {
         return;
@@ -454,18 +449,6 @@ pub fn remove_stale_temporaries(dir: &Path) {
             fs::remove_file(&p)
         };
     }
-}
-
-/// The process id in a temporary's name (see [`remove_stale_temporaries`]): the number right after
-/// or right before a `tmp` part of a name that starts with a dot.
-fn temporary_pid(name: &str) -> Option<u32> {
-    let rest = name.strip_prefix('.')?;
-    let tokens: Vec<&str> = rest.split(['.', '-']).collect();
-    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-    (0..tokens.len()).filter(|&k| tokens[k] == "tmp").find_map(|k| {
-        let (after, before) = (tokens.get(k + 1).copied(), k.checked_sub(1).map(|i| tokens[i]));
-        [after, before].into_iter().flatten().find(|t| digits(t)).and_then(|t| t.parse().ok())
-    })
 }
 
 #[cfg(test)]
@@ -544,21 +527,4 @@ mod tests {
         fs::remove_dir_all(&dir).unwrap();
     }
 
-    #[test]
-    fn temporary_names_are_recognised() {
-        assert_eq!(temporary_pid(".walk.glb.ace-tmp-1234"), Some(1234));
-        assert_eq!(temporary_pid(".walk.glb.tmp-77"), Some(77));
-        assert_eq!(temporary_pid(".prior.4242.tmp.safetensors"), Some(4242));
-        assert_eq!(temporary_pid(".spot.safetensors.99.tmp"), Some(99));
-        // Training's: the records, the weights, the loss log, the FID reference, the plots.
-        assert_eq!(temporary_pid(".ace.json.4242.tmp"), Some(4242));
-        assert_eq!(temporary_pid(".config.4242.tmp.json"), Some(4242));
-        assert_eq!(temporary_pid(".generator.safetensors.4242.tmp.safetensors"), Some(4242));
-        assert_eq!(temporary_pid(".ace_losses.csv.4242.tmp"), Some(4242));
-        assert_eq!(temporary_pid(".reference.json.4242.tmp"), Some(4242));
-        assert_eq!(temporary_pid(".prior_losses.png.4242.tmp"), Some(4242));
-        assert_eq!(temporary_pid("walk.glb"), None);
-        assert_eq!(temporary_pid(".walk01.glb"), None);
-        assert_eq!(temporary_pid(".hidden.tmp"), None);
-    }
 }

@@ -569,9 +569,8 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<()> {
     let what = || format!("cannot write plot {}", path.display());
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write_to(&mut bytes, ImageFormat::Png).with_context(what)?;
-    let name = path.file_name().with_context(|| format!("{}: not a file path", what()))?;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+    path.file_name().with_context(|| format!("{}: not a file path", what()))?;
+    let tmp = ace::models::temporary::beside(path, None);
     let result = std::fs::write(&tmp, bytes.get_ref()).and_then(|()| std::fs::rename(&tmp, path));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);

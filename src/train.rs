@@ -336,7 +336,7 @@ pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Corresponde
     });
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(REFERENCE_FILE);
-    let tmp = dir.join(format!(".{REFERENCE_FILE}.{}.tmp", std::process::id()));
+    let tmp = ace::models::temporary::beside(&path, None);
     std::fs::write(&tmp, serde_json::to_string(&v)?).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
     Ok(())

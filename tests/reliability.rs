@@ -200,7 +200,7 @@ fn demo_clips_of_the_same_file_name_do_not_collide() {
 
 #[test]
 fn numeric_options_are_bounded_before_any_work() {
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
         (
             &["--threads", "100000", "inspect", "assets/motions/walk.bvh"],
             "invalid value '100000' for '--threads <THREADS>': 100000 is not in 1..=1024",
@@ -223,7 +223,12 @@ fn numeric_options_are_bounded_before_any_work() {
         ),
         (
             &["eval", "--character", "spot", "--seconds", "0"],
-            "invalid value '0' for '--seconds <SECONDS>': expected seconds greater than 0 and at most 3600",
+            "invalid value '0' for '--seconds <SECONDS>': expected seconds from one frame (1/30) to 3600",
+        ),
+        // Rounds to 0 frames at 30 fps.
+        (
+            &["eval", "--character", "spot", "--seconds", "0.01"],
+            "invalid value '0.01' for '--seconds <SECONDS>': expected seconds from one frame (1/30) to 3600",
         ),
         (
             &["eval", "--character", "spot", "--max-clips", "0"],
@@ -367,12 +372,15 @@ fn stale_temporaries_of_killed_runs_are_removed() {
     let dead = (4_000_000..4_100_000)
         .find(|p| !Path::new(&format!("/proc/{p}")).exists())
         .unwrap();
-    let stale = [format!(".walk.glb.ace-tmp-{dead}"), format!(".walk.glb.tmp-{dead}")];
+    let stale = [format!(".walk.glb.ace-tmp-{dead}"), format!(".walk.csv.ace-tmp-{dead}")];
     for n in &stale {
         std::fs::write(dir.join(n), b"half").unwrap();
     }
-    let keep = dir.join(".hidden-notes.txt");
-    std::fs::write(&keep, b"mine").unwrap();
+    // A user's files, named like temporaries of other programs, with the dead process' number too.
+    let keep = [".hidden-notes.txt".to_string(), format!(".draft.{dead}.tmp"), format!(".x.tmp-{dead}")].map(|n| dir.join(n));
+    for k in &keep {
+        std::fs::write(k, b"mine").unwrap();
+    }
     let out = dir.join("walk.glb");
     let o = ace(&[
         "--threads",
@@ -388,12 +396,12 @@ fn stale_temporaries_of_killed_runs_are_removed() {
     for n in &stale {
         assert!(!dir.join(n).exists(), "{n} survived");
     }
-    assert!(keep.is_file() && out.is_file());
+    assert!(keep.iter().all(|k| std::fs::read(k).unwrap() == b"mine") && out.is_file());
     let names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
-    assert!(names.iter().all(|n| !n.contains("tmp")), "{names:?}");
+    assert!(names.iter().all(|n| !n.contains("ace-tmp")), "{names:?}");
 }
 
 #[test]
@@ -491,6 +499,31 @@ fn mapping_option_reads_an_unknown_rig() {
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["convention"], "user-mapping");
     assert_eq!(v["canonical_joints"], 17);
+    // `retarget` (one clip and a folder) and `demo` take it too; without it they refuse the clip.
+    let dir = scratch("mapping-option");
+    let rig = dir.join("rigs");
+    std::fs::create_dir_all(&rig).unwrap();
+    std::fs::copy(data.join("unknown_rig.bvh"), rig.join("unknown_rig.bvh")).unwrap();
+    let mapping = s(&data.join("unknown_rig.toml"));
+    let clip = s(&rig.join("unknown_rig.bvh"));
+    let one = s(&dir.join("one.glb"));
+    let folder = s(&dir.join("folder"));
+    let demo = s(&dir.join("demo"));
+    let rigs = s(&rig);
+    let runs: [Vec<&str>; 3] = [
+        vec!["retarget", &clip, "--character", "stretch", "--out", &one],
+        vec!["retarget", &rigs, "--character", "stretch", "--out", &folder],
+        vec!["demo", "--characters", "stretch", "--clip", &clip, "--out", &demo],
+    ];
+    for args in runs {
+        let o = ace(&args);
+        assert!(!o.status.success() && stderr(&o).contains("--mapping FILE"), "{args:?}: {}", stderr(&o));
+        let with: Vec<&str> = args.iter().copied().chain(["--mapping", mapping.as_str()]).collect();
+        let o = ace(&with);
+        assert!(o.status.success(), "{with:?}: {}", stderr(&o));
+    }
+    assert!(dir.join("one.glb").is_file() && dir.join("folder/unknown_rig.glb").is_file());
+    assert!(dir.join("demo/stretch/unknown_rig.glb").is_file());
 }
 
 #[test]
@@ -832,13 +865,13 @@ fn training_removes_temporaries_of_killed_runs_and_its_own_on_sigterm() {
     // directory (the saves' temporaries, the loss log's, the FID reference's, a plot's).
     let dead = dead_pid();
     let stale = [
-        format!(".prior.{dead}.tmp.safetensors"),
-        format!(".config.{dead}.tmp.json"),
-        format!(".ace.json.{dead}.tmp"),
-        format!(".generator.safetensors.{dead}.tmp.safetensors"),
-        format!(".ace_losses.csv.{dead}.tmp"),
-        format!(".reference.json.{dead}.tmp"),
-        format!(".prior_losses.png.{dead}.tmp"),
+        format!(".prior.safetensors.ace-tmp-{dead}.safetensors"),
+        format!(".config.json.ace-tmp-{dead}"),
+        format!(".ace.json.ace-tmp-{dead}"),
+        format!(".generator.safetensors.ace-tmp-{dead}.safetensors"),
+        format!(".ace_losses.csv.ace-tmp-{dead}"),
+        format!(".reference.json.ace-tmp-{dead}"),
+        format!(".prior_losses.png.ace-tmp-{dead}"),
     ];
     for n in &stale {
         std::fs::write(ck.join(n), b"half").unwrap();

@@ -553,7 +553,7 @@ impl MotionSet {
             .ok_or_else(|| file_error(path, "not a file path"))?
             .to_string_lossy()
             .into_owned();
-        let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        let tmp = crate::temporary::beside(&dir.join(&name), None);
         let write = || -> std::io::Result<()> {
             let mut f = fs::File::create(&tmp)?;
             f.write_all(&bytes)?;

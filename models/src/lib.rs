@@ -36,6 +36,7 @@ pub mod learn;
 pub mod metrics;
 pub mod morphology;
 pub mod runtime;
+pub mod temporary;
 #[cfg(test)]
 mod test_data;
 pub mod urdf;

@@ -126,13 +126,9 @@ pub fn check_poses(tree: &KinematicTree, poses: &[CharacterPose], fps: f32) -> R
 /// then renamed over `path`. On failure the temporary file is removed and `path` is left as it was.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     let file = path.display().to_string();
-    let name = path
-        .file_name()
+    path.file_name()
         .ok_or_else(|| ExportProblem::Io(std::io::Error::other("the path names no file")).in_file(&file))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
+    let tmp = crate::temporary::beside(path, None);
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;

@@ -221,7 +221,6 @@ impl AceRecord {
         let prior_path = dir.join(PRIOR_WEIGHTS_FILE);
         self.prior = FileRecord::of(PRIOR_WEIGHTS_FILE, &read_file(&prior_path)?);
         self.prior_config = Some(FileRecord::of(PRIOR_CONFIG_FILE, &read_file(&dir.join(PRIOR_CONFIG_FILE))?));
-        let pid = std::process::id();
         let mut moves: Vec<(PathBuf, PathBuf)> = Vec::new();
         let result = (|| {
             let mut stores = vec![(GENERATOR_FILE, generator.var_store())];
@@ -230,7 +229,7 @@ impl AceRecord {
             }
             for (file, vs) in stores {
                 // The temporary name keeps the `.safetensors` extension: tch picks the format by it.
-                let tmp = dir.join(format!(".{file}.{pid}.tmp.safetensors"));
+                let tmp = crate::temporary::beside(&dir.join(file), Some("safetensors"));
                 moves.push((tmp.clone(), dir.join(file)));
                 vs.save(&tmp)?;
                 let record = FileRecord::of(file, &read_file(&tmp)?);
@@ -240,7 +239,7 @@ impl AceRecord {
                     self.discriminator = record;
                 }
             }
-            let tmp = dir.join(format!(".{ACE_FILE}.{pid}.tmp"));
+            let tmp = crate::temporary::beside(&dir.join(ACE_FILE), None);
             moves.push((tmp.clone(), dir.join(ACE_FILE)));
             let mut text = serde_json::to_string_pretty(&*self)
                 .map_err(|e| LearnError::Config(format!("cannot serialise {ACE_FILE}: {e}")))?;

@@ -82,12 +82,11 @@ impl PriorCheckpoint {
     /// is written under a temporary name and renamed into place, the weights first.
     pub fn save(&self, dir: &Path) -> Result<(), LearnError> {
         fs::create_dir_all(dir).map_err(|e| LearnError::io(dir, e))?;
-        let pid = std::process::id();
         let weights = dir.join(WEIGHTS_FILE);
         let config = dir.join(CONFIG_FILE);
         // The temporary weights name must keep the `.safetensors` extension: tch picks the format by it.
-        let weights_tmp = dir.join(format!(".prior.{pid}.tmp.safetensors"));
-        let config_tmp = dir.join(format!(".config.{pid}.tmp.json"));
+        let weights_tmp = crate::temporary::beside(&weights, Some("safetensors"));
+        let config_tmp = crate::temporary::beside(&config, None);
         let cleanup = || {
             let _ = fs::remove_file(&weights_tmp);
             let _ = fs::remove_file(&config_tmp);

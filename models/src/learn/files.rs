@@ -89,10 +89,9 @@ pub(crate) fn open_losses(
             }
         }
     }
-    // Named `.<name>.<pid>.tmp`, as every temporary of the project, so that a run killed before the
-    // rename leaves one the next run recognises and removes.
-    let name = path.file_name().map_or_else(|| "losses".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    // A project temporary, so that a run killed before the rename leaves one the next run recognises
+    // and removes.
+    let tmp = crate::temporary::beside(path, None);
     let mut text = kept.join("\n");
     text.push('\n');
     fs::write(&tmp, text)

@@ -42,6 +42,8 @@ use serde_json::Value;
 use tch::nn::{self, Module, OptimizerConfig, RNN};
 use tch::{Device, Kind, Tensor};
 
+use crate::temporary;
+
 use super::ace::{AceConfig, Discriminator, discriminator_loss, generator_adv_loss};
 use super::checkpoint::{CharacterInfo, LearnError, PriorCheckpoint};
 use super::files::{CheckpointFiles, FileRecord, load_weights, open_losses, read_file, read_json, step_rng, write_synced};
@@ -477,9 +479,8 @@ pub fn train_nkn(
 
 /// Writes the weights (temporary names, renamed into place) and then `nkn.json`.
 fn save(record: &mut NknRecord, nkn: &Nkn, d: &Discriminator, dir: &Path) -> Result<(), LearnError> {
-    let pid = std::process::id();
     for (file, vs) in [(NKN_WEIGHTS_FILE, nkn.var_store()), (NKN_DISCRIMINATOR_FILE, d.var_store())] {
-        let tmp = dir.join(format!(".{file}.{pid}.tmp.safetensors"));
+        let tmp = temporary::beside(&dir.join(file), Some("safetensors"));
         vs.save(&tmp)?;
         let r = FileRecord::of(file, &read_file(&tmp)?);
         fs::rename(&tmp, dir.join(file)).map_err(|e| LearnError::io(&dir.join(file), e))?;
@@ -489,7 +490,7 @@ fn save(record: &mut NknRecord, nkn: &Nkn, d: &Discriminator, dir: &Path) -> Res
             record.discriminator = r;
         }
     }
-    let tmp = dir.join(format!(".{NKN_FILE}.{pid}.tmp"));
+    let tmp = temporary::beside(&dir.join(NKN_FILE), None);
     let text = serde_json::to_string_pretty(&*record).map_err(|e| LearnError::Config(format!("cannot serialise {NKN_FILE}: {e}")))?;
     write_synced(&tmp, text.as_bytes())?;
     fs::rename(&tmp, dir.join(NKN_FILE)).map_err(|e| LearnError::io(&dir.join(NKN_FILE), e))

@@ -1,0 +1,69 @@
+//! Temporary files. Every writer writes its file under a temporary name beside it and renames it
+//! into place, so that no reader sees half a file. The name, `.<file>.ace-tmp-<pid>` (with an
+//! extension after it where a library picks the format by it), marks the file as the project's and
+//! says which process wrote it: a later run removes those whose process is gone, and never touches a
+//! user's own files, whatever they are called (`.notes.2024.tmp`, `.draft.tmp-7`).
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+/// The marker in every temporary's name.
+pub const MARKER: &str = "ace-tmp";
+
+/// The temporary of `path` for this process: `.<file name>.ace-tmp-<pid>` beside it, then `.<ext>`
+/// when given (libtorch picks a weights file's format by its extension).
+pub fn beside(path: &Path, ext: Option<&str>) -> PathBuf {
+    let mut name = OsString::from(".");
+    name.push(path.file_name().unwrap_or_default());
+    name.push(format!(".{MARKER}-{}", std::process::id()));
+    if let Some(ext) = ext {
+        name.push(".");
+        name.push(ext);
+    }
+    path.with_file_name(name)
+}
+
+/// The process id in the name of a temporary ([`beside`]); `None` for any other name.
+pub fn pid_of(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let mark = format!(".{MARKER}-");
+    let at = rest.rfind(&mark)?;
+    let tail = &rest[at + mark.len()..];
+    let digits = tail.find(|c: char| !c.is_ascii_digit()).unwrap_or(tail.len());
+    let after = &tail[digits..];
+    if at == 0 || digits == 0 || !(after.is_empty() || after.starts_with('.')) {
+        return None;
+    }
+    tail[..digits].parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_temporary_names_its_file_and_process_and_nothing_else_is_one() {
+        let me = std::process::id();
+        let tmp = beside(Path::new("ck/generator.safetensors"), Some("safetensors"));
+        assert_eq!(tmp, PathBuf::from(format!("ck/.generator.safetensors.ace-tmp-{me}.safetensors")));
+        assert_eq!(beside(Path::new("walk.glb"), None), PathBuf::from(format!(".walk.glb.ace-tmp-{me}")));
+        for name in [format!(".walk.glb.ace-tmp-{me}"), format!(".prior.safetensors.ace-tmp-{me}.safetensors")] {
+            assert_eq!(pid_of(&name), Some(me), "{name}");
+        }
+        // A user's files, however close to one.
+        for name in [
+            "walk.glb",
+            ".notes.txt",
+            ".draft.2019.tmp",
+            ".x.tmp-2024",
+            ".walk.glb.4242.tmp",
+            "walk.glb.ace-tmp-12",
+            ".ace-tmp-12",
+            ".walk.glb.ace-tmp-",
+            ".walk.glb.ace-tmp-12x",
+            ".walk.glb.ace-tmp-99999999999",
+        ] {
+            assert_eq!(pid_of(name), None, "{name}");
+        }
+    }
+}
