@@ -464,6 +464,18 @@ fn training_configurations_are_bounded_and_strict() {
         check("[feature_weights]\nroot_height = -1.0"),
         "invalid configuration: `feature_weights.root_height` = -1 is out of range: expected a finite weight ≥ 0"
     );
+    // Every float field: its name, the value and the valid range.
+    for (text, want) in [
+        ("generator_lr = 0.0", "`generator_lr` = 0 is out of range: expected more than 0 to 1"),
+        ("discriminator_lr = 5.0", "`discriminator_lr` = 5 is out of range: expected more than 0 to 1"),
+        ("generator_lr = nan", "`generator_lr` = NaN is out of range: expected more than 0 to 1"),
+        ("w_adv = -1.0", "`w_adv` = -1 is out of range: expected 0 to 1000000"),
+        ("w_fea = 1e30", "`w_fea` = 1000000000000000000000000000000 is out of range: expected 0 to 1000000"),
+        ("w_gp = inf", "`w_gp` = inf is out of range: expected 0 to 1000000"),
+        ("adam_beta1 = 1.0", "`adam_beta1` = 1 is out of range: expected 0 to less than 1"),
+    ] {
+        assert_eq!(check(text), format!("invalid configuration: {want}"), "{text}");
+    }
     let e = ace("[feature_weights]\nroot_heigth = 2.0").unwrap_err().to_string();
     assert!(e.contains("unknown field `root_heigth`"), "{e}");
     let prior = |s: &str| {
@@ -477,6 +489,21 @@ fn training_configurations_are_bounded_and_strict() {
         prior("batch_size = 0"),
         "invalid configuration: `batch_size` = 0 is out of range: expected 1 to 65536"
     );
+    let nkn = |lr: f64, w_cyc: f64| {
+        let c = ace_models::learn::nkn::NknConfig { generator_lr: lr, w_cyc, ..Default::default() };
+        c.check().unwrap_err().to_string()
+    };
+    assert_eq!(nkn(2.0, 1.0), "invalid configuration: `generator_lr` = 2 is out of range: expected more than 0 to 1");
+    assert_eq!(nkn(1e-4, -1.0), "invalid configuration: `w_cyc` = -1 is out of range: expected 0 to 1000000");
+    for (text, want) in [
+        ("learning_rate = -0.001", "`learning_rate` = -0.001 is out of range: expected more than 0 to 1"),
+        ("learning_rate = 10.0", "`learning_rate` = 10 is out of range: expected more than 0 to 1"),
+        ("kl_weight = 1e9", "`kl_weight` = 1000000000 is out of range: expected 0 to 1000000"),
+        ("free_bits = -0.5", "`free_bits` = -0.5 is out of range: expected 0 to 100"),
+        ("bound_margin = 3.0", "`bound_margin` = 3 is out of range: expected 0 to 1"),
+    ] {
+        assert_eq!(prior(text), format!("invalid configuration: {want}"), "{text}");
+    }
     // `device = "cuda"` is the first CUDA device; an unknown one lists what is valid.
     assert_eq!(ace("device = \"cuda\"").unwrap().device, DeviceChoice::Cuda(0));
     assert_eq!(ace("device = \"cuda:1\"").unwrap().device, DeviceChoice::Cuda(1));

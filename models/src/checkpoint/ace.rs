@@ -161,24 +161,17 @@ impl AceConfig {
             "lower batch_size or window, or use fewer or narrower hidden layers",
         )?;
         self.feature_weights.check().map_err(LearnError::Config)?;
-        for (name, v) in [
-            ("generator_lr", self.generator_lr),
-            ("discriminator_lr", self.discriminator_lr),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} must be positive, not {v}"));
-            }
+        for (name, v) in [("generator_lr", self.generator_lr), ("discriminator_lr", self.discriminator_lr)] {
+            limits::float_in_range(name, v, 0.0, limits::LEARNING_RATE, true)?;
         }
         for (name, v) in [("w_adv", self.w_adv), ("w_fea", self.w_fea), ("w_gp", self.w_gp)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} must be non-negative, not {v}"));
-            }
+            limits::float_in_range(name, v, 0.0, limits::LOSS_WEIGHT, false)?;
         }
         if self.w_adv == 0.0 && self.w_fea == 0.0 {
             return bad("w_adv and w_fea are both zero: the generator would have nothing to learn".into());
         }
         if !(0.0..1.0).contains(&self.adam_beta1) {
-            return bad(format!("adam_beta1 must be in [0, 1), not {}", self.adam_beta1));
+            return bad(format!("`adam_beta1` = {} is out of range: expected 0 to less than 1", self.adam_beta1));
         }
         Ok(())
     }

@@ -166,6 +166,23 @@ pub mod limits {
         }
     }
 
+    /// Largest learning rate: Adam's steps are about the learning rate in size, and weights of order 1
+    /// stepped by more than 1 diverge at once.
+    pub const LEARNING_RATE: f64 = 1.0;
+    /// Largest loss weight (w_adv, w_fea, w_gp, kl_weight): beyond it the other terms vanish in f32.
+    pub const LOSS_WEIGHT: f64 = 1e6;
+
+    /// `Err` naming `field`, its value and the valid range unless `v` is finite and in `lo..=hi`,
+    /// or `lo < v ≤ hi` when `positive` (a learning rate of 0 learns nothing).
+    pub fn float_in_range(field: &str, v: f64, lo: f64, hi: f64, positive: bool) -> Result<(), super::LearnError> {
+        let ok = v.is_finite() && v <= hi && if positive { v > lo } else { v >= lo };
+        if ok {
+            return Ok(());
+        }
+        let low = if positive { format!("more than {lo}") } else { format!("{lo}") };
+        Err(super::LearnError::Config(format!("`{field}` = {v} is out of range: expected {low} to {hi}")))
+    }
+
     /// [`in_range`] for each width of a hidden-layer list, and for their count.
     pub fn widths(field: &str, w: &[usize]) -> Result<(), super::LearnError> {
         in_range(&format!("{field} (number of layers)"), w.len(), 0, HIDDEN_LAYERS)?;

@@ -228,24 +228,12 @@ impl PriorConfig {
             limits::ACTIVATIONS,
             "lower batch_size or rollout, or use fewer experts or fewer or narrower hidden layers",
         )?;
-        if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            return bad(format!(
-                "learning_rate must be positive, not {}",
-                self.learning_rate
-            ));
-        }
-        if !(self.bound_margin.is_finite() && self.bound_margin >= 0.0) {
-            return bad(format!(
-                "bound_margin must be non-negative, not {}",
-                self.bound_margin
-            ));
-        }
-        if !(self.free_bits.is_finite() && self.free_bits >= 0.0) {
-            return bad(format!("free_bits must be non-negative, not {}", self.free_bits));
-        }
-        if !(self.kl_weight.is_finite() && self.kl_weight >= 0.0) {
-            return bad(format!("kl_weight must be non-negative, not {}", self.kl_weight));
-        }
+        limits::float_in_range("learning_rate", self.learning_rate, 0.0, limits::LEARNING_RATE, true)?;
+        // A margin of a whole range on each side already leaves the outputs three times the data's span.
+        limits::float_in_range("bound_margin", self.bound_margin, 0.0, 1.0, false)?;
+        // Nats per latent dimension the KL term leaves free; a standard normal prior's entropy is ~1.4.
+        limits::float_in_range("free_bits", self.free_bits, 0.0, 100.0, false)?;
+        limits::float_in_range("kl_weight", self.kl_weight, 0.0, limits::LOSS_WEIGHT, false)?;
         let ordered = 0.0 <= s.start && s.start <= s.end && s.end <= 1.0;
         if !ordered || !(0.0..=1.0).contains(&s.max_probability) {
             return bad(format!(

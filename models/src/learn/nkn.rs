@@ -144,15 +144,12 @@ impl NknConfig {
         if self.batch_size == 0 || self.window < 2 || self.checkpoint_every == 0 {
             return bad("batch_size and checkpoint_every must be at least 1, window at least 2".into());
         }
+        use crate::checkpoint::limits;
         for (name, v) in [("generator_lr", self.generator_lr), ("discriminator_lr", self.discriminator_lr)] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} must be positive, not {v}"));
-            }
+            limits::float_in_range(name, v, 0.0, limits::LEARNING_RATE, true)?;
         }
         for (name, v) in [("w_adv", self.w_adv), ("w_cyc", self.w_cyc), ("w_gp", self.w_gp)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} must be non-negative, not {v}"));
-            }
+            limits::float_in_range(name, v, 0.0, limits::LOSS_WEIGHT, false)?;
         }
         if self.w_adv == 0.0 && self.w_cyc == 0.0 {
             return bad("w_adv and w_cyc are both zero".into());
