@@ -299,6 +299,22 @@ fn config_fields_are_bounded_naming_the_file_and_field() {
         assert!(!ck.exists(), "nothing written");
         assert!(start.elapsed() < Duration::from_secs(10), "{text}: worked before checking");
     }
+    // `ace train`'s configuration the same way, before anything is loaded: a step count, a learning
+    // rate, and a feature weight (negative, or a key no block has).
+    for (text, expected) in [
+        ("steps = 0\n", "`steps` = 0 is out of range: expected 1 to 100000000"),
+        ("generator_lr = 3.0\n", "`generator_lr` = 3 is out of range: expected more than 0 to 1"),
+        ("[feature_weights]\nroot_height = -2.0\n", "`feature_weights.root_height` = -2 is out of range: expected a finite weight ≥ 0"),
+        ("[feature_weights]\nroot_heigth = 2.0\n", "unknown field `root_heigth`"),
+    ] {
+        let cfg = dir.join("ace.toml");
+        std::fs::write(&cfg, text).unwrap();
+        let o = ace(&["train", "--character", "stretch", "--config", &s(&cfg), "--checkpoint", &s(&ck)]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(&format!("error: {}", cfg.display())) && e.contains(expected), "{text}: {e}");
+        assert!(!ck.exists(), "nothing written");
+    }
     // `ace train` honours `device` too, and checks it before loading anything: on a machine without
     // CUDA, `"cuda"` (device 0) is refused naming the file and the field.
     if ace::models::learn::cuda_devices() == 0 {
