@@ -122,6 +122,51 @@ fn body_lengths_of_the_bundled_characters() {
     }
 }
 
+/// A character's body length leaves out its manipulator arms, as a human's height leaves out raised
+/// arms: Spot's and the crab's are the tops of their other links at the standing pose (the body box,
+/// the knees), whatever their arms do; with the arms counted they would be taller.
+#[test]
+fn body_lengths_leave_out_the_manipulator_arms() {
+    for name in ["spot", "crab"] {
+        let (t, m) = character(name);
+        let links = t.forward_kinematics(&t.standing_pose());
+        let top_of = |keep: &dyn Fn(usize) -> bool| {
+            (0..t.links.len())
+                .filter(|&i| keep(i))
+                .map(|i| t.links[i].aabb(&links[i]).map_or(links[i].translation.vector.z, |b| b.max.z))
+                .fold(f32::NEG_INFINITY, f32::max)
+        };
+        let on_arm = |i: usize| m.manipulators.iter().any(|&g| t.is_descendant(g, i) && !t.is_descendant(m.feet[0], i));
+        let bottom = t.lowest_z(&links);
+        let without = top_of(&|i| !on_arm(i)) - bottom;
+        let with = top_of(&|_| true) - bottom;
+        let l = character_body_length(&t, &m);
+        println!("{name}: body length {l:.4} m, without the arms {without:.4}, with them {with:.4}");
+        assert!((l - without).abs() < 1e-5, "{name}: {l} against {without}");
+        assert!(with > without + 0.01, "{name}: the arms rise above the body at the standing pose");
+    }
+    // An arm on a mount plate fixed to the body (a link of the root body that carries nothing else) is
+    // still an arm: Spot with one measures as Spot.
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
+    let xml = std::fs::read_to_string(p).unwrap();
+    let mounted = xml.replacen(
+        r#"<parent link="body"/><child link="arm_base"/>"#,
+        r#"<parent link="arm_mount"/><child link="arm_base"/>"#,
+        1,
+    );
+    let mounted = mounted.replacen(
+        "</robot>",
+        r#"<link name="arm_mount"/><joint name="mount" type="fixed"><parent link="body"/><child link="arm_mount"/></joint></robot>"#,
+        1,
+    );
+    assert_ne!(mounted, xml);
+    let t = KinematicTree::from_urdf_str(&mounted).unwrap();
+    let m = Morphology::analyze(&t);
+    let (spot, spot_m) = character("spot");
+    assert_eq!(m.manipulators.len(), 1);
+    assert!((character_body_length(&t, &m) - character_body_length(&spot, &spot_m)).abs() < 1e-5);
+}
+
 // ---------------------------------------------------------------------------------------------------
 // UFR: clean motions stay silent
 
