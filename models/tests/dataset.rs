@@ -479,6 +479,7 @@ fn shipped_priors_regenerate_their_datasets() {
         ("spot", "assets/characters/spot.urdf"),
         ("crab", "assets/characters/crab.urdf"),
         ("stretch", "assets/characters/stretch.urdf"),
+        ("hound", "assets/creatures/hound.glb"),
     ] {
         let text = std::fs::read_to_string(root.join(format!("assets/checkpoints/{name}/config.json"))).unwrap();
         let record: serde_json::Value = serde_json::from_str(&text).unwrap();
