@@ -194,34 +194,36 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
         })
         .collect();
     let combined: Vec<f32> = out.iter().filter_map(|p| p.combined).collect();
-    // Standing: per window, the human's root travel in metres and turning in degrees; the character's
-    // in its body lengths and degrees, both per second of the window.
-    let (lin, ang) = (layout.root_linear_velocity().start, layout.root_angular_velocity().start);
-    let dt = 1.0 / config.fps;
-    let travel = |rows: &[R], w: &std::ops::Range<usize>| -> f32 {
-        rows[w.clone()].iter().map(|r| r.as_ref()[lin].hypot(r.as_ref()[lin + 1]) * dt).sum()
-    };
-    let turn = |rows: &[R], w: &std::ops::Range<usize>| -> f32 {
-        rows[w.clone()].iter().map(|r| r.as_ref()[ang + 2].abs().to_degrees() * dt).sum()
-    };
-    let human_travel = |w: &std::ops::Range<usize>| -> f32 {
-        human[w.clone()].iter().map(|r| r.as_ref()[lin].hypot(r.as_ref()[lin + 1]) * dt).sum::<f32>() / human_speed * human_body
-    };
-    let human_turn =
-        |w: &std::ops::Range<usize>| -> f32 { human[w.clone()].iter().map(|r| r.as_ref()[ang + 2].abs().to_degrees() * dt).sum() };
-    let standing: Vec<std::ops::Range<usize>> = windows(character.len(), window)
-        .filter(|w| human_travel(w) <= config.still_extent_m && human_turn(w) <= config.still_turn_deg)
-        .collect();
-    let per_second = |f: &dyn Fn(&std::ops::Range<usize>) -> f32| -> Option<f32> {
-        let mut v: Vec<f32> = standing.iter().map(|w| f(w) / (w.len() as f32 * dt)).collect();
-        (!v.is_empty()).then(|| median(&mut v))
-    };
+    // Standing: the windows where the human's root travels at most `still_extent_m` metres (its Ψ
+    // velocity taken back from L_fea's speed scale and its body lengths) and turns at most
+    // `still_turn_deg`; in them the character's travel (body lengths) and turning, per second.
+    let (mut travels, mut turns) = (Vec::new(), Vec::new());
+    for w in windows(character.len(), window) {
+        let (travel, degrees) = root_motion(layout, &human[w.clone()], config.fps);
+        if travel / human_speed * human_body <= config.still_extent_m && degrees <= config.still_turn_deg {
+            let (travel, turn) = root_motion(layout, &character[w.clone()], config.fps);
+            let seconds = w.len() as f32 / config.fps;
+            travels.push(travel / seconds);
+            turns.push(turn / seconds);
+        }
+    }
+    let med = |mut v: Vec<f32>| (!v.is_empty()).then(|| median(&mut v));
     FollowingReport {
         score: (!combined.is_empty()).then(|| combined.iter().sum::<f32>() / combined.len() as f32),
         pairs: out,
-        standing_travel: per_second(&|w| travel(character, w)),
-        standing_turn: per_second(&|w| turn(character, w)),
+        standing_travel: med(travels),
+        standing_turn: med(turns),
     }
+}
+
+/// How far the root of `rows` (Ψ rows at `fps`) travels horizontally (Ψ's velocity units times seconds)
+/// and how much it turns about the vertical (degrees, every turn counted).
+fn root_motion<R: AsRef<[f32]>>(layout: &FeatureLayout, rows: &[R], fps: f32) -> (f32, f32) {
+    let (lin, ang) = (layout.root_linear_velocity().start, layout.root_angular_velocity().start);
+    rows.iter().fold((0.0, 0.0), |(travel, turn), r| {
+        let r = r.as_ref();
+        (travel + r[lin].hypot(r[lin + 1]) / fps, turn + r[ang + 2].abs().to_degrees() / fps)
+    })
 }
 
 /// The first `n` end-effector triples of each row, from entry `start`.
