@@ -1132,6 +1132,17 @@ mod tests {
             for (file, vs) in [(GENERATOR_FILE, resumed.generator.var_store()), (DISCRIMINATOR_FILE, d.var_store())] {
                 assert_weights(vs, Tensor::read_safetensors(dir.join(file)).unwrap(), &format!("the resumed run against its {file}"));
             }
+            // Other human data refuses to resume, each difference alone: the statistics, the body
+            // lengths.
+            let refused = |e: LearnError| {
+                let e = e.to_string();
+                assert!(e.contains(&dir.display().to_string()) && e.contains("other human data"), "{e}");
+            };
+            let mut shifted = stats.clone();
+            shifted.mean[0] += 0.5;
+            refused(start_or_resume(inputs, &cfg, &shifted, &humans, &dir, Device::Cpu).err().unwrap());
+            let longer = AceInputs { character_body_length: inputs.character_body_length * 1.1, ..*inputs };
+            refused(start_or_resume(&longer, &cfg, &stats, &humans, &dir, Device::Cpu).err().unwrap());
         });
         // A run with other networks refuses the directory.
         let other = AceConfig {
