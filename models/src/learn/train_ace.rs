@@ -888,9 +888,14 @@ mod tests {
         let fresh = scratch_dir("fine_tune_fresh");
         let (_, fresh_reports) = train_in_with(&fresh, &tiny_config(10), &corr).unwrap();
         assert_ne!(reports[0].fea, fresh_reports[0].fea);
-        // Nothing is overwritten.
+        // Nothing is overwritten: a folder with a whole checkpoint, or with a prior alone.
         let err = start_fine_tune(&prior, load(), from, &dir, &cfg, &corr).unwrap_err();
         assert!(err.to_string().contains("already holds a checkpoint"), "{err}");
+        let prior_only = scratch_dir("fine_tune_prior_only");
+        prior.save(&prior_only).unwrap();
+        let err = start_fine_tune(&prior, load(), from, &prior_only, &cfg, &corr).unwrap_err();
+        assert!(err.to_string().contains("already holds a checkpoint"), "{err}");
+        fs::remove_dir_all(&prior_only).unwrap();
         let mut wider = cfg.clone();
         wider.generator_hidden = vec![32];
         let err = start_fine_tune(&prior, load(), from, &scratch_dir("fine_tune_wider"), &wider, &corr).unwrap_err();
