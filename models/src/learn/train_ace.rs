@@ -1095,6 +1095,22 @@ mod tests {
     }
 
     #[test]
+    fn a_run_directory_gets_the_prior_unless_it_holds_that_one() {
+        let prior = PriorCheckpoint::load(crate::learn::prior::test_support::trained_spot_dir(), Device::Cpu).unwrap();
+        let dir = scratch_dir("place_prior");
+        prior.save(&dir).unwrap();
+        // The same prior is kept as it is; one trained to another step (all else equal) is replaced.
+        let config = dir.join(CONFIG_FILE);
+        let mut record: serde_json::Value = serde_json::from_slice(&fs::read(&config).unwrap()).unwrap();
+        record["step"] = (prior.step + 1).into();
+        fs::write(&config, serde_json::to_vec_pretty(&record).unwrap()).unwrap();
+        assert_eq!(PriorCheckpoint::load(&dir, Device::Cpu).unwrap().step, prior.step + 1);
+        place_prior(&prior, &dir).unwrap();
+        assert_eq!(PriorCheckpoint::load(&dir, Device::Cpu).unwrap().step, prior.step, "the other prior was kept");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn a_stopped_run_resumes_from_its_checkpoint() {
         let dir = scratch_dir("ace_resume");
         let (_, first) = train_in(&dir, &tiny_config(60)).unwrap();
