@@ -951,6 +951,9 @@ mod tests {
         let b12 = start_or_resume(set, &mask, &longer, &b, Value::Null, Device::Cpu).unwrap();
         assert_eq!(b12.step, 12);
         assert_weights(b12.prior.var_store(), pb.var_store().variables(), "the resumed prior against the saved one");
+        // The resumed run records its own provenance.
+        let note = serde_json::json!({ "run": "resumed" });
+        assert_eq!(start_or_resume(set, &mask, &longer, &b, note.clone(), Device::Cpu).unwrap().provenance, note);
         // A finished run returns at once.
         let mut calls = 0;
         train_prior(set, &mask, &longer, &a, &mut |_| calls += 1).unwrap();
