@@ -570,12 +570,7 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<()> {
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write_to(&mut bytes, ImageFormat::Png).with_context(what)?;
     path.file_name().with_context(|| format!("{}: not a file path", what()))?;
-    let tmp = ace::models::temporary::beside(path, None);
-    let result = std::fs::write(&tmp, bytes.get_ref()).and_then(|()| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(what)
+    ace::models::temporary::write_atomically(path, bytes.get_ref()).with_context(what)
 }
 
 #[cfg(test)]

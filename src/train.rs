@@ -336,10 +336,8 @@ pub fn write_reference(dir: &Path, set: &MotionSet, correspondence: &Corresponde
     });
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(REFERENCE_FILE);
-    let tmp = ace::models::temporary::beside(&path, None);
-    std::fs::write(&tmp, serde_json::to_string(&v)?).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    ace::models::temporary::write_atomically(&path, serde_json::to_string(&v)?.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// Plots the named columns of a loss CSV (first column: step) beside it as PNG, log scale.

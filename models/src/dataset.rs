@@ -37,7 +37,6 @@
 //! problem when something is off; [`MotionSet::save`] refuses a dataset with a NaN or an infinity.
 
 use std::fs;
-use std::io::Write;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -544,26 +543,9 @@ impl MotionSet {
             return Err(file_error(path, format!("refusing to write a dataset that {problem}")));
         }
         let bytes = self.to_bytes()?;
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = path
-            .file_name()
-            .ok_or_else(|| file_error(path, "not a file path"))?
-            .to_string_lossy()
-            .into_owned();
-        let tmp = crate::temporary::beside(&dir.join(&name), None);
-        let write = || -> std::io::Result<()> {
-            let mut f = fs::File::create(&tmp)?;
-            f.write_all(&bytes)?;
-            f.sync_all()?;
-            fs::rename(&tmp, path)
-        };
-        write().map_err(|e| {
-            let _ = fs::remove_file(&tmp);
-            file_error(path, format!("cannot write the dataset: {e}"))
-        })
+        path.file_name().ok_or_else(|| file_error(path, "not a file path"))?;
+        crate::temporary::write_atomically(path, &bytes)
+            .map_err(|e| file_error(path, format!("cannot write the dataset: {e}")))
     }
 
     /// The file's bytes (see the module docs).

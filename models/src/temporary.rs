@@ -5,6 +5,7 @@
 //! user's own files, whatever they are called (`.notes.2024.tmp`, `.draft.tmp-7`).
 
 use std::ffi::OsString;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The marker in every temporary's name.
@@ -21,6 +22,26 @@ pub fn beside(path: &Path, ext: Option<&str>) -> PathBuf {
         name.push(ext);
     }
     path.with_file_name(name)
+}
+
+/// Writes `bytes` to `path` as a whole: into its temporary ([`beside`]), flushed to disk, then renamed
+/// over `path`. On failure the temporary is removed and `path` is left as it was. A path that names
+/// no file is refused.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if path.file_name().is_none() {
+        return Err(std::io::Error::other("the path names no file"));
+    }
+    let tmp = beside(path, None);
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
 }
 
 /// The process id in the name of a temporary ([`beside`]); `None` for any other name.

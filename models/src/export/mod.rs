@@ -25,7 +25,6 @@ pub use gltf::{GlbOutput, GltfOptions, HumanOverlay, character_glb, write_glb};
 pub use rig::{RigClipOptions, RigClipOutput, rig_clip_glb, write_rig_clip};
 pub use trajectory::{CommandFrame, CommandTrajectory};
 
-use std::io::Write;
 use std::path::Path;
 
 use thiserror::Error;
@@ -125,18 +124,5 @@ pub fn check_poses(tree: &KinematicTree, poses: &[CharacterPose], fps: f32) -> R
 /// Writes `bytes` to `path` atomically: into a temporary file in the same directory, flushed to disk,
 /// then renamed over `path`. On failure the temporary file is removed and `path` is left as it was.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-    let file = path.display().to_string();
-    path.file_name()
-        .ok_or_else(|| ExportProblem::Io(std::io::Error::other("the path names no file")).in_file(&file))?;
-    let tmp = crate::temporary::beside(path, None);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        ExportProblem::Io(e).in_file(file)
-    })
+    crate::temporary::write_atomically(path, bytes).map_err(|e| ExportProblem::Io(e).in_file(path.display().to_string()))
 }

@@ -89,17 +89,11 @@ pub(crate) fn open_losses(
             }
         }
     }
-    // A project temporary, so that a run killed before the rename leaves one the next run recognises
-    // and removes.
-    let tmp = crate::temporary::beside(path, None);
+    // Through a project temporary, so that a run killed before the rename leaves one the next run
+    // recognises and removes.
     let mut text = kept.join("\n");
     text.push('\n');
-    fs::write(&tmp, text)
-        .and_then(|_| fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = fs::remove_file(&tmp);
-            LearnError::io(path, e)
-        })?;
+    crate::temporary::write_atomically(path, text.as_bytes()).map_err(|e| LearnError::io(path, e))?;
     let f = fs::OpenOptions::new()
         .append(true)
         .open(path)
