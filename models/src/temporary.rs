@@ -87,4 +87,23 @@ mod tests {
             assert_eq!(pid_of(name), None, "{name}");
         }
     }
+
+    #[test]
+    fn an_atomic_write_replaces_the_file_or_leaves_it_and_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("ace_temporary_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("taken/inside")).unwrap();
+        let file = dir.join("out.json");
+        std::fs::write(&file, b"old").unwrap();
+        write_atomically(&file, b"new").unwrap();
+        assert_eq!(std::fs::read(&file).unwrap(), b"new");
+        // A folder in the way (renaming a file over a non-empty folder fails): it stays, and so
+        // does nothing of the write.
+        assert!(write_atomically(&dir.join("taken"), b"new").is_err());
+        assert!(dir.join("taken/inside").is_dir());
+        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(left.len(), 2, "{left:?}");
+        assert!(write_atomically(Path::new("/"), b"x").unwrap_err().to_string().contains("names no file"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
