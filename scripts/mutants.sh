@@ -33,9 +33,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # training, retargeting and runtime tests of other modules, so all of the crate's unit tests run for
 # them (about 15 s); in `train_ace.rs` and `prior.rs` only the code that starts, resumes or fine-tunes a
 # run is mutated (each mutant relinks libtorch, about a minute; the training loops themselves are
-# checked by the end-to-end runs). Not here yet: the plugin's `retarget.rs`, whose tests are the `ace`
-# package's headless ones (`tests/headless.rs`), while cargo-mutants runs the mutated package's
-# (`bevy_ace`): `--test-package ace` left it with no test target to run.
+# checked by the end-to-end runs). The plugin's `retarget.rs` runs its crate's own Retargeter tests
+# (`plugin/tests/retarget.rs`, no libtorch); the rigged creatures' scene tests stay in the `ace` crate,
+# which trains their small checkpoints with the `ace` binary.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -47,10 +47,12 @@ declare -A how=(
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
   [models/src/learn/prior.rs]="$learn --re start_or_resume -- --lib"
+  [plugin/src/retarget.rs]="--package bevy_ace -- --test retarget"
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs
-       models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs)
+       models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
+       plugin/src/retarget.rs)
 files=("$@")
 [ ${#files[@]} -eq 0 ] && files=("${order[@]}")
 

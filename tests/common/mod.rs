@@ -1,10 +1,13 @@
 //! Helpers shared by the `ace` crate's integration tests.
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+/// The plugin's headless-test helpers (apps, stepping, the retargeting set-up), one copy for both crates.
+#[path = "../../plugin/tests/support/mod.rs"]
+pub mod support;
+#[allow(unused_imports)] // rig_clip_in_bevy steps its app with it; other tests do not
+pub use support::update_until;
 
-use bevy::prelude::{App, World};
+use std::path::{Path, PathBuf};
 
 /// The project's folder.
 pub fn root() -> &'static Path {
@@ -42,16 +45,4 @@ pub fn folder_bytes(dir: &Path) -> Vec<(String, Vec<u8>)> {
     }
     out.sort();
     out
-}
-
-/// Steps the app until `done` holds, at most 2000 frames.
-pub fn update_until(app: &mut App, mut done: impl FnMut(&mut World) -> bool) {
-    for _ in 0..2000 {
-        app.update();
-        if done(app.world_mut()) {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    panic!("condition not reached in 2000 frames");
 }

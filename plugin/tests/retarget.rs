@@ -1,0 +1,375 @@
+//! The `Retargeter` component, headless: characters driven by a checkpoint from a clip player or a live
+//! source move exactly as `ace retarget` writes them, catch up on short jumps and start over on long
+//! ones, and turn bad checkpoints and bad live frames into messages. (The rigged creatures' scenes are
+//! tested in the `ace` crate's `tests/headless.rs`, which trains small checkpoints with the `ace` binary.)
+
+use std::path::Path;
+use std::time::Duration;
+
+use ace_models::human::state::HumanState;
+use ace_models::human::{HumanClip, ImportOptions, Joint};
+use ace_models::human_set::HumanRow;
+use ace_models::kinematics::CharacterPose;
+use ace_models::morphology::load_character;
+use ace_models::nalgebra::UnitQuaternion;
+use ace_models::runtime::{RetargetedMotion, Retargeter as Offline};
+use ace_models::character::load_creature;
+use bevy::asset::LoadState;
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_ace::convert;
+use bevy_ace::prelude::*;
+
+mod support;
+use support::*;
+/// What `ace retarget` writes for a bundled clip and character with its shipped checkpoint (the CLI
+/// calls this same function; the CLI tests check the files).
+fn offline(character: &str, clip: &str) -> RetargetedMotion {
+    let (tree, morph) = load_character(&asset_path(&format!("characters/{character}.urdf"))).unwrap();
+    let r = Offline::load(&asset_path(&format!("checkpoints/{character}"))).unwrap();
+    let clip = HumanClip::from_bvh_file(&asset_path(&format!("motions/{clip}")), &ImportOptions::default()).unwrap();
+    r.retarget_clip(&tree, &morph, &clip).unwrap()
+}
+
+/// A driven character: its URDF and a retargeter on it.
+fn spawn_driven(app: &mut App, character: &str, checkpoint: &str, source: Entity, x: f32) -> Entity {
+    let server = app.world().resource::<AssetServer>().clone();
+    app.world_mut()
+        .spawn((
+            Character::new(server.load(format!("characters/{character}.urdf"))),
+            Retargeter::new(server.load(format!("checkpoints/{checkpoint}/ace.json")), source),
+            Transform::from_xyz(x, 0.0, 0.0),
+        ))
+        .id()
+}
+
+/// Largest distance (m) and quaternion difference (about half the angle in rad, without the
+/// rounding `angle_between` suffers near zero) between the character's link transforms and those of `pose`
+/// placed by the character's transform.
+fn link_gap(app: &App, e: Entity, pose: &CharacterPose) -> (f32, f32) {
+    let character = app.world().get::<Character>(e).unwrap().asset.clone();
+    let urdf = app.world().resource::<Assets<CharacterAsset>>().get(&character).unwrap().clone();
+    // The character's world: where the entity stood when the first pose came (the entity itself
+    // moves with the root's ground travel).
+    let placement = app.world().get::<RootOrigin>(e).expect("a posed character has its RootOrigin").0;
+    let expected = urdf.tree.forward_kinematics(pose);
+    let links = &app.world().get::<CharacterLinks>(e).unwrap().0;
+    let (mut d, mut a) = (0.0f32, 0.0f32);
+    for (i, &link) in links.iter().enumerate() {
+        let got = app.world().get::<GlobalTransform>(link).unwrap().compute_transform();
+        let want = placement * convert::transform(&expected[i]);
+        d = d.max(got.translation.distance(want.translation));
+        a = a.max((got.rotation - want.rotation).length().min((got.rotation + want.rotation).length()));
+    }
+    (d, a)
+}
+
+/// Link transforms within 0.1 mm and 0.001 (quaternion difference) of the offline motion, frame
+/// for frame.
+#[test]
+fn a_retargeted_character_moves_as_ace_retarget_writes_it() {
+    let want = offline("spot", "walk.bvh");
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 1.5);
+    start_together(&mut app, player, &[spot]);
+    let mut seen = Vec::new();
+    for _ in 0..90 {
+        app.update();
+        let t = tick(&app, spot).unwrap();
+        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
+        seen.push(t);
+    }
+    // One tick per fixed step, one frame behind the clip.
+    assert_eq!(seen, (0..90).collect::<Vec<i64>>());
+    let moved = want.poses[89].root.translation.vector - want.poses[0].root.translation.vector;
+    assert!(moved.norm() > 0.3, "the walk moves Spot ({} m)", moved.norm());
+    // Root motion is on the entity: it stands where it was placed times the root's ground travel, and
+    // the root link over it, facing its +x.
+    let origin = app.world().get::<RootOrigin>(spot).unwrap().0;
+    assert_eq!(origin, Transform::from_xyz(1.5, 0.0, 0.0));
+    let rest = load_character(&asset_path("characters/spot.urdf")).unwrap().0.standing_pose().root.rotation;
+    let last = tick(&app, spot).unwrap() as usize;
+    let entity = *app.world().get::<Transform>(spot).unwrap();
+    assert_close(&entity, &(origin * convert::transform(&want.poses[last].ground_travel(&rest))), "the entity");
+    assert!(entity.translation.distance(origin.translation) > 0.3, "the entity travels with the walk");
+    let root_link = app.world().get::<CharacterLinks>(spot).unwrap().0[0];
+    let local = app.world().get::<Transform>(root_link).unwrap();
+    assert!(local.translation.x.abs() < 1e-4 && local.translation.z.abs() < 1e-4, "the root link stands over the entity: {local:?}");
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+}
+
+#[test]
+fn one_clip_drives_several_characters_and_a_seek_back_starts_over() {
+    let (spot_walk, crab_walk) = (offline("spot", "walk.bvh"), offline("crab", "walk.bvh"));
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let characters = [
+        spawn_driven(&mut app, "spot", "spot", player, 1.5),
+        spawn_driven(&mut app, "spot", "spot", player, 3.0),
+        spawn_driven(&mut app, "crab", "crab", player, -1.5),
+    ];
+    start_together(&mut app, player, &characters);
+    for _ in 0..45 {
+        app.update();
+        for (&e, want) in characters.iter().zip([&spot_walk, &spot_walk, &crab_walk]) {
+            let t = tick(&app, e).unwrap();
+            // Batched with another character: equal up to the rounding of batched products.
+            let (d, a) = link_gap(&app, e, &want.poses[t as usize]);
+            assert!(d < 2e-3 && a < 2e-2, "tick {t}: links {d} m and {a} rad from the offline motion");
+        }
+    }
+    assert_eq!(tick(&app, characters[0]), tick(&app, characters[2]));
+    // Scrubbing back: every character starts again from rest at the new time.
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().seek(0.0);
+    app.update();
+    app.update();
+    for (&e, want) in characters.iter().zip([&spot_walk, &spot_walk, &crab_walk]) {
+        assert_eq!(tick(&app, e), Some(0));
+        let (d, _) = link_gap(&app, e, &want.poses[0]);
+        assert!(d < 2e-3, "restarted at the clip's first pose ({d} m away)");
+    }
+}
+
+/// A jump of the source's clock by at most `MAX_CATCH_UP` ticks is caught up on, tick by tick, as if
+/// played; one tick more and the character starts over, standing at rest at the new tick, as a
+/// character that joins the source there does.
+#[test]
+fn a_short_jump_is_caught_up_on_and_a_longer_one_starts_over() {
+    use bevy_ace::retarget::MAX_CATCH_UP;
+    let want = offline("spot", "walk.bvh");
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(spot), Some(RetargetStatus::Running { tick: 0 })));
+    let seek = |app: &mut App, tick: i64| {
+        app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().seek(tick as f32 / 30.0);
+        app.update();
+        app.update();
+    };
+    let short = MAX_CATCH_UP;
+    seek(&mut app, short);
+    assert_eq!(tick(&app, spot), Some(short));
+    let (d, a) = link_gap(&app, spot, &want.poses[short as usize]);
+    assert!(d < 1e-4 && a < 1e-3, "caught up: links {d} m and {a} rad from the played motion");
+
+    let long = short + MAX_CATCH_UP + 1;
+    seek(&mut app, long);
+    let joined = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(joined), Some(RetargetStatus::Running { .. })));
+    assert_eq!(tick(&app, spot), Some(long));
+    assert_eq!(tick(&app, joined), Some(long));
+    let restarted = &app.world().get::<Pose>(joined).unwrap().0;
+    let (d, a) = link_gap(&app, spot, restarted);
+    assert!(d < 1e-4 && a < 1e-3, "started over: links {d} m and {a} rad from a character that joined there");
+    // Starting over is not catching up: the played motion has walked on from the origin.
+    let (d, _) = link_gap(&app, spot, &want.poses[long as usize]);
+    assert!(d > 0.1, "{d} m from the played motion");
+}
+
+/// A mocap stream's bad packets (time not finite, not later than the last, a pose with NaN) are
+/// refused with their reason and leave the source as it was.
+#[test]
+fn a_live_source_refuses_frames_out_of_order_or_not_finite() {
+    use bevy_ace::retarget::LiveFrameRefused;
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();
+    let mut live = LiveHuman::default();
+    assert_eq!(live.push(0.0, clip.frames[0].clone()), Ok(()));
+    assert_eq!(live.push(0.1, clip.frames[3].clone()), Ok(()));
+    let held = |l: &LiveHuman| (l.latest_time(), l.frame_at(0.05), l.frame_at(1.0));
+    let before = held(&live);
+    let mut nan_joint = clip.frames[6].clone();
+    nan_joint.positions[Joint::LeftHand.index()].y = f32::NAN;
+    let mut nan_root = clip.frames[6].clone();
+    nan_root.root_rotation = UnitQuaternion::new_unchecked(ace_models::nalgebra::Quaternion::new(f32::NAN, 0.0, 0.0, 0.0));
+    let mut inf_joint = clip.frames[6].clone();
+    inf_joint.positions[Joint::Pelvis.index()].z = f32::INFINITY;
+    assert_eq!(live.push(f32::NAN, clip.frames[6].clone()), Err(LiveFrameRefused::BadTime));
+    assert_eq!(live.push(f32::INFINITY, clip.frames[6].clone()), Err(LiveFrameRefused::BadTime));
+    assert_eq!(live.push(0.05, clip.frames[6].clone()), Err(LiveFrameRefused::NotLater));
+    assert_eq!(live.push(0.1, clip.frames[6].clone()), Err(LiveFrameRefused::NotLater));
+    assert_eq!(live.push(0.2, nan_joint), Err(LiveFrameRefused::BadPose));
+    assert_eq!(live.push(0.2, nan_root), Err(LiveFrameRefused::BadPose));
+    assert_eq!(live.push(0.2, inf_joint), Err(LiveFrameRefused::BadPose));
+    assert_eq!(held(&live), before);
+    assert_eq!(live.push(0.2, clip.frames[6].clone()), Ok(()));
+    assert_eq!(live.latest_time(), Some(0.2));
+}
+
+#[test]
+fn a_live_source_fed_from_code_drives_a_character() {
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();
+    let mut app = retargeting_app();
+    let source = app.world_mut().spawn(LiveHuman::default()).id();
+    let spot = spawn_driven(&mut app, "spot", "spot", source, 0.0);
+    // Frames arrive one per step, stamped with the stream's clock.
+    let send = |app: &mut App, k: usize| {
+        app.world_mut().write_message(LiveHumanFrame { source, time: k as f32 / 30.0, frame: clip.frames[k].clone() });
+    };
+    send(&mut app, 0);
+    update_until(&mut app, |w| matches!(w.get::<RetargetStatus>(spot), Some(RetargetStatus::Running { .. })));
+    for k in 1..60 {
+        send(&mut app, k);
+        app.update();
+    }
+    app.update();
+    assert_eq!(tick(&app, spot), Some(59));
+    // The same as retargeting the frames offline, with the live rule for the first frame (no
+    // next frame yet: no velocities).
+    let frames = &clip.frames[..60];
+    let rows: Vec<HumanRow> = (0..60)
+        .map(|k| {
+            // What the stream held at tick k: frames 0..=k.
+            let at = |t: f32| frames[((t * 30.0).round() as usize).min(k)].clone();
+            HumanState::sampled(at, k as f32 / 30.0, 1.0 / 30.0, k == 0).0
+        })
+        .collect();
+    let (tree, morph) = load_character(&asset_path("characters/spot.urdf")).unwrap();
+    let r = Offline::load(&asset_path("checkpoints/spot")).unwrap();
+    let want = r.retarget_states(&tree, &morph, &rows).unwrap();
+    let (d, a) = link_gap(&app, spot, &want.poses[59]);
+    assert!(d < 1e-4 && a < 1e-3, "links {d} m and {a} rad from the offline motion");
+}
+
+#[test]
+fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let missing = spawn_driven(&mut app, "spot", "no_such_checkpoint", player, 0.0);
+    let mismatched = spawn_driven(&mut app, "spot", "crab", player, 1.0);
+    let sourceless = spawn_driven(&mut app, "spot", "spot", player, 2.0);
+    app.world_mut().get_mut::<Retargeter>(sourceless).unwrap().source = missing;
+    let failed = |w: &mut World, e: Entity| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Failed(_)));
+    update_until(&mut app, |w| [missing, mismatched, sourceless].iter().all(|&e| failed(w, e)));
+    app.update();
+    let errors = &app.world().resource::<SeenErrors>().0;
+    let message = |e: Entity| {
+        let m: Vec<&str> = errors.iter().filter(|r| r.entity == e).map(|r| r.message.as_str()).collect();
+        assert_eq!(m.len(), 1, "one message per failure: {m:?}");
+        m[0].to_string()
+    };
+    let m = message(missing);
+    assert!(m.contains("no_such_checkpoint/ace.json"), "{m}");
+    let m = message(mismatched);
+    assert!(m.contains("checkpoints/crab") && m.contains("does not fit character spot"), "{m}");
+    let m = message(sourceless);
+    assert!(m.contains("neither a HumanClipPlayer nor a LiveHuman"), "{m}");
+    // A broken checkpoint file fails to load with its name.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-broken-checkpoint");
+    let ckpt = dir.join("checkpoints/spot");
+    std::fs::create_dir_all(&ckpt).unwrap();
+    for f in ["ace.json", "config.json", "prior.safetensors"] {
+        std::fs::copy(asset_path("checkpoints/spot").join(f), ckpt.join(f)).unwrap();
+    }
+    std::fs::write(ckpt.join("generator.safetensors"), b"not a safetensors file").unwrap();
+    std::fs::create_dir_all(dir.join("characters")).unwrap();
+    std::fs::copy(asset_path("characters/spot.urdf"), dir.join("characters/spot.urdf")).unwrap();
+    std::fs::create_dir_all(dir.join("motions")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), dir.join("motions/walk.bvh")).unwrap();
+    let mut app = app_with_assets(dir.to_str().unwrap());
+    app.init_resource::<SeenErrors>().add_systems(Last, record_errors);
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| failed(w, spot));
+    let Some(RetargetStatus::Failed(m)) = app.world().get::<RetargetStatus>(spot) else { unreachable!() };
+    assert!(m.contains("generator.safetensors"), "{m}");
+}
+
+/// A character and its checkpoint loaded from a second asset source (`custom://`) read their
+/// sibling files there: the checkpoint's configuration, prior and generator, the character's profile,
+/// a `.gltf`'s buffer. The default source holds none of them, only a broken profile for Spot that
+/// must not be read.
+#[test]
+fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
+    use bevy::asset::io::AssetSourceBuilder;
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-source");
+    let _ = std::fs::remove_dir_all(&root);
+    let (main, custom) = (root.join("default"), root.join("custom"));
+    for dir in [main.join("characters"), main.join("motions"), custom.join("characters"), custom.join("checkpoints/spot")] {
+        std::fs::create_dir_all(dir).unwrap();
+    }
+    for c in ["spot", "hound"] {
+        std::fs::create_dir_all(custom.join("checkpoints").join(c)).unwrap();
+        for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
+            std::fs::copy(asset_path("checkpoints").join(c).join(f), custom.join("checkpoints").join(c).join(f)).unwrap();
+        }
+    }
+    std::fs::copy(asset_path("characters/spot.urdf"), custom.join("characters/spot.urdf")).unwrap();
+    std::fs::copy(asset_path("motions/walk.bvh"), main.join("motions/walk.bvh")).unwrap();
+    std::fs::write(main.join("characters/spot.profile.toml"), "not a profile [").unwrap();
+    // The hound as a `.gltf` whose buffer is a file beside it.
+    std::fs::create_dir_all(custom.join("creatures")).unwrap();
+    let glb = std::fs::read(asset_path("creatures/hound.glb")).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let bin_len = u32::from_le_bytes(glb[bin_at..bin_at + 4].try_into().unwrap()) as usize;
+    json["buffers"][0]["uri"] = "hound.bin".into();
+    std::fs::write(custom.join("creatures/hound.gltf"), serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::write(custom.join("creatures/hound.bin"), &glb[bin_at + 8..bin_at + 8 + bin_len]).unwrap();
+    // The hound's profile (its spine held at rest, as its checkpoint was trained) goes beside it too.
+    std::fs::copy(asset_path("creatures/hound.profile.toml"), custom.join("creatures/hound.profile.toml")).unwrap();
+
+    let mut app = App::new();
+    app.register_asset_source("custom", AssetSourceBuilder::platform_default(custom.to_str().unwrap(), None))
+        .add_plugins((
+            MinimalPlugins,
+            AssetPlugin { file_path: main.to_str().unwrap().into(), ..default() },
+            TransformPlugin,
+            AcePlugin,
+        ))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(DT)))
+        .init_resource::<SeenErrors>()
+        .add_systems(Last, record_errors);
+    let player = paused_player(&mut app, "walk.bvh");
+    let server = app.world().resource::<AssetServer>().clone();
+    let checkpoint: Handle<CheckpointAsset> = server.load("custom://checkpoints/spot/ace.json");
+    let spot = app
+        .world_mut()
+        .spawn((Character::new(server.load("custom://characters/spot.urdf")), Retargeter::new(checkpoint.clone(), player)))
+        .id();
+    let hound_gltf: Handle<CharacterAsset> = server.load("custom://creatures/hound.gltf");
+    update_until(&mut app, |w| match w.get::<RetargetStatus>(spot) {
+        Some(RetargetStatus::Failed(m)) => panic!("retargeter failed: {m}"),
+        Some(RetargetStatus::Running { tick: 0 }) => true,
+        _ => false,
+    });
+    let dir = app.world().resource::<Assets<CheckpointAsset>>().get(&checkpoint).unwrap().dir().to_path_buf();
+    assert_eq!(dir, std::path::Path::new("checkpoints/spot"));
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = false;
+    let want = offline("spot", "walk.bvh");
+    let mut seen = Vec::new();
+    for _ in 0..10 {
+        app.update();
+        let t = tick(&app, spot).unwrap();
+        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
+        seen.push(t);
+    }
+    assert_eq!(seen, (0..10).collect::<Vec<i64>>());
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
+    let mut state = LoadState::Loading;
+    update_until(&mut app, |w| {
+        state = w.resource::<AssetServer>().load_state(&hound_gltf);
+        matches!(state, LoadState::Loaded | LoadState::Failed(_))
+    });
+    assert!(matches!(state, LoadState::Loaded), "the .gltf with its buffer beside it: {state:?}");
+    let hound = app.world().resource::<Assets<CharacterAsset>>().get(&hound_gltf).unwrap();
+    assert_eq!(hound.tree.dof(), load_creature(&asset_path("creatures/hound.glb")).unwrap().tree.dof());
+
+    // The hound's checkpoint was trained with `hound.glb`: a copy of it anywhere is that file; the
+    // `.gltf` has the same bones but other bytes, which the checkpoint tells (the plugin warns once).
+    std::fs::copy(asset_path("creatures/hound.glb"), custom.join("creatures/hound.glb")).unwrap();
+    let hound_checkpoint: Handle<CheckpointAsset> = server.load("custom://checkpoints/hound/ace.json");
+    let hound_glb: Handle<CharacterAsset> = server.load("custom://creatures/hound.glb");
+    update_until(&mut app, |_| {
+        [server.load_state(&hound_checkpoint), server.load_state(&hound_glb)].iter().all(|s| matches!(s, LoadState::Loaded))
+    });
+    let checkpoint = app.world().resource::<Assets<CheckpointAsset>>().get(&hound_checkpoint).unwrap();
+    let characters = app.world().resource::<Assets<CharacterAsset>>();
+    assert_eq!(checkpoint.character_file_difference(characters.get(&hound_glb).unwrap()), None);
+    let w = checkpoint.character_file_difference(characters.get(&hound_gltf).unwrap()).expect("the .gltf is another file");
+    assert!(w.contains("creatures/hound.gltf is not the character file") && w.contains("checkpoints/hound"), "{w}");
+}
