@@ -1110,6 +1110,31 @@ mod tests {
         fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// Both optimisers take the configured Adam β₁ (a GAN's 0.5, not tch's default 0.9): the same short
+    /// run repeated ends with the same networks, and with another β₁ with other ones (β₁ acts from
+    /// the second step on: the first, bias-corrected, is the same under any β₁).
+    #[test]
+    fn the_optimisers_take_the_configured_adam_beta1() {
+        let run = |beta1: f64, name: &str| {
+            let dir = scratch_dir(name);
+            let cfg = AceConfig { adam_beta1: beta1, ..tiny_config(3) };
+            let (ckpt, _) = train_in(&dir, &cfg).unwrap();
+            fs::remove_dir_all(&dir).unwrap();
+            let d = ckpt.discriminator.as_ref().unwrap();
+            [ckpt.generator.var_store(), d.var_store()].map(|vs| {
+                let mut v: Vec<(String, Tensor)> = vs.variables().into_iter().collect();
+                v.sort_by(|a, b| a.0.cmp(&b.0));
+                v
+            })
+        };
+        let same = |a: &[(String, Tensor)], b: &[(String, Tensor)]| a.iter().zip(b).all(|((n, x), (m, y))| n == m && x.equal(y));
+        let (gan, again, default) = (run(0.5, "beta1_a"), run(0.5, "beta1_b"), run(0.9, "beta1_c"));
+        for (net, name) in ["generator", "discriminator"].iter().enumerate() {
+            assert!(same(&gan[net], &again[net]), "the {name}: a repeated run differs");
+            assert!(!same(&gan[net], &default[net]), "the {name}: β₁ 0.5 and 0.9 give the same weights");
+        }
+    }
+
     #[test]
     fn a_stopped_run_resumes_from_its_checkpoint() {
         let dir = scratch_dir("ace_resume");
@@ -1149,6 +1174,12 @@ mod tests {
             let humans = human_windows(inputs, &stats, psi.layout(), cfg.window, FeatureMatching::of(&cfg), Device::Cpu).unwrap();
             let resumed = start_or_resume(inputs, &cfg, &stats, &humans, &dir, Device::Cpu).unwrap();
             assert_eq!(resumed.record.step, 80);
+            // The resumed record names this run's provenance; a resume that brings none keeps the stored.
+            assert_eq!(resumed.record.provenance, serde_json::json!({ "test": "ace_resume" }));
+            let none = serde_json::Value::Null;
+            let anonymous = AceInputs { provenance: &none, ..*inputs };
+            let kept = start_or_resume(&anonymous, &cfg, &stats, &humans, &dir, Device::Cpu).unwrap();
+            assert_eq!(kept.record.provenance, serde_json::json!({ "test": "train_ace" }));
             let d = resumed.discriminator.as_ref().unwrap();
             for (file, vs) in [(GENERATOR_FILE, resumed.generator.var_store()), (DISCRIMINATOR_FILE, d.var_store())] {
                 assert_weights(vs, Tensor::read_safetensors(dir.join(file)).unwrap(), &format!("the resumed run against its {file}"));
