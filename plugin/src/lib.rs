@@ -112,6 +112,7 @@ impl Plugin for AcePlugin {
             .init_resource::<retarget::Workers>()
             .add_message::<retarget::LiveHumanFrame>()
             .add_message::<retarget::RetargetError>()
+            .add_observer(retarget::reset_removed)
             .add_systems(
                 PostUpdate,
                 (retarget::receive_live_frames, retarget::collect_poses, retarget::request_poses)

@@ -179,6 +179,17 @@ pub(crate) fn receive_live_frames(mut frames: MessageReader<LiveHumanFrame>, mut
     }
 }
 
+/// A removed [`Retargeter`] leaves its character standing as it was; one added back later starts over
+/// at its source's tick (the worker forgets the character in [`request_poses`]). Without this, the
+/// character's place in the ticks outlived the component and one added back asked the worker to go on
+/// with a character it had forgotten.
+pub(crate) fn reset_removed(remove: On<Remove, Retargeter>, mut characters: Query<(&mut Progress, &mut RetargetStatus)>) {
+    if let Ok((mut progress, mut status)) = characters.get_mut(remove.entity) {
+        progress.sent = None;
+        *status = RetargetStatus::Loading;
+    }
+}
+
 /// Writes the poses the workers computed during the previous frame.
 pub(crate) fn collect_poses(
     mut workers: ResMut<Workers>,

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use ace_models::human::state::HumanState;
-use ace_models::human::{HumanClip, ImportOptions, Joint};
+use ace_models::human::{HumanClip, HumanFrame, ImportOptions, Joint};
 use ace_models::human_set::HumanRow;
 use ace_models::kinematics::CharacterPose;
 use ace_models::morphology::load_character;
@@ -372,4 +372,128 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     assert_eq!(checkpoint.character_file_difference(characters.get(&hound_glb).unwrap()), None);
     let w = checkpoint.character_file_difference(characters.get(&hound_gltf).unwrap()).expect("the .gltf is another file");
     assert!(w.contains("creatures/hound.gltf is not the character file") && w.contains("checkpoints/hound"), "{w}");
+}
+
+/// A live source blends its two frames around a time by the time's fraction between them, keeps the
+/// last two seconds of frames, and after a pause in the stream still holds the two newest frames.
+/// (Times are multiples of 1/8 s, exact in binary, so the two-second edge is hit exactly.)
+#[test]
+fn a_live_source_interpolates_between_its_frames_and_keeps_two_seconds() {
+    let clip = HumanClip::from_bvh_file(&asset_path("motions/walk.bvh"), &ImportOptions { fps: Some(30.0), mapping: None }).unwrap();
+    let f = &clip.frames;
+    let at = |k: usize| k as f32 / 8.0;
+    let mut live = LiveHuman::default();
+    for k in 0..=24 {
+        live.push(at(k), f[k].clone()).unwrap();
+    }
+    assert_eq!(live.latest_time(), Some(3.0));
+    let same = |a: &HumanFrame, b: &HumanFrame| {
+        a.positions.iter().zip(&b.positions).all(|(p, q)| (p - q).norm() < 1e-6) && a.root_rotation.angle_to(&b.root_rotation) < 1e-6
+    };
+    // A quarter of the way from frame 20 (2.5 s) to frame 21 (2.625 s).
+    let blended = live.frame_at(2.53125).unwrap();
+    assert!(same(&blended, &f[20].lerp(&f[21], 0.25)), "not a quarter of the way between the two frames");
+    assert!(!same(&blended, &f[20]) && !same(&blended, &f[21]));
+    // Held: 1.0 s to 3.0 s (the frame exactly two seconds old stays); earlier times get the oldest.
+    assert!(same(&live.frame_at(0.0).unwrap(), &f[8]), "the oldest frame held is not the one at 1.0 s");
+    assert!(same(&live.frame_at(0.99).unwrap(), &f[8]));
+    assert!(same(&live.frame_at(5.0).unwrap(), &f[24]));
+    // A stream that stops for ten seconds: both frames around the gap are kept, and blended.
+    live.push(13.0, f[40].clone()).unwrap();
+    assert!(same(&live.frame_at(8.0).unwrap(), &f[24].lerp(&f[40], 0.5)), "the frames around the gap are not both kept");
+}
+
+/// A paused source holds its characters: the same tick and the same pose, frame after frame (no
+/// restart from rest, no further ticks).
+#[test]
+fn a_paused_source_holds_the_character_where_it_is() {
+    let want = offline("spot", "walk.bvh");
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    start_together(&mut app, player, &[spot]);
+    for _ in 0..20 {
+        app.update();
+    }
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    app.update();
+    app.update();
+    let held = tick(&app, spot).unwrap();
+    assert!(held >= 19, "tick {held}");
+    for _ in 0..5 {
+        app.update();
+        assert_eq!(tick(&app, spot), Some(held));
+        let (d, a) = link_gap(&app, spot, &want.poses[held as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "paused at tick {held}: links {d} m and {a} rad from the played motion");
+    }
+}
+
+/// Runs Spot on the walk for 20 ticks, then applies `change` to the app (which must leave the
+/// source's clock where it is), and returns the app, Spot and a character that joined the source at
+/// that tick. After a restart Spot stands exactly as the one that joined.
+fn run_then(change: impl FnOnce(&mut App, Entity, Entity)) -> (App, Entity, Entity, i64) {
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    start_together(&mut app, player, &[spot]);
+    for _ in 0..20 {
+        app.update();
+    }
+    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
+    app.update();
+    app.update();
+    let t = tick(&app, spot).unwrap();
+    change(&mut app, spot, player);
+    let joined = spawn_driven(&mut app, "spot", "spot", player, 0.0);
+    update_until(&mut app, |w| {
+        [spot, joined].iter().all(|&e| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Running { .. })))
+    });
+    app.update();
+    (app, spot, joined, t)
+}
+
+/// Whether `spot` stands as `joined` (a fresh start at the same tick) does, and not as the motion
+/// played on from tick 0.
+fn started_over(app: &App, spot: Entity, joined: Entity, t: i64, want: &RetargetedMotion) -> bool {
+    assert_eq!(tick(app, spot), Some(t));
+    assert_eq!(tick(app, joined), Some(t));
+    let fresh = &app.world().get::<Pose>(joined).unwrap().0;
+    let (from_fresh, _) = link_gap(app, spot, fresh);
+    let (from_played, _) = link_gap(app, spot, &want.poses[t as usize]);
+    println!("tick {t}: {from_fresh} m from the fresh start, {from_played} m from the played motion");
+    assert!(from_fresh < 1e-4 || from_played < 1e-4, "neither started over nor played on: {from_fresh} m, {from_played} m");
+    from_fresh < 1e-4 && from_played > 1e-2
+}
+
+/// A Retargeter inserted anew, a checkpoint modified (as a hot reload does), and a Retargeter
+/// removed and added back each start the character over at the source's tick; a character left
+/// alone plays on.
+#[test]
+fn a_changed_retargeter_or_checkpoint_starts_over_and_a_removed_one_is_forgotten() {
+    let want = offline("spot", "walk.bvh");
+    let (app, spot, joined, t) = run_then(|_, _, _| {});
+    assert!(!started_over(&app, spot, joined, t, &want), "left alone, Spot started over");
+
+    let (app, spot, joined, t) = run_then(|app, spot, _| {
+        let r = app.world().get::<Retargeter>(spot).unwrap().clone();
+        app.world_mut().entity_mut(spot).insert(r);
+    });
+    assert!(started_over(&app, spot, joined, t, &want), "a Retargeter inserted anew did not start over");
+
+    let (app, spot, joined, t) = run_then(|app, spot, _| {
+        let id = app.world().get::<Retargeter>(spot).unwrap().checkpoint.id();
+        let mut checkpoints = app.world_mut().resource_mut::<Assets<CheckpointAsset>>();
+        let mut checkpoint = checkpoints.get_mut(id).expect("the loaded checkpoint");
+        let _: &mut CheckpointAsset = &mut checkpoint; // a mutable borrow marks it modified
+    });
+    assert!(started_over(&app, spot, joined, t, &want), "a modified checkpoint did not start over");
+
+    let (app, spot, joined, t) = run_then(|app, spot, _| {
+        let r = app.world_mut().entity_mut(spot).take::<Retargeter>().unwrap();
+        app.update();
+        app.update();
+        app.world_mut().entity_mut(spot).insert(r);
+    });
+    assert!(started_over(&app, spot, joined, t, &want), "a Retargeter removed and added back did not start over");
+    assert!(app.world().resource::<SeenErrors>().0.is_empty(), "{:?}", app.world().resource::<SeenErrors>().0);
 }
