@@ -241,8 +241,11 @@ fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
     let mismatched = spawn_driven(&mut app, "spot", "crab", player, 1.0);
     let sourceless = spawn_driven(&mut app, "spot", "spot", player, 2.0);
     app.world_mut().get_mut::<Retargeter>(sourceless).unwrap().source = missing;
+    // A Retargeter on an entity with neither a Character nor a glTF scene.
+    let checkpoint = app.world().resource::<AssetServer>().load("checkpoints/spot/ace.json");
+    let bodiless = app.world_mut().spawn(Retargeter::new(checkpoint, player)).id();
     let failed = |w: &mut World, e: Entity| matches!(w.get::<RetargetStatus>(e), Some(RetargetStatus::Failed(_)));
-    update_until(&mut app, |w| [missing, mismatched, sourceless].iter().all(|&e| failed(w, e)));
+    update_until(&mut app, |w| [missing, mismatched, sourceless, bodiless].iter().all(|&e| failed(w, e)));
     app.update();
     let errors = &app.world().resource::<SeenErrors>().0;
     let message = |e: Entity| {
@@ -256,6 +259,8 @@ fn missing_or_mismatched_checkpoints_are_error_messages_not_panics() {
     assert!(m.contains("checkpoints/crab") && m.contains("does not fit character spot"), "{m}");
     let m = message(sourceless);
     assert!(m.contains("neither a HumanClipPlayer nor a LiveHuman"), "{m}");
+    let m = message(bodiless);
+    assert!(m.contains(&format!("{bodiless} has a Retargeter but neither a Character nor a glTF scene")), "{m}");
     // A broken checkpoint file fails to load with its name.
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("headless-broken-checkpoint");
     let ckpt = dir.join("checkpoints/spot");
@@ -496,4 +501,31 @@ fn a_changed_retargeter_or_checkpoint_starts_over_and_a_removed_one_is_forgotten
     });
     assert!(started_over(&app, spot, joined, t, &want), "a Retargeter removed and added back did not start over");
     assert!(app.world().resource::<SeenErrors>().0.is_empty(), "{:?}", app.world().resource::<SeenErrors>().0);
+}
+
+/// A glTF scene given a Retargeter by a system that runs after the plugin binds scenes (between
+/// `AceSystems::Spawn` and `AceSystems::Retarget`) waits to be bound the next frame: it is not taken
+/// for an entity with neither a character nor a scene.
+#[test]
+fn a_scene_given_a_retargeter_late_in_the_frame_waits_to_be_bound() {
+    use bevy::world_serialization::{WorldAssetRoot, WorldSerializationPlugin};
+    let mut app = retargeting_app();
+    app.add_plugins(WorldSerializationPlugin);
+    let player = paused_player(&mut app, "walk.bvh");
+    let spawn_late = move |mut commands: Commands, server: Res<AssetServer>, mut done: Local<bool>| {
+        if !std::mem::replace(&mut *done, true) {
+            commands.spawn((
+                WorldAssetRoot(server.load("creatures/hound.glb#Scene0")),
+                Retargeter::new(server.load("checkpoints/hound/ace.json"), player),
+            ));
+        }
+    };
+    app.add_systems(PostUpdate, spawn_late.after(AceSystems::Spawn).before(AceSystems::Retarget));
+    for _ in 0..5 {
+        app.update();
+    }
+    let mut scenes = app.world_mut().query_filtered::<&RetargetStatus, With<WorldAssetRoot>>();
+    let statuses: Vec<RetargetStatus> = scenes.iter(app.world()).cloned().collect();
+    assert_eq!(statuses, vec![RetargetStatus::Loading], "{:?}", app.world().resource::<SeenErrors>().0);
+    assert!(app.world().resource::<SeenErrors>().0.is_empty());
 }
