@@ -954,6 +954,23 @@ mod tests {
         // The resumed run records its own provenance.
         let note = serde_json::json!({ "run": "resumed" });
         assert_eq!(start_or_resume(set, &mask, &longer, &b, note.clone(), Device::Cpu).unwrap().provenance, note);
+        // A checkpoint whose stored statistics or bounds are not what this data gives (written by a
+        // version that computed them otherwise, or edited) is refused, each alone.
+        for what in ["statistics", "bounds"] {
+            let mut edited = PriorCheckpoint::load(&b, Device::Cpu).unwrap();
+            if what == "statistics" {
+                edited.stats.mean[0] += 0.25;
+            } else {
+                let mut bounds = edited.prior.state_bounds();
+                bounds.hi[0] += 0.25;
+                edited.prior.set_bounds(&bounds).unwrap();
+            }
+            let dir = scratch_dir(&format!("prior_edited_{what}"));
+            edited.save(&dir).unwrap();
+            let e = start_or_resume(set, &mask, &longer, &dir, Value::Null, Device::Cpu).err().expect(what).to_string();
+            assert!(e.contains("other data"), "{what}: {e}");
+            fs::remove_dir_all(&dir).unwrap();
+        }
         // A finished run returns at once.
         let mut calls = 0;
         train_prior(set, &mask, &longer, &a, &mut |_| calls += 1).unwrap();
