@@ -413,17 +413,7 @@ fn a_live_source_interpolates_between_its_frames_and_keeps_two_seconds() {
 #[test]
 fn a_paused_source_holds_the_character_where_it_is() {
     let want = offline("spot", "walk.bvh");
-    let mut app = retargeting_app();
-    let player = paused_player(&mut app, "walk.bvh");
-    let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
-    start_together(&mut app, player, &[spot]);
-    for _ in 0..20 {
-        app.update();
-    }
-    app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = true;
-    app.update();
-    app.update();
-    let held = tick(&app, spot).unwrap();
+    let (mut app, spot, _, held) = spot_paused_after_20_ticks();
     assert!(held >= 19, "tick {held}");
     for _ in 0..5 {
         app.update();
@@ -433,10 +423,9 @@ fn a_paused_source_holds_the_character_where_it_is() {
     }
 }
 
-/// Runs Spot on the walk for 20 ticks, then applies `change` to the app (which must leave the
-/// source's clock where it is), and returns the app, Spot and a character that joined the source at
-/// that tick. After a restart Spot stands exactly as the one that joined.
-fn run_then(change: impl FnOnce(&mut App, Entity, Entity)) -> (App, Entity, Entity, i64) {
+/// Spot driven by the walk for 20 frames, then the walk paused (and two frames for the last poses to
+/// come back): the app, Spot, the walk's player and the tick Spot holds.
+fn spot_paused_after_20_ticks() -> (App, Entity, Entity, i64) {
     let mut app = retargeting_app();
     let player = paused_player(&mut app, "walk.bvh");
     let spot = spawn_driven(&mut app, "spot", "spot", player, 0.0);
@@ -448,6 +437,14 @@ fn run_then(change: impl FnOnce(&mut App, Entity, Entity)) -> (App, Entity, Enti
     app.update();
     app.update();
     let t = tick(&app, spot).unwrap();
+    (app, spot, player, t)
+}
+
+/// [`spot_paused_after_20_ticks`], then `change` applied to the app (which must leave the source's
+/// clock where it is): the app, Spot, a character that joined the source at that tick, and the tick.
+/// After a restart Spot stands exactly as the one that joined.
+fn run_then(change: impl FnOnce(&mut App, Entity, Entity)) -> (App, Entity, Entity, i64) {
+    let (mut app, spot, player, t) = spot_paused_after_20_ticks();
     change(&mut app, spot, player);
     let joined = spawn_driven(&mut app, "spot", "spot", player, 0.0);
     update_until(&mut app, |w| {
