@@ -861,7 +861,8 @@ fn scores_without_the_cleanup_are_of_the_joints_shown() {
         assert!((got - of(&joints)).abs() < 1e-5, "{cleanup:?}: L_fea {got} against {} from the joints", of(&joints));
         if cleanup == Cleanup::NONE {
             let gap = (of(&predicted) - of(&joints)).abs();
-            assert!(gap > 0.01, "the predicted entries agree with the joints after all ({gap})");
+            // A hundred times the tolerance above: the check tells the joints from the predictions.
+            assert!(gap > 1e-3, "the predicted entries agree with the joints after all ({gap})");
         }
     }
 }
