@@ -64,6 +64,20 @@ fn link_gap(app: &App, e: Entity, pose: &CharacterPose) -> (f32, f32) {
     (d, a)
 }
 
+/// Steps the app `ticks` frames from a source's tick 0: one tick per fixed step (one frame behind the
+/// clip), each with the character's links within 0.1 mm and 0.001 of `want`'s pose at that tick.
+fn plays_as_offline(app: &mut App, e: Entity, want: &RetargetedMotion, ticks: i64) {
+    let mut seen = Vec::new();
+    for _ in 0..ticks {
+        app.update();
+        let t = tick(app, e).unwrap();
+        let (d, a) = link_gap(app, e, &want.poses[t as usize]);
+        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
+        seen.push(t);
+    }
+    assert_eq!(seen, (0..ticks).collect::<Vec<i64>>());
+}
+
 /// Link transforms within 0.1 mm and 0.001 (quaternion difference) of the offline motion, frame
 /// for frame.
 #[test]
@@ -73,16 +87,7 @@ fn a_retargeted_character_moves_as_ace_retarget_writes_it() {
     let player = paused_player(&mut app, "walk.bvh");
     let spot = spawn_driven(&mut app, "spot", "spot", player, 1.5);
     start_together(&mut app, player, &[spot]);
-    let mut seen = Vec::new();
-    for _ in 0..90 {
-        app.update();
-        let t = tick(&app, spot).unwrap();
-        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
-        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
-        seen.push(t);
-    }
-    // One tick per fixed step, one frame behind the clip.
-    assert_eq!(seen, (0..90).collect::<Vec<i64>>());
+    plays_as_offline(&mut app, spot, &want, 90);
     let moved = want.poses[89].root.translation.vector - want.poses[0].root.translation.vector;
     assert!(moved.norm() > 0.3, "the walk moves Spot ({} m)", moved.norm());
     // Root motion is on the entity: it stands where it was placed times the root's ground travel, and
@@ -345,15 +350,7 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     assert_eq!(dir, std::path::Path::new("checkpoints/spot"));
     app.world_mut().get_mut::<HumanClipPlayer>(player).unwrap().paused = false;
     let want = offline("spot", "walk.bvh");
-    let mut seen = Vec::new();
-    for _ in 0..10 {
-        app.update();
-        let t = tick(&app, spot).unwrap();
-        let (d, a) = link_gap(&app, spot, &want.poses[t as usize]);
-        assert!(d < 1e-4 && a < 1e-3, "tick {t}: links {d} m and {a} rad from the offline motion");
-        seen.push(t);
-    }
-    assert_eq!(seen, (0..10).collect::<Vec<i64>>());
+    plays_as_offline(&mut app, spot, &want, 10);
     assert!(app.world().resource::<SeenErrors>().0.is_empty());
     let mut state = LoadState::Loading;
     update_until(&mut app, |w| {
