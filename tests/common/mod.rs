@@ -6,13 +6,10 @@
 pub mod support;
 #[allow(unused_imports)] // rig_clip_in_bevy steps its app with it; other tests do not
 pub use support::update_until;
+/// The project's folder.
+pub use support::project as root;
 
 use std::path::{Path, PathBuf};
-
-/// The project's folder.
-pub fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// A file or folder of the shared data beside the project; `None` (skip, with a message) only with
 /// `ACE_ALLOW_MISSING_DATA=1`.
