@@ -14,9 +14,9 @@ use std::time::Instant;
 
 use ace::models::features::character_body_length;
 use ace::models::kinematics::KinematicTree;
-use ace::models::learn::ace::{AceConfig, read_record};
+use ace::models::learn::ace::{AceConfig, AceRecord, read_record};
 use ace::models::learn::checkpoint::PriorCheckpoint;
-use ace::models::learn::nkn::{NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, train_nkn};
+use ace::models::learn::nkn::{NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, NknRecord, train_nkn};
 use ace::models::learn::train_ace::AceInputs;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -135,6 +135,64 @@ fn check_runs_share_the_prior(runs: &Path, ace_dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The settings (top-level keys of two serialised configurations) on which `run` and `want` differ,
+/// each as `key: <run's> in the run, <want's> here`.
+fn differing_settings(run: &impl serde::Serialize, want: &impl serde::Serialize) -> Vec<String> {
+    let (run, want) = (json!(run), json!(want));
+    let (Some(r), Some(w)) = (run.as_object(), want.as_object()) else { return vec![] };
+    w.iter()
+        .filter(|(k, v)| r.get(*k) != Some(*v))
+        .map(|(k, v)| format!("{k}: {} in the run, {v} here", r.get(k).unwrap_or(&serde_json::Value::Null)))
+        .collect()
+}
+
+/// Fails when the baseline run in `run` (if there is one) was trained with settings other than those
+/// the compared checkpoint gives it: another configuration (a weight, the seed, the steps), another
+/// end-effector mapping or another split of the human clips. A finished run is not trained again, so
+/// it would otherwise be scored as this checkpoint's baseline without a word.
+fn check_run_matches(run: &Path, slug: &str, ace: &AceRecord, quick: bool) -> Result<()> {
+    let mut differs = Vec::new();
+    if slug == "nkn" {
+        let file = run.join(NKN_FILE);
+        if !file.exists() {
+            return Ok(());
+        }
+        let text = ace::models::input::read_text(&file).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+        let there: NknRecord = serde_json::from_str(&text).with_context(|| format!("{}: not an NKN checkpoint", file.display()))?;
+        let want = nkn_config(&ace.config, quick);
+        differs.extend(differing_settings(&there.config, &want));
+        if there.human_split != ace.human_split {
+            differs.push("the held-out split of the human clips".into());
+        }
+    } else {
+        if !run.join(ace::models::learn::ace::ACE_FILE).exists() {
+            return Ok(());
+        }
+        let there = read_record(run).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let want = ablation(&ace.config, slug, quick);
+        // The device is where it ran, not how: a run made on the CPU stands for one asked on `auto`.
+        let same_device = AceConfig { device: want.device, ..there.config.clone() };
+        differs.extend(differing_settings(&same_device, &want));
+        if there.correspondence.mapping != ace.correspondence.mapping {
+            differs.push("the end-effector mapping".into());
+        }
+        if there.human_split != ace.human_split {
+            differs.push("the held-out split of the human clips".into());
+        }
+    }
+    // Saving every so many steps changes nothing a run learns.
+    differs.retain(|d| !d.starts_with("checkpoint_every:"));
+    if !differs.is_empty() {
+        anyhow::bail!(
+            "{}: this baseline was trained with other settings than the compared checkpoint gives it ({}); \
+             remove the folder to train it again, or give --runs another folder",
+            run.display(),
+            differs.join("; ")
+        );
+    }
+    Ok(())
+}
+
 /// Trains every baseline of the checkpoint in `ace_dir` that `runs` does not hold finished (with
 /// progress and wall times), then loads them all, in [`BASELINES`] order.
 pub fn train_missing(
@@ -148,6 +206,9 @@ pub fn train_missing(
     let record = read_record(ace_dir).with_context(|| format!("{}: no ACE checkpoint to compare with", ace_dir.display()))?;
     let ace_cfg = &record.config;
     check_runs_share_the_prior(runs, ace_dir)?;
+    for (_, slug) in BASELINES {
+        check_run_matches(&runs.join(slug), slug, &record, quick)?;
+    }
     let missing: Vec<(&str, &str)> = BASELINES
         .into_iter()
         .filter(|(_, slug)| {

@@ -497,7 +497,8 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     // Runs trained against another prior (here: its normalisation edited) are not scored as this
     // checkpoint's baselines, and are left as they are.
     let nkn_prior = runs.join("nkn/config.json");
-    let mut record: Value = serde_json::from_slice(&std::fs::read(&nkn_prior).unwrap()).unwrap();
+    let original_prior = std::fs::read(&nkn_prior).unwrap();
+    let mut record: Value = serde_json::from_slice(&original_prior).unwrap();
     record["mean"][0] = (record["mean"][0].as_f64().unwrap() + 0.5).into();
     let text = serde_json::to_vec_pretty(&record).unwrap();
     std::fs::write(&nkn_prior, &text).unwrap();
@@ -505,6 +506,22 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains(&s(&runs.join("nkn"))) && err.contains("another motion prior"), "{err}");
     assert_eq!(std::fs::read(&nkn_prior).unwrap(), text);
+    std::fs::write(&nkn_prior, &original_prior).unwrap();
+    // Nor are runs trained with other settings than this checkpoint gives them (a finished run is not
+    // trained again): an ablation of another seed, an NKN of another cycle weight.
+    for (slug, file, key) in [("ace-no-adversarial", "ace.json", "seed"), ("nkn", "nkn.json", "w_cyc")] {
+        let path = runs.join(slug).join(file);
+        let original = std::fs::read(&path).unwrap();
+        let mut run_record: Value = serde_json::from_slice(&original).unwrap();
+        let v = &run_record["config"][key];
+        run_record["config"][key] = v.as_u64().map_or_else(|| (v.as_f64().unwrap() + 1.0).into(), |n| (n + 1).into());
+        std::fs::write(&path, serde_json::to_vec_pretty(&run_record).unwrap()).unwrap();
+        let out = ace(&compare);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(&s(&runs.join(slug))) && err.contains(&format!("{key}:")), "{err}");
+        std::fs::write(&path, &original).unwrap();
+    }
+    assert!(!run(&compare).contains("trained in"), "the restored runs are scored as they are");
 
     // A checkpoint of another character is refused with the directory named.
     let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "crab", "--checkpoint", &s(&ck), "--out", &s(&dir.join("x.glb"))]);
