@@ -508,17 +508,29 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     assert_eq!(std::fs::read(&nkn_prior).unwrap(), text);
     std::fs::write(&nkn_prior, &original_prior).unwrap();
     // Nor are runs trained with other settings than this checkpoint gives them (a finished run is not
-    // trained again): an ablation of another seed, an NKN of another cycle weight.
-    for (slug, file, key) in [("ace-no-adversarial", "ace.json", "seed"), ("nkn", "nkn.json", "w_cyc")] {
+    // trained again): an ablation of another seed, an NKN of another cycle weight, an ablation of
+    // another end-effector mapping, an NKN of another split of the human clips.
+    let other = |v: &Value| -> Value {
+        match v {
+            Value::String(_) => "head".into(),
+            _ => v.as_u64().map_or_else(|| (v.as_f64().unwrap() + 0.25).into(), |n| (n + 1).into()),
+        }
+    };
+    for (slug, file, pointer, named) in [
+        ("ace-no-adversarial", "ace.json", "/config/seed", "seed:"),
+        ("nkn", "nkn.json", "/config/w_cyc", "w_cyc:"),
+        ("ace-no-feature", "ace.json", "/correspondence/mapping/human/0", "end-effector mapping"),
+        ("nkn", "nkn.json", "/human_split/held_out_fraction", "split of the human clips"),
+    ] {
         let path = runs.join(slug).join(file);
         let original = std::fs::read(&path).unwrap();
         let mut run_record: Value = serde_json::from_slice(&original).unwrap();
-        let v = &run_record["config"][key];
-        run_record["config"][key] = v.as_u64().map_or_else(|| (v.as_f64().unwrap() + 1.0).into(), |n| (n + 1).into());
+        let entry = run_record.pointer_mut(pointer).unwrap_or_else(|| panic!("{file} has no {pointer}"));
+        *entry = other(entry);
         std::fs::write(&path, serde_json::to_vec_pretty(&run_record).unwrap()).unwrap();
         let out = ace(&compare);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains(&s(&runs.join(slug))) && err.contains(&format!("{key}:")), "{err}");
+        assert!(!out.status.success() && err.contains(&s(&runs.join(slug))) && err.contains(named), "{pointer}: {err}");
         std::fs::write(&path, &original).unwrap();
     }
     assert!(!run(&compare).contains("trained in"), "the restored runs are scored as they are");
