@@ -16,7 +16,7 @@ use ace::models::features::character_body_length;
 use ace::models::kinematics::KinematicTree;
 use ace::models::learn::ace::{AceConfig, AceRecord, read_record};
 use ace::models::learn::checkpoint::PriorCheckpoint;
-use ace::models::learn::nkn::{NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, NknRecord, train_nkn};
+use ace::models::learn::nkn::{self, NKN_FILE, NKN_LOSSES_FILE, NknCheckpoint, NknConfig, train_nkn};
 use ace::models::learn::train_ace::AceInputs;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -68,11 +68,7 @@ fn nkn_config(ace: &AceConfig, quick: bool) -> NknConfig {
 /// Steps a run directory holds, from its record (0 when there is none yet).
 fn steps_done(dir: &Path, slug: &str) -> usize {
     if slug == "nkn" {
-        ace::models::input::read_text(&dir.join(NKN_FILE))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|v| v["step"].as_u64())
-            .map_or(0, |s| s as usize)
+        nkn::read_record(dir).map_or(0, |r| r.step)
     } else {
         read_record(dir).map_or(0, |r| r.step)
     }
@@ -151,37 +147,33 @@ fn differing_settings(run: &impl serde::Serialize, want: &impl serde::Serialize)
 /// end-effector mapping or another split of the human clips. A finished run is not trained again, so
 /// it would otherwise be scored as this checkpoint's baseline without a word.
 fn check_run_matches(run: &Path, slug: &str, ace: &AceRecord, quick: bool) -> Result<()> {
-    let mut differs = Vec::new();
-    if slug == "nkn" {
-        let file = run.join(NKN_FILE);
-        if !file.exists() {
+    let (mut differs, split) = if slug == "nkn" {
+        if !run.join(NKN_FILE).exists() {
             return Ok(());
         }
-        let text = ace::models::input::read_text(&file).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
-        let there: NknRecord = serde_json::from_str(&text).with_context(|| format!("{}: not an NKN checkpoint", file.display()))?;
+        let there = nkn::read_record(run)?;
         let want = nkn_config(&ace.config, quick);
-        differs.extend(differing_settings(&there.config, &want));
-        if there.human_split != ace.human_split {
-            differs.push("the held-out split of the human clips".into());
-        }
+        // Saving every so many steps changes nothing a run learns.
+        let as_wanted = NknConfig { checkpoint_every: want.checkpoint_every, ..there.config };
+        (differing_settings(&as_wanted, &want), there.human_split)
     } else {
         if !run.join(ace::models::learn::ace::ACE_FILE).exists() {
             return Ok(());
         }
-        let there = read_record(run).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let there = read_record(run)?;
         let want = ablation(&ace.config, slug, quick);
-        // The device is where it ran, not how: a run made on the CPU stands for one asked on `auto`.
-        let same_device = AceConfig { device: want.device, ..there.config.clone() };
-        differs.extend(differing_settings(&same_device, &want));
+        // Nor saving; and the device is where it ran, not how: a run made on the CPU stands for one
+        // asked on `auto`.
+        let as_wanted = AceConfig { device: want.device, checkpoint_every: want.checkpoint_every, ..there.config };
+        let mut differs = differing_settings(&as_wanted, &want);
         if there.correspondence.mapping != ace.correspondence.mapping {
             differs.push("the end-effector mapping".into());
         }
-        if there.human_split != ace.human_split {
-            differs.push("the held-out split of the human clips".into());
-        }
+        (differs, there.human_split)
+    };
+    if split != ace.human_split {
+        differs.push("the held-out split of the human clips".into());
     }
-    // Saving every so many steps changes nothing a run learns.
-    differs.retain(|d| !d.starts_with("checkpoint_every:"));
     if !differs.is_empty() {
         anyhow::bail!(
             "{}: this baseline was trained with other settings than the compared checkpoint gives it ({}); \

@@ -307,6 +307,11 @@ pub struct NknCheckpoint {
     pub prior: PriorCheckpoint,
 }
 
+/// Reads the `nkn.json` in `dir`, checking kind and version before the rest.
+pub fn read_record(dir: &Path) -> Result<NknRecord, LearnError> {
+    read_json(&CheckpointFiles::on_disk(dir), NKN_FILE, KIND, FORMAT_VERSION, "an NKN checkpoint")
+}
+
 impl NknCheckpoint {
     /// Loads `nkn.json`, the weights and the prior in `dir` for `tree` and `morph`; every error names
     /// the file and the problem.
