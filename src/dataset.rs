@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ace::models::dataset::{DatasetConfig, check_budget, check_config, generate};
+use ace::models::dataset::{DatasetConfig, OwnClipsConfig, check_budget, check_config, generate};
 use ace::models::kinematics::KinematicTree;
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -20,6 +20,9 @@ pub struct DatasetArgs {
     pub config: Option<PathBuf>,
     pub out: PathBuf,
     pub report: Option<PathBuf>,
+    /// `--include-clips`: the creature's own clips, at the configuration's share or
+    /// [`OwnClipsConfig::DEFAULT_SHARE`].
+    pub include_clips: bool,
 }
 
 /// A dataset configuration file (TOML, any subset of [`DatasetConfig`]); errors name the file. Its
@@ -55,6 +58,9 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     }
     if let Some(s) = args.seed {
         cfg.seed = s;
+    }
+    if args.include_clips && cfg.own_clips.share == 0.0 {
+        cfg.own_clips.share = OwnClipsConfig::DEFAULT_SHARE;
     }
     // Bounds and outputs are checked before any work.
     check_with_options(&cfg, args.config.as_deref(), &tree, &morph)?;

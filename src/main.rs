@@ -96,6 +96,10 @@ enum Command {
         /// metrics into this folder.
         #[arg(long)]
         report: Option<PathBuf>,
+        /// Add a rigged glTF creature's own animation clips (a tenth of the frames, unless the config's
+        /// `[own_clips] share` says), carried across the ground by their planted feet.
+        #[arg(long)]
+        include_clips: bool,
     },
     /// Train a character's motion prior (VAE encoder and mode-adaptive decoder) on its dataset.
     TrainPrior {
@@ -224,13 +228,14 @@ fn main() -> ExitCode {
         Command::Demo { characters, clip, out, mapping, backend } => {
             demo::run(&characters, &clip, &out, mapping.as_deref(), backend)
         }
-        Command::Dataset { character, frames, seed, config, out, report } => dataset::run(&dataset::DatasetArgs {
+        Command::Dataset { character, frames, seed, config, out, report, include_clips } => dataset::run(&dataset::DatasetArgs {
             character,
             frames,
             seed,
             config,
             out,
             report,
+            include_clips,
         }),
         Command::TrainPrior { opts, frames, seed, dataset_config } => {
             train::prior(&train::TrainArgs { dataset_config, ..train_args(opts, frames, seed, None) })

@@ -279,6 +279,37 @@ fn the_same_seed_gives_the_same_dataset_file() {
     assert_ne!(bytes(&a), bytes(&c), "another seed, another dataset");
 }
 
+/// `--include-clips`: a rigged creature's own clips fill the end of its dataset, a tenth of the frames
+/// unless the configuration's `[own_clips]` gives a share; a robot has no clips and is refused naming
+/// its file, with nothing written.
+#[test]
+fn include_clips_adds_a_creatures_own_clips_to_its_dataset() {
+    use ace::models::dataset::MotionSet;
+    let Some(fox) = shared("creatures/Fox/Fox.glb") else { return };
+    let fox = fox.to_str().unwrap();
+    let file = tmp("fox-clips.safetensors");
+    let out = dataset(fox, 1000, 1, &file, &["--include-clips"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let set = MotionSet::load(&file).unwrap();
+    assert_eq!((set.len(), set.config.own_clips.share), (1000, 0.1));
+    assert!(set.episodes.iter().any(|e| e.start == 900), "the clips start at frame 900: {:?}", set.episodes);
+
+    let toml = tmp("fox-clips.toml");
+    std::fs::write(&toml, "[own_clips]\nshare = 0.3\nnames = [\"Run\"]\n").unwrap();
+    let out = dataset(fox, 1000, 1, &file, &["--include-clips", "--config", toml.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let set = MotionSet::load(&file).unwrap();
+    assert_eq!(set.config.own_clips.share, 0.3);
+    let clips: Vec<usize> = set.episodes.iter().filter(|e| e.start >= 700).map(|e| e.len()).collect();
+    assert!(clips.len() > 5 && clips[..clips.len() - 1].iter().all(|&n| n == clips[0]), "the run, again and again: {clips:?}");
+
+    let crab = tmp("crab-clips.safetensors");
+    let out = dataset("crab", 300, 0, &crab, &["--include-clips"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("crab.urdf") && err.contains("only a rigged glTF creature"), "{err}");
+    assert!(!crab.exists());
+}
+
 #[test]
 fn dataset_report_draws_gaits_velocities_and_foot_heights() {
     let file = tmp("report-spot.safetensors");

@@ -10,6 +10,14 @@
 //! the same file, byte for byte (with the same build on the same platform: `sin`, `exp` and friends
 //! may round differently elsewhere).
 //!
+//! A rigged glTF creature's own animation clips can join the controllers' episodes
+//! ([`DatasetConfig::own_clips`], `ace dataset --include-clips`): they show how its artist meant it to
+//! move. They fill their share of the frames at the end of the dataset, one episode per clip, taken in
+//! turn until the share is full (the last one cut short), played on the character's tree
+//! ([`crate::character::clips::clip_poses`]) and carried across the ground by their planted feet
+//! ([`crate::character::clips::with_travel`]); their `commands` are the root's own velocity and their
+//! `contacts` the feet within the UFR's contact height of the ground.
+//!
 //! # File format (version 1)
 //! A [safetensors](https://huggingface.co/docs/safetensors) file: an 8-byte little-endian header
 //! length, a JSON header, then the tensor bytes (little-endian, row-major). `N` frames, `K` episodes,
@@ -75,6 +83,27 @@ pub struct DatasetConfig {
     pub episode_seconds: [f32; 2],
     /// The controllers.
     pub controller: ControllerConfig,
+    /// The creature's own animation clips in the dataset (none by default).
+    pub own_clips: OwnClipsConfig,
+}
+
+/// A rigged creature's own clips in its dataset (module docs).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OwnClipsConfig {
+    /// Fraction of the dataset's frames that are the clips (0 to [`OwnClipsConfig::MAX_SHARE`]); 0
+    /// leaves them out.
+    pub share: f32,
+    /// The clips to use, by name; empty: every clip of the file.
+    pub names: Vec<String>,
+}
+
+impl OwnClipsConfig {
+    /// The share `ace dataset --include-clips` sets when the configuration gives none.
+    pub const DEFAULT_SHARE: f32 = 0.1;
+    /// The largest share: the controllers keep at least half of the frames, with every gait, turn and
+    /// reach the retargeter needs that an artist's few clips do not show.
+    pub const MAX_SHARE: f32 = 0.5;
 }
 
 impl DatasetConfig {
@@ -102,6 +131,7 @@ impl Default for DatasetConfig {
             seed: 0,
             episode_seconds: [8.0, 24.0],
             controller: ControllerConfig::default(),
+            own_clips: OwnClipsConfig::default(),
         }
     }
 }
@@ -230,6 +260,8 @@ pub fn generate(
         commands: Vec::with_capacity(n),
         contacts: Vec::with_capacity(n * n_feet),
     };
+    let clips = own_clip_episodes(tree, morph, cfg)?;
+    let clip_frames: usize = clips.iter().map(Vec::len).sum();
     let mut prev = CharacterPose {
         root: Isometry3::identity(),
         q: vec![0.0; dof],
@@ -237,9 +269,9 @@ pub fn generate(
     let mut cur = prev.clone();
     let (mut prev_links, mut cur_links) = (Vec::new(), Vec::new());
     let mut done = 0;
-    while done < n {
+    while done < n - clip_frames {
         let seconds = uniform(&mut rng, cfg.episode_seconds[0], cfg.episode_seconds[1]);
-        let len = ((seconds * cfg.fps).round() as usize).max(2).min(n - done);
+        let len = ((seconds * cfg.fps).round() as usize).max(2).min(n - clip_frames - done);
         ctl.reset(&mut rng);
         for k in 0..len {
             if k > 0 {
@@ -267,6 +299,28 @@ pub fn generate(
         }
         set.episodes.push(done - len..done);
     }
+    let contact_height = crate::metrics::UfrConfig::for_character(tree, morph).contact_height;
+    for poses in &clips {
+        for (k, pose) in poses.iter().enumerate() {
+            tree.forward_kinematics_into(pose, &mut cur_links);
+            let row = &mut set.states[done * dim..(done + 1) * dim];
+            let before = if k == 0 { pose } else { &poses[k - 1] };
+            if k == 0 {
+                write_state(&layout, morph, pose, pose, &cur_links, &cur_links, dt, row);
+            } else {
+                write_state(&layout, morph, before, pose, &prev_links, &cur_links, dt, row);
+            }
+            set.roots.push(pose.root);
+            set.q.extend_from_slice(&pose.q);
+            set.commands.push(root_velocity(&before.root, &pose.root, dt));
+            set.contacts
+                .extend(morph.feet.iter().map(|&f| u8::from(morph.ee_point(f, &cur_links).z < contact_height)));
+            std::mem::swap(&mut prev_links, &mut cur_links);
+            done += 1;
+        }
+        set.episodes.push(done - poses.len()..done);
+        progress(done);
+    }
     progress(done);
     (set.mean, set.std) = statistics(&set.states, dim);
     if let Some(problem) = set.non_finite() {
@@ -276,6 +330,90 @@ pub fn generate(
         )));
     }
     Ok(set)
+}
+
+/// The heading-frame velocity `(vx, vy, wz)` of a root moving from `a` to `b` in `dt` seconds.
+fn root_velocity(a: &Isometry3<f32>, b: &Isometry3<f32>, dt: f32) -> [f32; 3] {
+    let yaw = |r: &Isometry3<f32>| {
+        let x = r.rotation * nalgebra::Vector3::x();
+        x.y.atan2(x.x)
+    };
+    let (ya, yb) = (yaw(a), yaw(b));
+    let d = b.translation.vector - a.translation.vector;
+    let (s, c) = ya.sin_cos();
+    let turn = (yb - ya + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+    [(c * d.x + s * d.y) / dt, (c * d.y - s * d.x) / dt, turn / dt]
+}
+
+/// The episodes of the creature's own clips that `cfg.own_clips` asks for (none when its share is 0):
+/// the clips in turn, carried by their feet, until their share of `cfg.frames` is full. Errors name
+/// the character file and what is wrong.
+fn own_clip_episodes(
+    tree: &KinematicTree,
+    morph: &Morphology,
+    cfg: &DatasetConfig,
+) -> Result<Vec<Vec<CharacterPose>>, DatasetError> {
+    use crate::character::clips::{clip_poses, with_travel};
+    let own = &cfg.own_clips;
+    let wanted = (f64::from(own.share) * cfg.frames as f64).round() as usize;
+    if wanted == 0 {
+        return Ok(Vec::new());
+    }
+    let source = tree.source.clone().unwrap_or_else(|| PathBuf::from(&tree.name));
+    let fail = |problem: String| Err(file_error(&source, format!("its own clips (`own_clips`): {problem}")));
+    if tree.source.is_none() || !crate::character::is_gltf(&source) {
+        return fail("only a rigged glTF creature (.glb, .gltf) has animation clips".into());
+    }
+    let c = crate::character::load_creature(&source).map_err(|e| file_error(&source, e.to_string()))?;
+    if c.tree.dof_names() != tree.dof_names() {
+        return fail("the file now gives the creature other joints than the character being generated".into());
+    }
+    let names: Vec<&str> = c.rig.animations.iter().map(|a| a.name.as_str()).collect();
+    let chosen: Vec<usize> = if own.names.is_empty() {
+        (0..names.len()).collect()
+    } else {
+        let mut chosen = Vec::new();
+        for n in &own.names {
+            match names.iter().position(|m| m == n) {
+                Some(k) => chosen.push(k),
+                None => return fail(format!("no clip is named `{n}`; its clips: {}", list(&names))),
+            }
+        }
+        chosen
+    };
+    let contact_height = crate::metrics::UfrConfig::for_character(tree, morph).contact_height;
+    let played: Vec<Vec<CharacterPose>> = chosen
+        .iter()
+        .map(|&k| with_travel(&c, clip_poses(&c, k, cfg.fps), contact_height))
+        .filter(|p| p.len() >= 2)
+        .collect();
+    if played.is_empty() {
+        return fail(if names.is_empty() {
+            "the file has no animation clips".into()
+        } else {
+            "none of its clips lasts two frames".into()
+        });
+    }
+    let mut out = Vec::new();
+    let mut left = wanted;
+    for poses in played.iter().cycle() {
+        let take = poses.len().min(left);
+        // An episode needs two frames for its velocities; a last single frame is left to the controllers.
+        if take < 2 {
+            break;
+        }
+        out.push(poses[..take].to_vec());
+        left -= take;
+    }
+    Ok(out)
+}
+
+/// `names` as "`a`, `b`" (or "none").
+fn list(names: &[&str]) -> String {
+    if names.is_empty() {
+        return "none".into();
+    }
+    names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
 }
 
 /// Most frames a dataset may have: 25 times the paper's 200k, a few GB of states and poses. Checked
@@ -328,6 +466,7 @@ pub fn check_config(cfg: &DatasetConfig) -> Result<(), DatasetError> {
             "episode_seconds must be an increasing pair of positive numbers, not [{a}, {b}]"
         ));
     }
+    in_range("own_clips.share", cfg.own_clips.share, 0.0, OwnClipsConfig::MAX_SHARE, "").map_err(DatasetError::Config)?;
     check_controller(&cfg.controller).map_err(DatasetError::Config)
 }
 

@@ -750,6 +750,132 @@ fn every_shared_creature_gets_a_motion_dataset_that_moves() {
     }
 }
 
+/// Walk and run cycles animated in place: played as they are, their planted feet slide back under a
+/// body that stays over the origin; carried by their feet (`with_travel`), the feet stand and the fox
+/// travels forwards at a walk's and a run's pace.
+#[test]
+fn the_foxs_own_cycles_travel_on_their_planted_feet() {
+    use ace_models::character::clips::{clip_poses, with_travel};
+    use ace_models::metrics::UfrConfig;
+    let Some(dir) = creatures() else { return };
+    let c = load(&dir.join("Fox/Fox.glb"));
+    let config = UfrConfig::for_character(&c.tree, &c.morphology);
+    let fps = 30.0;
+    let mut speeds = Vec::new();
+    for name in ["Walk", "Run"] {
+        let k = c.rig.animations.iter().position(|a| a.name == name).unwrap();
+        let in_place = clip_poses(&c, k, fps);
+        let carried = with_travel(&c, in_place.clone(), config.contact_height);
+        // The planted feet's mean horizontal speed (m/s): the feet within the contact height in two
+        // consecutive frames. The fox's own paws do not stand equally still even relative to one
+        // another (two planted paws slide apart at up to 0.3 m/s in its Walk), so no root motion
+        // makes every frame clean by the UFR's 0.07 m/s; the mean is what travelling can fix.
+        let sliding = |poses: &[ace_models::kinematics::CharacterPose]| {
+            let points: Vec<Vec<Point3<f32>>> = poses
+                .iter()
+                .map(|p| {
+                    let l = c.tree.forward_kinematics(p);
+                    c.morphology.feet.iter().map(|&f| c.morphology.ee_point(f, &l)).collect()
+                })
+                .collect();
+            let slides: Vec<f32> = points
+                .windows(2)
+                .flat_map(|w| w[0].iter().zip(&w[1]).filter(|(a, b)| a.z < config.contact_height && b.z < config.contact_height).map(|(a, b)| (b - a).xy().norm() * fps).collect::<Vec<_>>())
+                .collect();
+            slides.iter().sum::<f32>() / slides.len() as f32
+        };
+        let travel = |poses: &[ace_models::kinematics::CharacterPose]| {
+            let (a, b) = (poses[0].root.translation.vector, poses[poses.len() - 1].root.translation.vector);
+            (b - a).xy()
+        };
+        let seconds = (in_place.len() - 1) as f32 / fps;
+        let (before, after) = (sliding(&in_place), sliding(&carried));
+        let v = travel(&carried) / seconds;
+        println!("{name}: planted feet slide at {before:.2} m/s in place, {after:.2} m/s carried; it travels at {:.2} m/s ({:.2}, {:.2}), in place {:.2} m", v.norm(), v.x, v.y, travel(&in_place).norm());
+        assert!(travel(&in_place).norm() < 0.05, "{name} is animated in place");
+        assert!(before > 0.5, "{name}: in place, its planted feet slide ({before} m/s)");
+        assert!(after < 0.3 * before, "{name}: carried, its planted feet stand ({after} against {before} m/s)");
+        // Forwards (the fox faces +x), heights and joints untouched.
+        assert!(v.x > 0.3 && v.y.abs() < 0.3 * v.x, "{name}: {v:?}");
+        for (a, b) in in_place.iter().zip(&carried) {
+            assert_eq!(a.q, b.q);
+            assert_eq!(a.root.rotation, b.root.rotation);
+            assert_eq!(a.root.translation.z, b.root.translation.z);
+        }
+        speeds.push(v.x);
+    }
+    assert!(speeds[1] > 1.5 * speeds[0], "the run is faster than the walk: {speeds:?}");
+}
+
+/// `[own_clips]`: the creature's clips fill their share at the end of the dataset, one episode per
+/// clip in turn, as `with_travel` plays them; bad requests are named.
+#[test]
+fn a_creatures_own_clips_join_its_dataset() {
+    use ace_models::character::clips::{clip_poses, with_travel};
+    use ace_models::dataset::{DatasetConfig, OwnClipsConfig, generate};
+    use ace_models::metrics::UfrConfig;
+    let Some(dir) = creatures() else { return };
+    let path = dir.join("Fox/Fox.glb");
+    let c = load(&path);
+    let names: Vec<String> = c.rig.animations.iter().map(|a| a.name.clone()).collect();
+    let own = |share: f32, names: &[&str]| DatasetConfig {
+        frames: 2000,
+        seed: 5,
+        own_clips: OwnClipsConfig { share, names: names.iter().map(|n| n.to_string()).collect() },
+        ..DatasetConfig::default()
+    };
+    let cfg = own(0.25, &[]);
+    let set = generate(&c.tree, &c.morphology, &cfg, &mut |_| {}).unwrap();
+    assert_eq!(set.len(), 2000);
+    let contact = UfrConfig::for_character(&c.tree, &c.morphology).contact_height;
+    let played: Vec<_> = (0..names.len()).map(|k| with_travel(&c, clip_poses(&c, k, 30.0), contact)).collect();
+    // The clips' episodes, from the end: the last one cut short, the others whole, in turn.
+    let total: usize = 500;
+    let mut start = 2000 - total;
+    let first = set.episodes.iter().position(|e| e.start == start).expect("the clips start at their share");
+    for (i, e) in set.episodes[first..].iter().enumerate() {
+        assert_eq!(e.start, start);
+        let clip = &played[i % played.len()];
+        assert!(e.len() == clip.len() || e.end == 2000, "episode {i} of the clips: {e:?}");
+        for (t, pose) in e.clone().zip(clip) {
+            assert_eq!(set.pose(t).q, pose.q, "frame {t}");
+            assert!((set.pose(t).root.translation.vector - pose.root.translation.vector).norm() < 1e-5);
+        }
+        start = e.end;
+    }
+    assert_eq!(start, 2000);
+    // The walk's commands are its own forward velocity; its feet touch down.
+    let walk = names.iter().position(|n| n == "Walk").unwrap();
+    let e = set.episodes[first + walk].clone();
+    let vx = e.clone().skip(1).map(|t| set.commands[t][0]).sum::<f32>() / (e.len() - 1) as f32;
+    assert!(vx > 0.3, "the walk's commands: {vx}");
+    let feet = set.n_feet;
+    assert!(e.clone().any(|t| set.contacts[t * feet..(t + 1) * feet].iter().any(|&c| c == 1)));
+    assert!(e.clone().any(|t| set.contacts[t * feet..(t + 1) * feet].iter().any(|&c| c == 0)));
+    // By name, only those.
+    let set = generate(&c.tree, &c.morphology, &own(0.1, &["Run"]), &mut |_| {}).unwrap();
+    let run = &played[names.iter().position(|n| n == "Run").unwrap()];
+    let e = set.episodes.iter().find(|e| e.start == 1800).expect("the run's episodes start at 1,800").clone();
+    assert_eq!(e.len(), run.len().min(200));
+    assert_eq!(set.pose(e.start + 3).q, run[3].q);
+
+    let error = |cfg: &DatasetConfig, tree: &ace_models::kinematics::KinematicTree, morph| {
+        generate(tree, morph, cfg, &mut |_| {}).unwrap_err().to_string()
+    };
+    let e = error(&own(0.1, &["Fly"]), &c.tree, &c.morphology);
+    assert!(e.contains("Fox.glb") && e.contains("no clip is named `Fly`") && e.contains("`Walk`"), "{e}");
+    let e = error(&own(0.6, &[]), &c.tree, &c.morphology);
+    assert!(e.contains("own_clips.share") && e.contains("0.5"), "{e}");
+    let crab = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/crab.urdf");
+    let (tree, morph) = ace_models::morphology::load_character(&crab).unwrap();
+    let e = error(&own(0.1, &[]), &tree, &morph);
+    assert!(e.contains("crab.urdf") && e.contains("only a rigged glTF creature"), "{e}");
+    let hound = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
+    let h = load(&hound);
+    let e = error(&own(0.1, &[]), &h.tree, &h.morphology);
+    assert!(e.contains("hound.glb") && e.contains("no animation clips"), "{e}");
+}
+
 #[test]
 fn the_foxs_dataset_is_clean_by_the_ufr_detectors() {
     let Some(dir) = creatures() else { return };

@@ -4,10 +4,13 @@
 //! so the poses are the clip projected onto the tree. The root follows the body root bone, translation
 //! channels of the bones above it included (root motion).
 //!
+//! [`with_travel`] carries clips animated in place across the ground, as their feet say, so that they
+//! can join a motion dataset ([`crate::dataset::OwnClipsConfig`]).
+//!
 //! [`bone_worlds`] and [`skinned_vertices`] give the file's own skeleton and mesh in a clip's frame, as
 //! a player deforms them (IK and helper bones included), for checking the tree against them.
 
-use nalgebra::{Isometry3, Matrix4, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix4, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3};
 
 use super::Creature;
 use super::gltf::{Rig, TrackKind, polar_rotation};
@@ -146,6 +149,40 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
         out.push(CharacterPose { root: Isometry3::from_parts(Translation3::from(p), r * root_rest.inverse()), q });
     }
     out
+}
+
+/// `poses` (of one clip of `c`, in order) with the root carried across the ground by the feet that
+/// stand. Artists animate walk and run cycles in place: the body stays over the origin while the feet
+/// slide back under it. A foot whose point is within `contact_height` of the ground (z = 0) in two
+/// consecutive frames is planted, and from each frame on the root is moved horizontally by the mean
+/// of the planted feet's slide, so that they stay where they stood. A frame without a planted foot (a
+/// gallop's flight) moves on as the last frame did. A clip that already travels with its feet planted
+/// is left as it is (its planted feet do not slide). Heights and headings are the clip's own.
+pub fn with_travel(c: &Creature, mut poses: Vec<CharacterPose>, contact_height: f32) -> Vec<CharacterPose> {
+    let feet = &c.morphology.feet;
+    let (mut offset, mut slide) = (Vector2::zeros(), Vector2::<f32>::zeros());
+    let mut prev: Option<Vec<Point3<f32>>> = None;
+    for pose in &mut poses {
+        let links = c.tree.forward_kinematics(pose);
+        // Measured before the offset: a slide is the clip's own, from one frame to the next.
+        let points: Vec<Point3<f32>> = feet.iter().map(|&f| c.morphology.ee_point(f, &links)).collect();
+        if let Some(before) = &prev {
+            let planted: Vec<Vector2<f32>> = points
+                .iter()
+                .zip(before)
+                .filter(|(p, q)| p.z < contact_height && q.z < contact_height)
+                .map(|(p, q)| Vector2::new(q.x - p.x, q.y - p.y))
+                .collect();
+            if !planted.is_empty() {
+                slide = planted.iter().sum::<Vector2<f32>>() / planted.len() as f32;
+            }
+            offset += slide;
+        }
+        prev = Some(points);
+        pose.root.translation.x += offset.x;
+        pose.root.translation.y += offset.y;
+    }
+    poses
 }
 
 /// A profile under which every body bone of `c` turns about all three axes over ±π, and every body bone
