@@ -14,7 +14,8 @@
 //! ([`DatasetConfig::own_clips`], `ace dataset --include-clips`): they show how its artist meant it to
 //! move. They fill their share of the frames at the end of the dataset, one episode per clip, taken in
 //! turn until the share is full (the last one cut short), played on the character's tree
-//! ([`crate::character::clips::clip_poses`]) and carried across the ground by their planted feet
+//! with each leg solved to the file's foot ([`crate::character::clips::clip_poses_on_feet`]) and carried
+//! across the ground by their planted feet
 //! ([`crate::character::clips::with_travel`]); their `commands` are the root's own velocity and their
 //! `contacts` the feet within the UFR's contact height of the ground.
 //!
@@ -353,7 +354,7 @@ fn own_clip_episodes(
     morph: &Morphology,
     cfg: &DatasetConfig,
 ) -> Result<Vec<Vec<CharacterPose>>, DatasetError> {
-    use crate::character::clips::{clip_poses, with_travel};
+    use crate::character::clips::{clip_poses_on_feet, exact_profile, with_travel};
     let own = &cfg.own_clips;
     let wanted = (f64::from(own.share) * cfg.frames as f64).round() as usize;
     if wanted == 0 {
@@ -368,6 +369,8 @@ fn own_clip_episodes(
     if c.tree.dof_names() != tree.dof_names() {
         return fail("the file now gives the creature other joints than the character being generated".into());
     }
+    let exact = crate::character::load_creature_with(&source, &exact_profile(&c))
+        .map_err(|e| file_error(&source, e.to_string()))?;
     let names: Vec<&str> = c.rig.animations.iter().map(|a| a.name.as_str()).collect();
     let chosen: Vec<usize> = if own.names.is_empty() {
         (0..names.len()).collect()
@@ -384,7 +387,7 @@ fn own_clip_episodes(
     let contact_height = crate::metrics::UfrConfig::for_character(tree, morph).contact_height;
     let played: Vec<Vec<CharacterPose>> = chosen
         .iter()
-        .map(|&k| with_travel(&c, clip_poses(&c, k, cfg.fps), contact_height))
+        .map(|&k| with_travel(&c, clip_poses_on_feet(&c, &exact, k, cfg.fps), contact_height))
         .filter(|p| p.len() >= 2)
         .collect();
     if played.is_empty() {

@@ -14,6 +14,7 @@ use nalgebra::{Isometry3, Matrix4, Point3, Rotation3, Translation3, UnitQuaterni
 
 use super::Creature;
 use super::gltf::{Rig, TrackKind, polar_rotation};
+use crate::controller::{Chain, ChainScratch};
 use crate::kinematics::CharacterPose;
 
 /// The number of frames of animation `clip` sampled at `fps` from its start to its end inclusive.
@@ -149,6 +150,39 @@ pub fn clip_poses(c: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
         out.push(CharacterPose { root: Isometry3::from_parts(Translation3::from(p), r * root_rest.inverse()), q });
     }
     out
+}
+
+/// The poses of animation `clip` as [`clip_poses`] gives them, with each leg then solved (by IK on its
+/// own DoFs, [`Chain::limb`]) so that its foot stands where the file puts it: `exact` is the same file
+/// under [`exact_profile`], on whose tree the clip plays as the file does. The character keeps fewer
+/// axes than a file turns (a knee is a hinge), and what a clip turns about the axes left out is lost
+/// in the projection; on the shared Spider, whose clips turn its knees about axes its hinges do not
+/// have, that put feet up to 1.3 m from where the file has them and 0.66 m under the ground. Feet the
+/// exact tree does not have (by link name) stay as projected.
+pub fn clip_poses_on_feet(c: &Creature, exact: &Creature, clip: usize, fps: f32) -> Vec<CharacterPose> {
+    let mut poses = clip_poses(c, clip, fps);
+    let played = clip_poses(exact, clip, fps);
+    let legs: Vec<(Chain, usize)> = c
+        .morphology
+        .feet
+        .iter()
+        .filter_map(|&f| {
+            let name = &c.tree.links[f].name;
+            let e = exact.tree.links.iter().position(|l| &l.name == name)?;
+            Some((Chain::limb(&c.tree, &c.morphology, f).0, e))
+        })
+        .collect();
+    let tol = 1e-3 * c.tree.standing_root_height().max(0.01);
+    let mut scratch = ChainScratch::default();
+    for (pose, file) in poses.iter_mut().zip(&played) {
+        let links = exact.tree.forward_kinematics(file);
+        for (chain, e) in &legs {
+            // In the character's root frame (the two trees' roots follow the same bone).
+            let target = pose.root.inverse_transform_point(&exact.morphology.ee_point(*e, &links));
+            chain.solve(&c.tree, &mut pose.q, &target, tol, 50, &mut scratch);
+        }
+    }
+    poses
 }
 
 /// `poses` (of one clip of `c`, in order) with the root carried across the ground by the feet that
