@@ -335,10 +335,7 @@ pub fn generate(
 
 /// The heading-frame velocity `(vx, vy, wz)` of a root moving from `a` to `b` in `dt` seconds.
 fn root_velocity(a: &Isometry3<f32>, b: &Isometry3<f32>, dt: f32) -> [f32; 3] {
-    let yaw = |r: &Isometry3<f32>| {
-        let x = r.rotation * nalgebra::Vector3::x();
-        x.y.atan2(x.x)
-    };
+    let yaw = |r: &Isometry3<f32>| crate::frame::heading_yaw(&(r.rotation * nalgebra::Vector3::x()));
     let (ya, yb) = (yaw(a), yaw(b));
     let d = b.translation.vector - a.translation.vector;
     let (s, c) = ya.sin_cos();
