@@ -96,7 +96,7 @@ enum Command {
         /// metrics into this folder.
         #[arg(long)]
         report: Option<PathBuf>,
-        /// Add a rigged glTF creature's own animation clips (a tenth of the frames, unless the config's
+        /// Add a rigged glTF creature's own animation clips (2 % of the frames, unless the config's
         /// `[own_clips] share` says), carried across the ground by their planted feet.
         #[arg(long)]
         include_clips: bool,

@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use ace::models::correspondence::{Correspondence, EndEffectorStats};
-use ace::models::dataset::{DatasetConfig, MotionSet, generate};
+use ace::models::dataset::{DatasetConfig, MotionSet, OwnClipsConfig, generate};
 use ace::models::features::{FeatureLayout, character_body_length, character_features};
 use ace::models::human_set::HumanSet;
 use ace::models::kinematics::KinematicTree;
@@ -183,13 +183,14 @@ pub fn prior(args: &TrainArgs) -> Result<()> {
         data_cfg.seed = s;
     }
     crate::dataset::check_with_options(&data_cfg, args.dataset_config.as_deref(), &tree, &morph)?;
-    if data_cfg.own_clips.share > 0.0 {
+    if data_cfg.own_clips.share > OwnClipsConfig::DEFAULT_SHARE {
         // Measured once and not understood yet: the user should know before an hour of training.
         eprintln!(
             "warning: {} of the dataset's frames are the creature's own clips (`[own_clips] share`); trained with a \
              tenth, the shared Fox's prior barely moved (random latents 0.006 m/s against 0.17 m/s without its \
-             clips) and its retargeted fox hardly stepped (docs/datasets.md)",
-            data_cfg.own_clips.share
+             clips) and its retargeted fox hardly stepped, where with {} it walked (docs/datasets.md)",
+            data_cfg.own_clips.share,
+            OwnClipsConfig::DEFAULT_SHARE
         );
     }
     let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;

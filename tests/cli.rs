@@ -279,7 +279,7 @@ fn the_same_seed_gives_the_same_dataset_file() {
     assert_ne!(bytes(&a), bytes(&c), "another seed, another dataset");
 }
 
-/// `--include-clips`: a rigged creature's own clips fill the end of its dataset, a tenth of the frames
+/// `--include-clips`: a rigged creature's own clips fill the end of its dataset, 2 % of the frames
 /// unless the configuration's `[own_clips]` gives a share; a robot has no clips and is refused naming
 /// its file, with nothing written.
 #[test]
@@ -291,8 +291,8 @@ fn include_clips_adds_a_creatures_own_clips_to_its_dataset() {
     let out = dataset(fox, 1000, 1, &file, &["--include-clips"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let set = MotionSet::load(&file).unwrap();
-    assert_eq!((set.len(), set.config.own_clips.share), (1000, 0.1));
-    assert!(set.episodes.iter().any(|e| e.start == 900), "the clips start at frame 900: {:?}", set.episodes);
+    assert_eq!((set.len(), set.config.own_clips.share), (1000, 0.02));
+    assert!(set.episodes.iter().any(|e| e.start == 980), "the clips start at frame 980: {:?}", set.episodes);
 
     let toml = tmp("fox-clips.toml");
     std::fs::write(&toml, "[own_clips]\nshare = 0.3\nnames = [\"Run\"]\n").unwrap();
