@@ -465,9 +465,10 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
         let cells: Vec<&str> = row.split(',').collect();
         assert!(row.starts_with(&format!("stretch,{system},")), "{csv}");
-        // div, fid, l_fea and following (both empty for the dataset, which has no human), ufr.
-        for (k, c) in cells[3..8].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (k == 2 || k == 3);
+        // div, fid, l_fea, following and heading error (the last three empty for the dataset, which
+        // has no human), ufr.
+        for (k, c) in cells[3..9].iter().enumerate() {
+            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
             assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
         }
     }
@@ -511,8 +512,8 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     for (row, system) in rows.iter().zip(systems) {
         let cells: Vec<&str> = row.split(',').collect();
         assert_eq!(cells[1], system, "{csv}");
-        for (k, c) in cells[3..8].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (k == 2 || k == 3);
+        for (k, c) in cells[3..9].iter().enumerate() {
+            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
             assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
         }
     }
@@ -653,8 +654,8 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
         assert!(row.starts_with(&format!("Fox,{system},")), "{csv}");
         let cells: Vec<&str> = row.split(',').collect();
-        for (k, c) in cells[3..8].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (k == 2 || k == 3);
+        for (k, c) in cells[3..9].iter().enumerate() {
+            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
             assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
         }
     }

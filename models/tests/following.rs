@@ -228,3 +228,54 @@ fn a_character_that_drives_off_while_the_human_stands_is_caught_by_standing() {
     assert_eq!(s.standing_clips, 1);
     assert_eq!(s.standing_travel, clips[0].0.standing_travel);
 }
+
+/// Heading: on the bundled walk, where the person turns 20° to the left after 2 s, Stretch driven to
+/// face where the person faces scores a heading error of a few degrees; standing on its first heading
+/// it misses the person's turn (about 20°), and turning right at 20°/s it ends up about 120° off.
+#[test]
+fn a_character_that_turns_away_from_the_humans_path_is_caught_by_heading() {
+    let mut f = fixture();
+    let text = std::fs::read_to_string(repo("assets/motions/walk.bvh")).unwrap();
+    let clip = HumanClip::from_bvh_str(&text, "walk.bvh", &ImportOptions::default()).unwrap().resampled(FPS);
+    f.human = clip.states().into_iter().map(|s| s.0.to_vec()).collect();
+    // The person's facing, from the clip's frames (not from Ψ), unwrapped from the first frame's.
+    let yaw0 = ace_models::frame::heading_yaw(&clip.frames[0].forward());
+    let facing: Vec<f32> = clip
+        .frames
+        .iter()
+        .map(|fr| {
+            let d = ace_models::frame::heading_yaw(&fr.forward()) - yaw0;
+            d.sin().atan2(d.cos())
+        })
+        .collect();
+    let turned = facing.last().unwrap().to_degrees();
+    assert!((15.0..25.0).contains(&turned), "the walk turns about 20° left: {turned}");
+    let turning = |yaw: &dyn Fn(usize) -> f32| -> FollowingReport {
+        let poses: Vec<CharacterPose> = (0..f.human.len())
+            .map(|t| f.tree.neutral_pose(Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw(t)))))
+            .collect();
+        f.score_poses(&poses, 1.0)
+    };
+    let following = turning(&|t| facing[t]).heading_error.unwrap();
+    let standing = turning(&|_| 0.0).heading_error.unwrap();
+    let seconds = (f.human.len() - 1) as f32 / FPS;
+    let away = turning(&|t| -(20.0f32).to_radians() * t as f32 / FPS).heading_error.unwrap();
+    // The pelvis turns to and fro with each step; its yaw rate, not the facing, is what Ψ holds.
+    assert!(following < 6.0, "facing where the person faces: {following}°");
+    assert!((standing - turned).abs() < 6.0, "standing still: {standing}° against the person's {turned}°");
+    assert!((away - (turned + 20.0 * seconds)).abs() < 6.0, "turning right: {away}°");
+    // Turning 45° away from the person's facing in the middle of the clip and back is 45° off.
+    let n = f.human.len() as f32;
+    let detour = turning(&|t| facing[t] + 45f32.to_radians() * (std::f32::consts::PI * t as f32 / (n - 1.0)).sin()).heading_error.unwrap();
+    assert!((detour - 45.0).abs() < 6.0, "a detour: {detour}°");
+    // A clip of one frame has no heading change; summaries take the median over the clips.
+    let s = FollowingSummary::new(vec![
+        (turning(&|t| facing[t]), f.human_body),
+        (turning(&|_| 0.0), f.human_body),
+        (turning(&|t| -(20.0f32).to_radians() * t as f32 / FPS), f.human_body),
+    ]);
+    assert_eq!(s.heading_error, Some(standing));
+    f.human.truncate(1);
+    let one = f.score_poses(&[f.tree.neutral_pose(Isometry3::identity())], 1.0);
+    assert_eq!(one.heading_error, None);
+}

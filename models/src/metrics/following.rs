@@ -29,6 +29,12 @@
 //!   measured from the root and cannot see a character that walks or drives off while the human stands
 //!   and waves; this can. 0 is a character that stands where the human stands.
 //!
+//! - **Heading** (the whole body): the character's change of heading since the clip's first frame
+//!   against the human's (each integrated from its root's angular velocity about the vertical), and the
+//!   largest difference over the clip in degrees. The end effectors are measured in each body's own
+//!   heading frame and cannot see a character that turns where the human walks straight, or walks on
+//!   where the human turns: it leaves the human's path. 0 is a character that turns as the human does.
+//!
 //! A clip's [`FollowingReport::score`] is the mean combined score of its pairs. Over many clips,
 //! [`FollowingSummary`] gives per pair the median vertical correlation and amplitude ratio over the
 //! clips where the human's end effector moves at least [`MOVING_VERTICAL_M`] up and down, and the
@@ -130,6 +136,10 @@ pub struct FollowingReport {
     /// The character's median turning (degrees per second) while the human stands.
     #[serde(default)]
     pub standing_turn: Option<f32>,
+    /// The largest difference (degrees) between the character's and the human's change of heading
+    /// since the first frame; `None` for a clip of one frame.
+    #[serde(default)]
+    pub heading_error: Option<f32>,
 }
 
 /// The following of a clip from the character's Ψ and the human's Ψ (same [`FeatureLayout`], aligned
@@ -213,7 +223,22 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
         pairs: out,
         standing_travel: med(travels),
         standing_turn: med(turns),
+        heading_error: heading_error(layout, character, human, config.fps),
     }
+}
+
+/// The largest difference (degrees) between the two bodies' changes of heading since the first frame,
+/// each the sum of its Ψ rows' yaw rates over the frames after the first (a row's velocities are those
+/// that bring the previous frame to it); `None` for fewer than two frames.
+fn heading_error<R: AsRef<[f32]>, S: AsRef<[f32]>>(layout: &FeatureLayout, character: &[R], human: &[S], fps: f32) -> Option<f32> {
+    let yaw = layout.root_angular_velocity().start + 2;
+    let (mut c, mut h, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+    for (rc, rh) in character.iter().zip(human).skip(1) {
+        c += f64::from(rc.as_ref()[yaw]) / f64::from(fps);
+        h += f64::from(rh.as_ref()[yaw]) / f64::from(fps);
+        worst = worst.max((c - h).abs());
+    }
+    (character.len() >= 2).then_some(worst.to_degrees() as f32)
 }
 
 /// How far the root of `rows` (Ψ rows at `fps`) travels horizontally (Ψ's velocity units times seconds)
@@ -311,6 +336,9 @@ pub struct FollowingSummary {
     /// Median of those clips' [`FollowingReport::standing_turn`] (degrees per second).
     #[serde(default)]
     pub standing_turn: Option<f32>,
+    /// Median of the clips' [`FollowingReport::heading_error`] (degrees).
+    #[serde(default)]
+    pub heading_error: Option<f32>,
     /// Each clip's report, in order, with its human's body length (m).
     pub clips: Vec<(FollowingReport, f32)>,
 }
@@ -351,6 +379,7 @@ impl FollowingSummary {
             standing_clips: standing.len(),
             standing_travel: med(standing.iter().filter_map(|r| r.standing_travel).collect()),
             standing_turn: med(standing.iter().filter_map(|r| r.standing_turn).collect()),
+            heading_error: med(clips.iter().filter_map(|c| c.0.heading_error).collect()),
             clips,
         }
     }
@@ -370,6 +399,12 @@ impl std::fmt::Display for FollowingSummary {
         if !single {
             write!(f, " ({} clips)", self.standing_clips)?;
         }
+        write!(
+            f,
+            "\n        heading: the character's turning differs from the human's by up to {}°{}",
+            self.heading_error.map_or("n/a".to_string(), |v| format!("{v:.0}")),
+            if single { "" } else { " (median over the clips)" }
+        )?;
         for (k, p) in self.pairs.iter().enumerate() {
             if single {
                 let c = &self.clips[0].0.pairs[k];
