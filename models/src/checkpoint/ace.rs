@@ -54,6 +54,11 @@ pub struct AceConfig {
     /// `false` reads the prior's predicted end-effector entries, as every run did before this setting
     /// existed (their `ace.json` has no such field and reads as `false`).
     pub kinematic_features: bool,
+    /// Compute the root's velocities of the generated states' Ψ in L_fea from their displacement and
+    /// delta rotation, which carry the root that is shown (`learn::psi`, "Root
+    /// velocities from the root's motion"); `false` reads the states' velocity entries, as every run
+    /// did before this setting existed (their `ace.json` has no such field and reads as `false`).
+    pub kinematic_root: bool,
     /// Weight of the gradient penalty w_gp (paper: 0.1).
     pub w_gp: f64,
     /// Adam's learning rate for G.
@@ -100,6 +105,7 @@ impl Default for AceConfig {
             centre_features: true,
             match_speed_scale: true,
             kinematic_features: true,
+            kinematic_root: true,
             w_gp: 0.1,
             // At 2e-4 the Spot run collapsed after 3,260 steps (D took over, L_adv jumped from 1 to 8);
             // at 1e-4 it stayed balanced to the end and its held-out FID was lower.
@@ -238,12 +244,14 @@ pub struct BodyLengths {
 }
 
 /// Reads the configuration stored in `ace.json`. One written before [`AceConfig::kinematic_features`]
-/// existed trained on the prior's predicted end-effector entries, so there the missing setting reads as
-/// `false`; a partial configuration a user gives still gets the default.
+/// (or [`AceConfig::kinematic_root`]) existed trained on the prior's predicted end-effector (root
+/// velocity) entries, so there the missing setting reads as `false`; a partial configuration a user
+/// gives still gets the default.
 fn stored_config<'de, D: serde::Deserializer<'de>>(d: D) -> Result<AceConfig, D::Error> {
     let mut v = Value::deserialize(d)?;
     if let Some(o) = v.as_object_mut() {
         o.entry("kinematic_features").or_insert(Value::Bool(false));
+        o.entry("kinematic_root").or_insert(Value::Bool(false));
     }
     serde_json::from_value(v).map_err(serde::de::Error::custom)
 }

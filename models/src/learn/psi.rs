@@ -16,6 +16,17 @@
 //! [`Psi::with_kinematics`] computes the end-effector block from the joint positions instead (clamped
 //! into the joint limits as the retargeter clamps them, through [`FkLayer`]), so L_fea scores the arm
 //! that is shown. On consistent states, such as the dataset's, both give the same Ψ.
+//!
+//! **Root velocities from the root's motion.** The same holds for the root: a pose's root is carried
+//! from frame to frame by the state's displacement and delta rotation
+//! ([`crate::character_state::integrate_root`]), while x^r's velocity entries are numbers of their own
+//! beside them. Trained on the velocity entries, the generator met the human's yaw rate there while the
+//! character turned by its delta rotations: the shipped checkpoints turned a median 33–41° off the
+//! human's heading over the held-out clips. [`Psi::with_root_motion`] computes the root's horizontal
+//! linear velocity and its angular velocity from the displacement and the delta rotation instead (the
+//! vertical velocity, which moves nothing, stays the entry's), in the current heading frame as x^r
+//! holds them. On consistent states both agree to within the small difference between the delta
+//! rotation's vertical component and the change of heading of a tilted root.
 
 use tch::{Device, Kind, Tensor};
 
@@ -37,6 +48,9 @@ pub struct Psi {
     /// Forward kinematics of the end effectors, when Ψ takes their positions from the joints
     /// ([`Psi::with_kinematics`]).
     kinematics: Option<EeKinematics>,
+    /// Seconds per frame, when Ψ takes the root's velocities from its displacement and delta rotation
+    /// ([`Psi::with_root_motion`]).
+    root_motion_dt: Option<f64>,
 }
 
 /// [`FkLayer`] with the joint limits and the mapped end effectors' columns of its output.
@@ -83,6 +97,7 @@ impl Psi {
             ee_columns: Tensor::from_slice(&columns).to_device(device),
             body_length: f64::from(body_length),
             kinematics: None,
+            root_motion_dt: None,
         }
     }
 
@@ -105,6 +120,17 @@ impl Psi {
             upper: limits(&upper),
             columns: &self.ee_columns - self.layout.ee_positions().start as i64,
         });
+        self
+    }
+
+    /// This Ψ with the root's velocities computed from the states' displacement and delta rotation over
+    /// `dt` seconds per frame (module docs) instead of read from their velocity entries.
+    ///
+    /// # Panics
+    /// If `dt` is not positive.
+    pub fn with_root_motion(mut self, dt: f32) -> Psi {
+        assert!(dt > 0.0, "seconds per frame must be positive, got {dt}");
+        self.root_motion_dt = Some(f64::from(dt));
         self
     }
 
@@ -132,8 +158,16 @@ impl Psi {
         let inv = 1.0 / self.body_length;
         let height = cols(l.root_height()) * inv;
         let orientation = orientation_6d(&cols(l.root_orientation()));
-        let linear = cols(l.root_linear_velocity()) * inv;
-        let angular = cols(l.root_angular_velocity());
+        let (linear, angular) = match self.root_motion_dt {
+            None => (cols(l.root_linear_velocity()), cols(l.root_angular_velocity())),
+            Some(dt) => root_velocities(
+                &cols(l.root_displacement()),
+                &cols(l.root_delta_rotation()),
+                &cols(l.root_linear_velocity()).narrow(1, 2, 1),
+                dt,
+            ),
+        };
+        let linear = linear * inv;
         let ees = match &self.kinematics {
             None => x.index_select(1, &self.ee_columns.to_device(x.device())),
             Some(k) => {
@@ -144,6 +178,27 @@ impl Psi {
         } * inv;
         Ok(Tensor::cat(&[height, orientation, linear, angular, ees], 1))
     }
+}
+
+/// The root's linear and angular velocities `[B, 3]` each, in the current heading frame, from its
+/// displacement `d: [B, 2]` (previous heading frame, m), its delta rotation `q: [B, 4]` (`w, x, y, z`,
+/// any norm or sign; previous heading frame) and its vertical velocity `vz: [B, 1]`, over `dt`
+/// seconds: the rotation's scaled axis over `dt`, and both turned by the change of heading (the
+/// scaled axis's vertical component) into the current heading frame.
+pub fn root_velocities(d: &Tensor, q: &Tensor, vz: &Tensor, dt: f64) -> (Tensor, Tensor) {
+    // The same rotation with w ≥ 0, so that its angle is at most π.
+    let q = q * (q.narrow(1, 0, 1).ge(0.0).to_kind(q.kind()) * 2.0 - 1.0);
+    let (w, v) = (q.narrow(1, 0, 1), q.narrow(1, 1, 3));
+    // |v| kept off 0, where the scaled axis is 2v/w and the square root's gradient is infinite.
+    let n = (v.square().sum_dim_intlist(1, true, q.kind()) + 1e-12).sqrt();
+    let omega = &v * (n.atan2(&w) * 2.0 / &n) / dt;
+    let turn = omega.narrow(1, 2, 1) * dt;
+    let (c, s) = (turn.cos(), turn.sin());
+    // Rz(−turn): a vector of the previous heading frame in the current one.
+    let back = |x: &Tensor, y: &Tensor| (&c * x + &s * y, -(&s * x) + &c * y);
+    let (ox, oy) = back(&omega.narrow(1, 0, 1), &omega.narrow(1, 1, 1));
+    let (vx, vy) = back(&(d.narrow(1, 0, 1) / dt), &(d.narrow(1, 1, 1) / dt));
+    (Tensor::cat(&[vx, vy, vz.shallow_clone()], 1), Tensor::cat(&[ox, oy, omega.narrow(1, 2, 1)], 1))
 }
 
 /// The 6D orientation `[fwd, up]` (first and third rotation-matrix columns) of quaternions
@@ -299,6 +354,50 @@ mod tests {
             assert!(worst(&at(f64::from(upper) + 1.0), &at(f64::from(upper))) < 1e-6, "{name}: DoF {d} clamped");
             assert!(worst(&at(f64::from(upper) - 0.5), &at(f64::from(upper))) > 1e-3, "{name}: DoF {d} moves the points");
         }
+    }
+
+    #[test]
+    fn root_velocities_follow_the_roots_motion_not_the_predicted_entries() {
+        for name in ["spot", "crab", "hound"] {
+            let (layout, mapping, body, rows) = generated(name, 600);
+            let plain = Psi::new(&layout, &mapping, body, Device::Cpu);
+            let moved = Psi::new(&layout, &mapping, body, Device::Cpu).with_root_motion(1.0 / 30.0);
+            let x = rows_to_tensor(&rows, Device::Cpu).unwrap();
+            let flat = |psi: &Psi, x: &Tensor| Vec::<f32>::try_from(psi.features(x).unwrap().flatten(0, -1)).unwrap();
+            let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            // On the dataset the velocity entries and the root's motion agree (rad/s and body lengths
+            // per second; the change of heading of a tilted root differs a little from the delta's
+            // vertical component).
+            let want = flat(&plain, &x);
+            let got = flat(&moved, &x);
+            assert!(worst(&got, &want) < 2e-3, "{name}: {}", worst(&got, &want));
+            assert!(want.chunks(plain.dim()).any(|r| r[plain.layout().root_angular_velocity()][2].abs() > 0.3), "{name}: the dataset turns");
+
+            // Velocity entries that disagree with the motion: the root-motion Ψ keeps the motion's.
+            let (lin, ang) = (layout.root_linear_velocity(), layout.root_angular_velocity());
+            let y = x.copy();
+            let _ = y.narrow(1, lin.start as i64, 2).g_add_scalar_(0.5);
+            let _ = y.narrow(1, ang.start as i64, 3).g_add_scalar_(0.5);
+            assert!(worst(&flat(&plain, &y), &want) > 0.49 / body.max(1.0), "{name}: the plain Ψ reads the entries");
+            assert!(worst(&flat(&moved, &y), &got) < 1e-6, "{name}: the root-motion Ψ ignores them");
+        }
+        // A delta rotation of 0.1 rad about the vertical and a step of 3 cm ahead of the previous
+        // heading: 3 rad/s, and the step seen from the new heading, 0.1 rad to the left of the old one.
+        let (half, dt) = (0.05f32, 1.0 / 30.0);
+        let q = Tensor::from_slice(&[half.cos(), 0.0, 0.0, half.sin()]).view([1, 4]);
+        let d = Tensor::from_slice(&[0.03f32, 0.0]).view([1, 2]);
+        let vz = Tensor::from_slice(&[0.2f32]).view([1, 1]);
+        let (v, w) = root_velocities(&d, &q, &vz, dt);
+        let (v, w) = (Vec::<f32>::try_from(v.flatten(0, -1)).unwrap(), Vec::<f32>::try_from(w.flatten(0, -1)).unwrap());
+        let close = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-4);
+        assert!(close(&w, &[0.0, 0.0, 3.0]), "{w:?}");
+        assert!(close(&v, &[0.9 * 0.1f32.cos(), -0.9 * 0.1f32.sin(), 0.2]), "{v:?}");
+        // The same rotation with the opposite sign, and gradients finite at no rotation at all.
+        let neg = Tensor::from_slice(&[-half.cos(), 0.0, 0.0, -half.sin()]).view([1, 4]);
+        assert!(close(&Vec::<f32>::try_from(root_velocities(&d, &neg, &vz, dt).1.flatten(0, -1)).unwrap(), &w));
+        let still = Tensor::from_slice(&[1.0f32, 0.0, 0.0, 0.0]).view([1, 4]).set_requires_grad(true);
+        root_velocities(&d, &still, &vz, dt).1.sum(Kind::Float).backward();
+        assert!(Vec::<f32>::try_from(still.grad().flatten(0, -1)).unwrap().iter().all(|g| g.is_finite()));
     }
 
     #[test]

@@ -183,6 +183,9 @@ pub fn train_ace(
     if cfg.kinematic_features {
         psi = psi.with_kinematics(inputs.tree, inputs.morph);
     }
+    if cfg.kinematic_root {
+        psi = psi.with_root_motion(1.0 / inputs.dataset.config.fps);
+    }
     let humans = human_windows(inputs, &human_stats, psi.layout(), cfg.window, FeatureMatching::of(cfg), device)?;
     let ckpt = start_or_resume(inputs, cfg, &human_stats, &humans, run_dir, device)?;
     if ckpt.record.step >= cfg.steps {
@@ -1083,14 +1086,17 @@ mod tests {
         assert!(record.config.kinematic_features, "a new run reads Ψ's end effectors from the joints");
         // The same record without the setting, as every `ace.json` before it was written.
         let mut v: Value = serde_json::from_slice(&fs::read(trained_ace_dir().join(ACE_FILE)).unwrap()).unwrap();
+        assert!(record.config.kinematic_root, "a new run reads Ψ's root velocities from the root's motion");
         v["config"].as_object_mut().unwrap().remove("kinematic_features").unwrap();
+        v["config"].as_object_mut().unwrap().remove("kinematic_root").unwrap();
         let dir = scratch_dir("ace_before_kinematic");
         fs::write(dir.join(ACE_FILE), serde_json::to_vec(&v).unwrap()).unwrap();
         let old = read_record(&dir).unwrap();
-        assert!(!old.config.kinematic_features);
-        assert_eq!(AceConfig { kinematic_features: true, ..old.config }, record.config);
+        assert!(!old.config.kinematic_features && !old.config.kinematic_root);
+        assert_eq!(AceConfig { kinematic_features: true, kinematic_root: true, ..old.config }, record.config);
         // A partial configuration a user writes gets the default.
-        assert!(toml::from_str::<AceConfig>("w_fea = 2.0").unwrap().kinematic_features);
+        let partial = toml::from_str::<AceConfig>("w_fea = 2.0").unwrap();
+        assert!(partial.kinematic_features && partial.kinematic_root);
         fs::remove_dir_all(&dir).unwrap();
     }
 
