@@ -94,6 +94,27 @@ fn the_following_plots_of_the_walk_on_spot_are_the_clip_and_the_poses() {
     let speed: Vec<f32> = ground_speeds(&roots, 30.0).iter().map(|v| v / character_body).collect();
     assert_close(&series.character_speed, &speed, 1e-4, "character speed");
     assert!(series.character_speed != series.human_speed);
+    // Headings: the human's turn is the clip's (20° to the left after 2 s), measured here from the
+    // pelvis's facing in the clip's frames; the character's is its root's, and the largest gap
+    // between the two is the heading error the metrics report.
+    assert_eq!((series.character_heading.len(), series.human_heading.len()), (frames, frames));
+    let facing = |f: &ace::models::human::HumanFrame| ace::models::frame::heading_yaw(&f.forward());
+    let first = facing(&result.clip.frames[0]);
+    let turned: Vec<f32> = result.clip.frames.iter().map(|f| (facing(f) - first).to_degrees()).collect();
+    assert_close(&series.human_heading, &turned, 1.0, "human heading");
+    assert!((turned[frames - 1] - 20.0).abs() < 2.0, "the walk turns 20° left: {}", turned[frames - 1]);
+    let gap = series.character_heading.iter().zip(&series.human_heading).map(|(c, h)| (c - h).abs()).fold(0.0f32, f32::max);
+    let reported = result.retargeted.report.following.as_ref().and_then(|f| f.heading_error).unwrap();
+    assert!((gap - reported).abs() < 2.0, "the plot's largest gap {gap}° against the reported heading error {reported}°");
+    let root_yaw = |p: &ace::models::kinematics::CharacterPose| {
+        let m = p.root.rotation.to_rotation_matrix();
+        m[(1, 0)].atan2(m[(0, 0)])
+    };
+    let yaw0 = root_yaw(&result.retargeted.motion.poses[0]);
+    let wrapped: Vec<f32> = result.retargeted.motion.poses.iter().map(|p| (root_yaw(p) - yaw0).to_degrees()).collect();
+    let unwrapped: Vec<f32> = series.character_heading.iter().map(|d| (d + 180.0).rem_euclid(360.0) - 180.0).collect();
+    let wrapped: Vec<f32> = wrapped.iter().map(|d| (d + 180.0).rem_euclid(360.0) - 180.0).collect();
+    assert_close(&unwrapped, &wrapped, 0.01, "character heading");
     // Heights above the ground, not below the root: Spot's feet touch the ground while it walks.
     let (tree, morph) = load_character(&result.inputs.character).unwrap();
     for (k, p) in series.pairs.iter().enumerate() {

@@ -1,6 +1,6 @@
 //! The editor's plots (egui_plot: axes, a legend, values on hover, Ctrl and the wheel zoom, a drag
 //! pans, a double click resets; the wheel alone scrolls the panel, not the plot): the losses of "Retrain briefly" per step, and on the timeline the
-//! root speeds and end-effector heights of the character against the human's ([`Series`]), with
+//! root speeds, headings and end-effector heights of the character against the human's ([`Series`]), with
 //! the current time marked; a click on a timeline plot seeks there.
 
 use ace::models::learn::train_ace::AceProgress;
@@ -97,6 +97,23 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
             plot.vline(now(time));
             clicked_time(plot)
         });
+    let heading = timeline_plot("heading", 90.0, Legend::default().position(egui_plot::Corner::LeftTop))
+        .x_axis_label("change of heading since the first frame (degrees, left positive) over the clip (s)")
+        .y_axis_label("heading")
+        .label_formatter(|pos| match pos {
+            HoverPosition::NearDataPoint { index, .. } => {
+                let (c, h) = (series.character_heading.get(*index)?, series.human_heading.get(*index)?);
+                Some(format!("{}
+character {c:.0}°, human {h:.0}° ({:.0}° off)", frame_at(*index), (c - h).abs()))
+            }
+            HoverPosition::Elsewhere { .. } => None,
+        })
+        .show(ui, |plot| {
+            plot.line(Line::new("character", timed(&series.character_heading, fps)).color(CHARACTER));
+            plot.line(Line::new("human", timed(&series.human_heading, fps)).color(HUMAN).style(LineStyle::dashed_dense()));
+            plot.vline(now(time));
+            clicked_time(plot)
+        });
     let small_legend = Legend::default().position(egui_plot::Corner::LeftTop).text_style(egui::TextStyle::Small);
     let heights = timeline_plot("end-effector heights", 130.0, small_legend)
         .x_axis_label("end-effector heights above the ground (body lengths) over the clip (s); solid: character, dashed: human")
@@ -123,7 +140,7 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
             plot.vline(now(time));
             clicked_time(plot)
         });
-    speed.inner.or(heights.inner)
+    speed.inner.or(heading.inner).or(heights.inner)
 }
 
 /// A plot of the timeline: its time axis and cursor linked with the other timeline plots, the wheel

@@ -1,6 +1,6 @@
-//! The per-frame series the timeline plots for a preview: the root's ground speed and the heights of
-//! the mapped end-effector pairs, of the character and of the human, so that an artist sees where the
-//! character stops following.
+//! The per-frame series the timeline plots for a preview: the root's ground speed, its change of
+//! heading and the heights of the mapped end-effector pairs, of the character and of the human, so
+//! that an artist sees where the character stops following or leaves the human's path.
 //!
 //! Both bodies are measured in their own body lengths, as Ψ and the following metric
 //! ([`ace::models::metrics::following`]) compare them: the character's the checkpoint was trained with,
@@ -8,11 +8,16 @@
 //! from x^h, the generator's input (pelvis velocity, and end effectors in the heading frame at the
 //! pelvis); the character's from the poses the preview shows (root translation, forward kinematics),
 //! after the cleanup. Speeds follow x^h's rule: backward differences, the first frame the forward one.
+//! Headings are degrees turned since the first frame (left positive): the character's from its root's
+//! forward axis, the human's summed from x^h's yaw rates as the heading error of the following metric
+//! sums them.
 
 use ace::models::human::{EndEffector, layout};
 use ace::models::human_set::HumanRow;
 use ace::models::kinematics::{CharacterPose, KinematicTree};
+use ace::models::frame::heading_yaw;
 use ace::models::morphology::Morphology;
+use ace::models::nalgebra::Vector3;
 
 /// One mapped pair's end-effector heights above the ground, per frame (body lengths).
 #[derive(Clone, Debug, PartialEq)]
@@ -34,6 +39,10 @@ pub struct Series {
     pub character_speed: Vec<f32>,
     /// The human pelvis's ground speed (human body lengths per second).
     pub human_speed: Vec<f32>,
+    /// The character root's change of heading since the first frame (degrees, left positive).
+    pub character_heading: Vec<f32>,
+    /// The human's change of heading since the first frame (degrees, left positive).
+    pub human_heading: Vec<f32>,
     /// The mapped pairs, in the character's end-effector order.
     pub pairs: Vec<PairHeights>,
 }
@@ -77,6 +86,28 @@ impl Series {
                 v[0].hypot(v[1]) / i.human_body
             })
             .collect();
+        let yaws: Vec<f32> = i.poses.iter().map(|p| heading_yaw(&(p.root.rotation * Vector3::x()))).collect();
+        let character_heading = yaws
+            .iter()
+            .scan(0.0f32, |turned, &yaw| {
+                // Unwrapped: the smallest turn from the previous frame's heading.
+                let last = yaws[0] + *turned;
+                let d = yaw - last;
+                *turned += d.sin().atan2(d.cos());
+                Some(turned.to_degrees())
+            })
+            .collect();
+        let human_heading = i
+            .human
+            .iter()
+            .enumerate()
+            .scan(0.0f32, |turned, (t, x)| {
+                if t > 0 {
+                    *turned += x[layout::ROOT_ANGULAR_VELOCITY][2] / i.fps;
+                }
+                Some(turned.to_degrees())
+            })
+            .collect();
         let human_height = |x: &HumanRow, e: EndEffector| x[layout::ROOT_HEIGHT.start] + x[layout::ee_position(e)][2];
         let pairs = ees
             .iter()
@@ -89,7 +120,7 @@ impl Series {
                 human_height: i.human.iter().map(|x| human_height(x, h) / i.human_body).collect(),
             })
             .collect();
-        Series { fps: i.fps, character_speed, human_speed, pairs }
+        Series { fps: i.fps, character_speed, human_speed, character_heading, human_heading, pairs }
     }
 }
 
