@@ -512,7 +512,6 @@ fn check_controller(c: &ControllerConfig) -> Result<(), String> {
     in_range(&f("time_constant"), m.time_constant, TAU[0], TAU[1], " (s)")?;
     probability(&f("p_stand"), m.p_stand)?;
     probability(&f("p_turn"), m.p_turn)?;
-    probability(&f("p_straight"), m.p_straight)?;
     probability(&f("p_lateral"), m.p_lateral)?;
     probability(&f("p_slow"), m.p_slow)?;
     if m.p_stand + m.p_turn > 1.0 {

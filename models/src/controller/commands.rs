@@ -34,9 +34,6 @@ pub struct CommandConfig {
     pub p_slow: f32,
     /// The slow band of forward speeds.
     pub slow: [f32; 2],
-    /// Probability that a moving target goes straight, without turning. With yaw rates drawn over
-    /// −1…1 rad/s, about one moving frame in twenty of Spot's dataset went straight to within 3°/s.
-    pub p_straight: f32,
 }
 
 impl Default for CommandConfig {
@@ -52,7 +49,6 @@ impl Default for CommandConfig {
             p_lateral: 0.3,
             p_slow: 0.4,
             slow: [-0.8, 1.8],
-            p_straight: 0.0,
         }
     }
 }
@@ -189,10 +185,8 @@ impl CommandGenerator {
         } else {
             0.0
         };
-        // Turning while running fast is drawn smaller, as animals do. (No draw at all without straight
-        // targets, so that datasets made before them regenerate exactly.)
-        let straight = c.p_straight > 0.0 && rng.random::<f32>() < c.p_straight;
-        let wz = if straight { 0.0 } else { wz / (1.0 + 0.3 * vx.abs().max(0.0)) };
+        // Turning while running fast is drawn smaller, as animals do.
+        let wz = wz / (1.0 + 0.3 * vx.abs().max(0.0));
         Command {
             vx: vx * self.scale,
             vy: vy * self.scale,
@@ -253,23 +247,6 @@ mod tests {
             assert!((-0.75..=2.5).contains(&t.vx), "{t:?}");
             assert!((-0.5..=0.5).contains(&t.vy) && (-1.0..=1.0).contains(&t.wz));
         }
-    }
-
-    /// Straight targets: the share asked for of the moving targets goes without turning, none without
-    /// them. (That a configuration without them draws what it drew before they existed is kept by the
-    /// shipped priors' dataset regeneration test.)
-    #[test]
-    fn a_share_of_moving_targets_goes_straight() {
-        let straight_share = |p_straight: f32| {
-            let cfg = CommandConfig { p_straight, ..CommandConfig::default() };
-            let g = CommandGenerator::new(cfg, 0.5, 10.0, 0.3);
-            let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
-            let moving: Vec<Command> = (0..20_000).map(|_| g.draw(&mut rng)).filter(|c| c.speed() > 0.0).collect();
-            moving.iter().filter(|c| c.wz == 0.0).count() as f32 / moving.len() as f32
-        };
-        assert_eq!(straight_share(0.0), 0.0);
-        let share = straight_share(0.4);
-        assert!((share - 0.4).abs() < 0.02, "{share}");
     }
 
     #[test]
