@@ -163,7 +163,7 @@ fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String 
             r.frames,
             opt(r.feature_loss),
             opt(crate::eval::following_score(r)),
-            crate::eval::heading_error(r).map_or("n/a".into(), |v| format!("{v:.0}°")),
+            crate::eval::heading(r),
             crate::eval::standing(r),
             100.0 * u.ufr,
             100.0 * u.self_collision,

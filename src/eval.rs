@@ -385,6 +385,11 @@ pub fn heading_error(m: &MetricsReport) -> Option<f32> {
     m.following.as_ref().and_then(|f| f.heading_error)
 }
 
+/// [`heading_error`] for a table, "38°", or "n/a" without a source human.
+pub fn heading(m: &MetricsReport) -> String {
+    heading_error(m).map_or("n/a".into(), |v| format!("{v:.0}°"))
+}
+
 /// How far the character travels and turns while the human stands
 /// ([`ace::models::metrics::following`]), "0.012 BL/s, 1.3°/s", or "n/a" where the human never stands.
 pub fn standing(m: &MetricsReport) -> String {
@@ -419,7 +424,7 @@ pub fn markdown(e: &Evaluation) -> String {
             opt(m.fid),
             opt(m.feature_loss),
             opt(following_score(m)),
-            heading_error(m).map_or("n/a".into(), |v| format!("{v:.0}°")),
+            heading(m),
             100.0 * u.ufr,
             100.0 * u.self_collision,
             100.0 * u.penetration,

@@ -79,41 +79,30 @@ fn timed(values: &[f32], fps: f32) -> PlotPoints<'static> {
 pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
     let fps = series.fps;
     let frame_at = |index: usize| format!("frame {index} ({:.2} s)", index as f32 / fps);
-    let speed = timeline_plot("root speed", 90.0, Legend::default().position(egui_plot::Corner::LeftTop))
-        .x_axis_label("root ground speed (body lengths/s) over the clip (s)")
-        .y_axis_label("speed")
-        .label_formatter(|pos| match pos {
-            HoverPosition::NearDataPoint { index, .. } => Some(format!(
-                "{}\ncharacter {:.2}, human {:.2} body lengths/s",
-                frame_at(*index),
-                series.character_speed.get(*index)?,
-                series.human_speed.get(*index)?,
-            )),
-            HoverPosition::Elsewhere { .. } => None,
-        })
-        .show(ui, |plot| {
-            plot.line(Line::new("character", timed(&series.character_speed, fps)).color(CHARACTER));
-            plot.line(Line::new("human", timed(&series.human_speed, fps)).color(HUMAN).style(LineStyle::dashed_dense()));
-            plot.vline(now(time));
-            clicked_time(plot)
-        });
-    let heading = timeline_plot("heading", 90.0, Legend::default().position(egui_plot::Corner::LeftTop))
-        .x_axis_label("change of heading since the first frame (degrees, left positive) over the clip (s)")
-        .y_axis_label("heading")
-        .label_formatter(|pos| match pos {
-            HoverPosition::NearDataPoint { index, .. } => {
-                let (c, h) = (series.character_heading.get(*index)?, series.human_heading.get(*index)?);
-                Some(format!("{}
-character {c:.0}°, human {h:.0}° ({:.0}° off)", frame_at(*index), (c - h).abs()))
-            }
-            HoverPosition::Elsewhere { .. } => None,
-        })
-        .show(ui, |plot| {
-            plot.line(Line::new("character", timed(&series.character_heading, fps)).color(CHARACTER));
-            plot.line(Line::new("human", timed(&series.human_heading, fps)).color(HUMAN).style(LineStyle::dashed_dense()));
-            plot.vline(now(time));
-            clicked_time(plot)
-        });
+    let speed = against_human(
+        ui,
+        "root speed",
+        ("root ground speed (body lengths/s) over the clip (s)", "speed"),
+        (&series.character_speed, &series.human_speed),
+        fps,
+        time,
+        |index| {
+            let (c, h) = (series.character_speed.get(index)?, series.human_speed.get(index)?);
+            Some(format!("{}\ncharacter {c:.2}, human {h:.2} body lengths/s", frame_at(index)))
+        },
+    );
+    let heading = against_human(
+        ui,
+        "heading",
+        ("change of heading since the first frame (degrees, left positive) over the clip (s)", "heading"),
+        (&series.character_heading, &series.human_heading),
+        fps,
+        time,
+        |index| {
+            let (c, h) = (series.character_heading.get(index)?, series.human_heading.get(index)?);
+            Some(format!("{}\ncharacter {c:.0}°, human {h:.0}° ({:.0}° off)", frame_at(index), (c - h).abs()))
+        },
+    );
     let small_legend = Legend::default().position(egui_plot::Corner::LeftTop).text_style(egui::TextStyle::Small);
     let heights = timeline_plot("end-effector heights", 130.0, small_legend)
         .x_axis_label("end-effector heights above the ground (body lengths) over the clip (s); solid: character, dashed: human")
@@ -140,7 +129,34 @@ character {c:.0}°, human {h:.0}° ({:.0}° off)", frame_at(*index), (c - h).abs
             plot.vline(now(time));
             clicked_time(plot)
         });
-    speed.inner.or(heading.inner).or(heights.inner)
+    speed.or(heading).or(heights.inner)
+}
+
+/// A timeline plot, 90 px high, of one quantity per frame at `fps`: the character's (solid) against
+/// the human's (dashed), `hover` giving the text at a frame; the time clicked, if any.
+fn against_human(
+    ui: &mut egui::Ui,
+    id: &str,
+    (x_label, y_label): (&str, &str),
+    (character, human): (&[f32], &[f32]),
+    fps: f32,
+    time: f32,
+    hover: impl Fn(usize) -> Option<String>,
+) -> Option<f32> {
+    timeline_plot(id, 90.0, Legend::default().position(egui_plot::Corner::LeftTop))
+        .x_axis_label(x_label)
+        .y_axis_label(y_label)
+        .label_formatter(|pos| match pos {
+            HoverPosition::NearDataPoint { index, .. } => hover(*index),
+            HoverPosition::Elsewhere { .. } => None,
+        })
+        .show(ui, |plot| {
+            plot.line(Line::new("character", timed(character, fps)).color(CHARACTER));
+            plot.line(Line::new("human", timed(human, fps)).color(HUMAN).style(LineStyle::dashed_dense()));
+            plot.vline(now(time));
+            clicked_time(plot)
+        })
+        .inner
 }
 
 /// A plot of the timeline: its time axis and cursor linked with the other timeline plots, the wheel

@@ -15,7 +15,8 @@
 use ace::models::human::{EndEffector, layout};
 use ace::models::human_set::HumanRow;
 use ace::models::kinematics::{CharacterPose, KinematicTree};
-use ace::models::frame::heading_yaw;
+use ace::models::metrics::turned_degrees;
+use ace::models::frame::{heading_yaw, unwrap_angles};
 use ace::models::morphology::Morphology;
 use ace::models::nalgebra::Vector3;
 
@@ -86,28 +87,10 @@ impl Series {
                 v[0].hypot(v[1]) / i.human_body
             })
             .collect();
-        let yaws: Vec<f32> = i.poses.iter().map(|p| heading_yaw(&(p.root.rotation * Vector3::x()))).collect();
-        let character_heading = yaws
-            .iter()
-            .scan(0.0f32, |turned, &yaw| {
-                // Unwrapped: the smallest turn from the previous frame's heading.
-                let last = yaws[0] + *turned;
-                let d = yaw - last;
-                *turned += d.sin().atan2(d.cos());
-                Some(turned.to_degrees())
-            })
-            .collect();
-        let human_heading = i
-            .human
-            .iter()
-            .enumerate()
-            .scan(0.0f32, |turned, (t, x)| {
-                if t > 0 {
-                    *turned += x[layout::ROOT_ANGULAR_VELOCITY][2] / i.fps;
-                }
-                Some(turned.to_degrees())
-            })
-            .collect();
+        let mut yaws: Vec<f32> = i.poses.iter().map(|p| heading_yaw(&(p.root.rotation * Vector3::x()))).collect();
+        unwrap_angles(&mut yaws);
+        let character_heading = yaws.iter().map(|y| (y - yaws[0]).to_degrees()).collect();
+        let human_heading = turned_degrees(i.human.iter().map(|x| x[layout::ROOT_ANGULAR_VELOCITY][2]), i.fps);
         let human_height = |x: &HumanRow, e: EndEffector| x[layout::ROOT_HEIGHT.start] + x[layout::ee_position(e)][2];
         let pairs = ees
             .iter()

@@ -306,7 +306,7 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState)
         for (name, value) in [
             ("L_fea (lower is better)", opt(r.feature_loss)),
             ("following (higher is better)", opt(r.following.as_ref().and_then(|f| f.score))),
-            ("heading error (lower is better)", ace::eval::heading_error(r).map_or("n/a".into(), |v| format!("{v:.0}°"))),
+            ("heading error (lower is better)", ace::eval::heading(r)),
             ("UFR (lower is better)", format!("{:.2} %", 100.0 * rates.ufr)),
             ("  self-collision", format!("{:.2} %", 100.0 * rates.self_collision)),
             ("  foot penetration", format!("{:.2} %", 100.0 * rates.penetration)),

@@ -39,10 +39,23 @@ pub fn angular_velocity(from: &UnitQuaternion<f32>, to: &UnitQuaternion<f32>, dt
     (to * from.inverse()).scaled_axis() / dt
 }
 
+/// `a` wrapped into [−π, π].
+pub fn wrap_pi(a: f32) -> f32 {
+    use std::f32::consts::TAU;
+    a - TAU * (a / TAU).round()
+}
+
+/// `values` with every step wrapped into [−π, π]: the continuous version of a sequence of angles.
+pub fn unwrap_angles(values: &mut [f32]) {
+    for k in 1..values.len() {
+        values[k] = values[k - 1] + wrap_pi(values[k] - values[k - 1]);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f32::consts::FRAC_PI_2;
+    use std::f32::consts::{FRAC_PI_2, PI};
 
     #[test]
     fn heading_frame_ignores_pitch_and_keeps_position() {
@@ -67,5 +80,16 @@ mod tests {
         let b = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.2);
         let w = angular_velocity(&a, &b, 0.5);
         assert!((w - Vector3::new(0.0, 0.0, 0.2)).norm() < 1e-5);
+    }
+
+    #[test]
+    fn angles_unwrap_across_pi() {
+        let mut a = vec![3.0, 3.1, -3.1, -3.0, 3.1, 2.9];
+        unwrap_angles(&mut a);
+        let want = [3.0, 3.1, 2.0 * PI - 3.1, 2.0 * PI - 3.0, 3.1, 2.9];
+        for (x, y) in a.iter().zip(want) {
+            assert!((x - y).abs() < 1e-5, "{a:?}");
+        }
+        assert!((wrap_pi(3.0 * PI + 0.1) - (-PI + 0.1)).abs() < 1e-5);
     }
 }

@@ -34,7 +34,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::{ExportError, check_poses, write_atomic};
-use crate::frame::heading_yaw;
+use crate::frame::{heading_yaw, unwrap_angles};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
 
 /// One joint column of a trajectory.
@@ -112,18 +112,6 @@ impl Default for BaseUnits {
     }
 }
 
-/// `a` wrapped into [−π, π].
-fn wrap_pi(a: f32) -> f32 {
-    use std::f32::consts::TAU;
-    a - TAU * (a / TAU).round()
-}
-
-/// `values` with every step wrapped into [−π, π]: the continuous version of a sequence of angles.
-fn unwrap_angles(values: &mut [f32]) {
-    for k in 1..values.len() {
-        values[k] = values[k - 1] + wrap_pi(values[k] - values[k - 1]);
-    }
-}
 
 /// Finite-difference rate of `x` sampled every `dt` seconds (central inside, one-sided at the ends).
 fn rate<T>(x: &[T], dt: f32) -> Vec<T>
@@ -251,18 +239,6 @@ impl CommandTrajectory {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f32::consts::PI;
-
-    #[test]
-    fn angles_unwrap_across_pi() {
-        let mut a = vec![3.0, 3.1, -3.1, -3.0, 3.1, 2.9];
-        unwrap_angles(&mut a);
-        let want = [3.0, 3.1, 2.0 * PI - 3.1, 2.0 * PI - 3.0, 3.1, 2.9];
-        for (x, y) in a.iter().zip(want) {
-            assert!((x - y).abs() < 1e-5, "{a:?}");
-        }
-        assert!((wrap_pi(3.0 * PI + 0.1) - (-PI + 0.1)).abs() < 1e-5);
-    }
 
     #[test]
     fn rates_are_central_inside_and_one_sided_at_the_ends() {

@@ -227,18 +227,30 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
     }
 }
 
-/// The largest difference (degrees) between the two bodies' changes of heading since the first frame,
-/// each the sum of its Ψ rows' yaw rates over the frames after the first (a row's velocities are those
-/// that bring the previous frame to it); `None` for fewer than two frames.
+/// The largest difference (degrees) between the two bodies' changes of heading since the first frame
+/// ([`turned_degrees`] of their Ψ rows' yaw rates); `None` for fewer than two frames.
 fn heading_error<R: AsRef<[f32]>, S: AsRef<[f32]>>(layout: &FeatureLayout, character: &[R], human: &[S], fps: f32) -> Option<f32> {
     let yaw = layout.root_angular_velocity().start + 2;
-    let (mut c, mut h, mut worst) = (0.0f64, 0.0f64, 0.0f64);
-    for (rc, rh) in character.iter().zip(human).skip(1) {
-        c += f64::from(rc.as_ref()[yaw]) / f64::from(fps);
-        h += f64::from(rh.as_ref()[yaw]) / f64::from(fps);
-        worst = worst.max((c - h).abs());
-    }
-    (character.len() >= 2).then_some(worst.to_degrees() as f32)
+    let c = turned_degrees(character.iter().map(|r| r.as_ref()[yaw]), fps);
+    let h = turned_degrees(human.iter().map(|r| r.as_ref()[yaw]), fps);
+    (character.len() >= 2).then(|| c.iter().zip(&h).map(|(c, h)| (c - h).abs()).fold(0.0, f32::max))
+}
+
+/// Degrees turned since the first frame, per frame, from per-frame yaw rates (rad/s) at `fps`: the sum
+/// of the rates of the frames after the first (a frame's velocities, in x^h and x^r, are those that
+/// bring the previous frame to it).
+pub fn turned_degrees(yaw_rates: impl IntoIterator<Item = f32>, fps: f32) -> Vec<f32> {
+    let mut turned = 0.0f64;
+    yaw_rates
+        .into_iter()
+        .enumerate()
+        .map(|(t, w)| {
+            if t > 0 {
+                turned += f64::from(w) / f64::from(fps);
+            }
+            turned.to_degrees() as f32
+        })
+        .collect()
 }
 
 /// How far the root of `rows` (Ψ rows at `fps`) travels horizontally (Ψ's velocity units times seconds)

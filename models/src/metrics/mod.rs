@@ -47,7 +47,7 @@ use nalgebra::{Isometry3, Translation3};
 use serde::{Deserialize, Serialize};
 
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
-pub use following::{FollowingConfig, FollowingReport, FollowingSummary, PairFollowing, PairSummary, following};
+pub use following::{FollowingConfig, FollowingReport, FollowingSummary, PairFollowing, PairSummary, following, turned_degrees};
 pub use gait::{FootTracks, GaitConfig, GaitReport, GaitSummary, gait_of_labelled_poses, gait_of_poses, gait_quality};
 pub use ufr::{
     PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes,
