@@ -189,6 +189,12 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
             }
             assert!(md.contains(&format!("BL/s, {:.1}°/s", f["standing_turn"].as_f64().unwrap())), "{md}");
         }
+        // The person turns 20° left on the walk; the heading steering keeps every character within
+        // 30° of that (9–22° when written; the networks alone turn 64–145° off it).
+        if r["clip"] == "walk" {
+            let heading = m["following"]["heading_error"].as_f64().unwrap();
+            assert!(heading <= 30.0, "{c} strays {heading:.0}° from the person's heading on walk");
+        }
         if let (Some(link), true) = (follower, r["clip"] == "wave") {
             let pairs = m["following"]["clips"][0][0]["pairs"].as_array().unwrap();
             let pair = pairs.iter().find(|p| p["character"] == link).unwrap();

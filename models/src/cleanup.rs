@@ -1,17 +1,19 @@
-//! The cleanup every generated pose passes through before anyone sees it: foot locking
-//! ([`crate::foot_lock`]), then the collision guard ([`crate::collision_guard`]), which has the last
-//! word so that no output pose collides with itself or the ground. Both are causal, so the
-//! offline retargeter and a live stream give the same poses; both can be switched off to see the
-//! networks' raw output.
+//! The cleanup every generated pose passes through before anyone sees it: heading steering
+//! ([`crate::heading`], on the state before its root is integrated, so it runs in the retargeters'
+//! state decoder), foot locking ([`crate::foot_lock`]), then the collision guard
+//! ([`crate::collision_guard`]), which has the last word so that no output pose collides with itself
+//! or the ground. All are causal, so the offline retargeter and a live stream give the same poses; all
+//! can be switched off to see the networks' raw output.
 
 use serde::{Deserialize, Serialize};
 
 use crate::collision_guard::{CollisionGuard, GuardState};
 use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
+use crate::heading::HeadingSteering;
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 
-/// Which cleanups run (both by default).
+/// Which cleanups run (all by default).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Cleanup {
@@ -19,6 +21,8 @@ pub struct Cleanup {
     pub collision_guard: bool,
     /// Foot locking and its thresholds (`None`: off).
     pub foot_lock: Option<FootLockConfig>,
+    /// Steering the character's root back onto the person's heading (`None`: off).
+    pub heading: Option<HeadingSteering>,
 }
 
 impl Default for Cleanup {
@@ -26,6 +30,7 @@ impl Default for Cleanup {
         Cleanup {
             collision_guard: true,
             foot_lock: Some(FootLockConfig::default()),
+            heading: Some(HeadingSteering::default()),
         }
     }
 }
@@ -35,6 +40,7 @@ impl Cleanup {
     pub const NONE: Cleanup = Cleanup {
         collision_guard: false,
         foot_lock: None,
+        heading: None,
     };
 }
 

@@ -26,6 +26,7 @@ pub mod features;
 pub mod foot_lock;
 pub mod frame;
 pub mod geometry;
+pub mod heading;
 pub mod human;
 pub mod human_set;
 pub mod input;

@@ -344,7 +344,7 @@ impl NknCheckpoint {
         let t = |v: &[f32]| Tensor::from_slice(v).view([1, -1]).to_device(device);
         let x = (super::rows_to_tensor(x_h, device)? - t(&s.mean)) / t(&s.std);
         let states = tch::no_grad(|| self.nkn.states(&x.unsqueeze(0))).squeeze_dim(0);
-        roll_out(tree, morph, &self.prior, cleanup, x_h.len(), &mut |i, _| states.narrow(0, i as i64, 1))
+        roll_out(tree, morph, &self.prior, cleanup, x_h.len(), x_h, &mut |i, _| states.narrow(0, i as i64, 1))
     }
 }
 

@@ -11,6 +11,7 @@ use crate::character_state::{CharacterLayout, StateScratch, character_state, cha
 use crate::checkpoint::{CharacterInfo, LearnError, Normaliser, StateBounds};
 use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
 use crate::controller::wheels;
+use crate::heading::{HeadingSteering, SteeringState};
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -111,13 +112,15 @@ pub(crate) fn root_height_range(
 
 /// The rollout loop of both inference paths (and of the NKN baseline): `next(t, prev)` gives the
 /// normalised state of frame `t` from the normalised previous one (the first is `start`, the standing
-/// state) with its denormalised row, and `decoder` turns each row into a pose.
+/// state) with its denormalised row, and `decoder` turns each row into a pose; `human` holds the x^h
+/// row each frame follows (empty when no person drives the frames, as with random latents).
 pub(crate) fn roll_out<S>(
     tree: &KinematicTree,
     morph: &Morphology,
     start: S,
     mut decoder: StateDecoder,
     frames: usize,
+    human: &[HumanRow],
     next: &mut dyn FnMut(usize, &S) -> Result<(S, Vec<f32>), LearnError>,
 ) -> Result<RetargetedMotion, LearnError> {
     let mut prev = start;
@@ -125,7 +128,7 @@ pub(crate) fn roll_out<S>(
     for t in 0..frames {
         let (cur, mut state) = next(t, &prev)?;
         prev = cur;
-        poses.push(decoder.decode(tree, morph, &mut state));
+        poses.push(decoder.decode(tree, morph, &mut state, human.get(t).map(|r| &r[..])));
         states.push(state);
     }
     Ok(RetargetedMotion {
@@ -136,7 +139,8 @@ pub(crate) fn roll_out<S>(
 }
 
 /// Turns a character's successive denormalised states into poses (see the module docs): the
-/// integrated root, joint limits, rolled wheels, the cleanup and its memory.
+/// integrated root (steered onto the person's heading when the cleanup says), joint limits, rolled
+/// wheels, the cleanup and its memory.
 #[derive(Debug)]
 pub(crate) struct StateDecoder {
     layout: CharacterLayout,
@@ -145,6 +149,7 @@ pub(crate) struct StateDecoder {
     wheel_q: Vec<f32>,
     cleanup: CleanupPass,
     cleanup_state: CleanupState,
+    steering: Option<(HeadingSteering, SteeringState)>,
     root_height_range: Option<(f32, f32)>,
     prev_pose: CharacterPose,
     recomputed: Vec<f32>,
@@ -152,11 +157,12 @@ pub(crate) struct StateDecoder {
 }
 
 impl StateDecoder {
-    pub(crate) fn new(tree: &KinematicTree, morph: &Morphology, cleanup: &Cleanup, root_height_range: Option<(f32, f32)>) -> StateDecoder {
+    pub(crate) fn new(tree: &KinematicTree, morph: &Morphology, cleanup_config: &Cleanup, root_height_range: Option<(f32, f32)>) -> StateDecoder {
         let layout = CharacterLayout::new(tree, morph);
         let standing = tree.standing_pose();
-        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup);
+        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup_config);
         StateDecoder {
+            steering: cleanup_config.heading.map(|h| (h, SteeringState::new(&standing.root))),
             wheels: wheels::find(tree, morph, &standing),
             root: standing.root,
             wheel_q: standing.q.clone(),
@@ -170,11 +176,16 @@ impl StateDecoder {
         }
     }
 
-    /// The pose of the next state; `state` is updated to carry the pose's joints (and, after a
-    /// cleanup, its end effectors).
-    pub(crate) fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32]) -> CharacterPose {
+    /// The pose of the next state, retargeted from the x^h row `human` (`None` when no person drives
+    /// it); `state` is updated to carry the pose's joints (and, after a cleanup, its end effectors and
+    /// the heading steering's turn).
+    pub(crate) fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32], human: Option<&[f32]>) -> CharacterPose {
         let layout = &self.layout;
         let dt = 1.0 / PROJECT_FPS;
+        let steering = self.steering.as_mut().zip(human);
+        if let Some(((config, memory), _)) = &steering {
+            memory.steer(config, layout, state, dt);
+        }
         if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.is_active()) {
             // The prior's clamp leaves a margin beyond the data; a low body can sink into the
             // ground inside it.
@@ -198,6 +209,9 @@ impl StateDecoder {
             }
         }
         state[layout.joint_positions()].copy_from_slice(&pose.q);
+        if let Some(((_, memory), x_h)) = steering {
+            memory.observe(&pose.root, x_h, PROJECT_FPS);
+        }
         self.root = pose.root;
         self.prev_pose = pose.clone();
         pose

@@ -117,12 +117,12 @@ fn frame_by_frame(
     for x in rows {
         let next = tch.networks(&[*x], std::slice::from_ref(&prev)).unwrap().remove(0);
         let mut state = runtime.denormalise(&next);
-        want.push(theirs.decode(tree, morph, &mut state));
+        want.push(theirs.decode(tree, morph, &mut state, Some(x)));
         let mine = runtime.networks(&[*x], &prev);
         // NaN counts as the worst difference.
         raw = next.iter().zip(&mine).map(|(a, b)| (a - b).abs()).fold(raw, |m, d| if d <= m { m } else { d });
         let mut state = runtime.denormalise(&mine);
-        got.push(ours.decode(tree, morph, &mut state));
+        got.push(ours.decode(tree, morph, &mut state, Some(x)));
         prev = next;
     }
     (got, want, raw)

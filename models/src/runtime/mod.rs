@@ -168,10 +168,11 @@ impl Retargeter {
         Ok(streams
             .iter_mut()
             .zip(next.chunks_exact(d))
-            .map(|(stream, row)| {
+            .zip(x_h)
+            .map(|((stream, row), h)| {
                 stream.prev.copy_from_slice(row);
                 let mut state = self.denormalise(row);
-                let pose = stream.decoder.decode(tree, morph, &mut state);
+                let pose = stream.decoder.decode(tree, morph, &mut state, Some(h));
                 RetargetedFrame { state, pose }
             })
             .collect())
@@ -196,7 +197,7 @@ impl Retargeter {
     ) -> Result<RetargetedMotion, LearnError> {
         let start = self.start_state(tree, morph)?;
         let decoder = StateDecoder::new(tree, morph, &self.cleanup, self.root_height_range);
-        decode::roll_out(tree, morph, start, decoder, x_h.len(), &mut |t, prev| {
+        decode::roll_out(tree, morph, start, decoder, x_h.len(), x_h, &mut |t, prev| {
             let cur = self.networks(&x_h[t..=t], prev);
             let state = self.denormalise(&cur);
             Ok((cur, state))
