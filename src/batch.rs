@@ -42,7 +42,7 @@ pub struct ClipDone {
     pub ufr: f32,
     /// Mean L_fea against the human.
     pub feature_loss: Option<f32>,
-    /// The following score ([`ace::models::metrics::following`]), when the mapping has pairs.
+    /// The following score ([`ace::models::metrics::following()`]), when the mapping has pairs.
     pub following: Option<f32>,
     /// Share of the feet's swings that are pops (legged characters).
     pub pops: Option<f32>,

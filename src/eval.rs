@@ -391,7 +391,7 @@ pub fn heading(m: &MetricsReport) -> String {
 }
 
 /// How far the character travels and turns while the human stands
-/// ([`ace::models::metrics::following`]), "0.012 BL/s, 1.3°/s", or "n/a" where the human never stands.
+/// ([`ace::models::metrics::following()`]), "0.012 BL/s, 1.3°/s", or "n/a" where the human never stands.
 pub fn standing(m: &MetricsReport) -> String {
     match m.following.as_ref().map(|f| (f.standing_travel, f.standing_turn)) {
         Some((Some(travel), Some(turn))) => format!("{travel:.3} BL/s, {turn:.1}°/s"),

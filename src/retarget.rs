@@ -199,7 +199,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     Ok(())
 }
 
-/// The files [`write`] makes for `out`: the glTF binary, the trajectory (`.json`, `.csv`) and the
+/// The files [`write()`] makes for `out`: the glTF binary, the trajectory (`.json`, `.csv`) and the
 /// metrics (`.metrics.json`).
 pub fn output_paths(out: &Path) -> [PathBuf; 4] {
     [out.to_path_buf(), out.with_extension("json"), out.with_extension("csv"), out.with_extension("metrics.json")]
@@ -325,7 +325,7 @@ pub fn write_with(
 }
 
 /// Retargets one clip (already at the project frame rate) and writes it ([`retarget_and_score`],
-/// [`write`]) into `outputs`.
+/// [`write()`]) into `outputs`.
 #[allow(clippy::too_many_arguments)]
 pub fn retarget(
     retargeter: &Networks,

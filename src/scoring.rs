@@ -1,7 +1,7 @@
 //! The paper's metrics (§7.3) of character motion under one checkpoint's conventions: its end-effector
 //! correspondence and body lengths for Ψ and L_fea, its feature weights, and the Gaussian fit of its
 //! training dataset's Ψ (`reference.json`) for FID. `ace retarget` scores one clip with it, `ace eval`
-//! whole systems over the held-out clips. Following ([`ace::models::metrics::following`]) is measured
+//! whole systems over the held-out clips. Following ([`ace::models::metrics::following()`]) is measured
 //! clip by clip on each mapped pair.
 
 use std::ops::Range;

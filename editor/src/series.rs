@@ -3,7 +3,7 @@
 //! that an artist sees where the character stops following or leaves the human's path.
 //!
 //! Both bodies are measured in their own body lengths, as Ψ and the following metric
-//! ([`ace::models::metrics::following`]) compare them: the character's the checkpoint was trained with,
+//! ([`ace::models::metrics::following()`]) compare them: the character's the checkpoint was trained with,
 //! the human's the clip's standing height (or the checkpoint's fixed one). The human's values come
 //! from x^h, the generator's input (pelvis velocity, and end effectors in the heading frame at the
 //! pelvis); the character's from the poses the preview shows (root translation, forward kinematics),

@@ -9,7 +9,7 @@
 //! **Timing.** The networks were trained at [`PROJECT_FPS`] (30 Hz), so a character advances in
 //! ticks of the source's clock: tick `k` is source time `k / 30` s, and its x^h is sampled there
 //! (with [`HumanState::sampled`], the rule `ace retarget` uses). Each frame, the ticks the source
-//! passed since the last frame are sent to the checkpoint's worker thread ([`crate::worker`]); the
+//! passed since the last frame are sent to the checkpoint's worker thread (`worker`); the
 //! pose of the last one is written to [`Pose`] in the next frame, so characters trail their source
 //! by one frame and the networks run while the rest of the frame does. The result depends only on
 //! the source's clock: under a fixed time step it is deterministic, and a clip played at 30 fps

@@ -50,7 +50,7 @@ pub struct AceConfig {
     /// ([`crate::features`], "Speed"); `false` compares body lengths per second on both sides.
     pub match_speed_scale: bool,
     /// Compute the end-effector positions of the generated states' Ψ in L_fea from their joint
-    /// positions by forward kinematics ([`super::psi`], "End effectors by forward kinematics");
+    /// positions by forward kinematics (`learn::psi`, "End effectors by forward kinematics");
     /// `false` reads the prior's predicted end-effector entries, as every run did before this setting
     /// existed (their `ace.json` has no such field and reads as `false`).
     pub kinematic_features: bool,

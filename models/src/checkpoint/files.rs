@@ -1,6 +1,6 @@
 //! Checkpoint files as bytes: the records that tie metadata to weights files (size and checksum), the
 //! checkpoint's files on disk or in memory, JSON metadata checked for kind and version, and safetensors
-//! weights checked against the shapes a configuration gives ([`read_weights`]).
+//! weights checked against the shapes a configuration gives (`read_weights`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -168,14 +168,14 @@ pub(crate) fn read_json<T: DeserializeOwned>(
     serde_json::from_value(value).map_err(|e| corrupt(e.to_string()))
 }
 
-/// The tensors of a weights file after [`read_weights`] checked them: F32 values by name, row-major.
+/// The tensors of a weights file after `read_weights` checked them: F32 values by name, row-major.
 #[derive(Debug)]
 pub struct Weights {
     tensors: BTreeMap<String, (Vec<usize>, Vec<f32>)>,
 }
 
 impl Weights {
-    /// The shape and values of tensor `name`, which [`read_weights`] was asked for.
+    /// The shape and values of tensor `name`, which `read_weights` was asked for.
     pub fn get(&self, name: &str) -> (&[usize], &[f32]) {
         let (shape, values) = self.tensors.get(name).unwrap_or_else(|| panic!("tensor `{name}` was not read"));
         (shape, values)

@@ -1,4 +1,4 @@
-//! The motion prior's files: `config.json` ([`PriorRecord`]: the character, the [`PriorConfig`], the
+//! The motion prior's files: `config.json` (`PriorRecord`: the character, the [`PriorConfig`], the
 //! normalisation statistics, the state mask and bounds, the weights file's record) beside
 //! `prior.safetensors`. See `learn::checkpoint` (feature `learn`) for the format.
 

@@ -22,7 +22,7 @@
 //! - **Posture range**: if some leg cannot step at least 12 % of its length at the configured body
 //!   height and tilt extremes, the range is halved (up to three times, then none) and the best kept.
 //!   A range that passes is halved once more when that lengthens the weakest leg's fore-and-aft step
-//!   by half ([`POSTURE_TRADE`]): just past 12 % a leg may step too short for an animal's stride.
+//!   by half (`POSTURE_TRADE`): just past 12 % a leg may step too short for an animal's stride.
 //! - **Sole**: a foot whose geometry would dip more than half the allowed slack ([`dip_tolerance`])
 //!   below the ground at some posture with its foot point on the ground keeps the foot point that much
 //!   above the ground in stance (e.g. a sphere foot whose point was found at a straight-legged neutral

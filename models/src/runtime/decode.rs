@@ -1,6 +1,6 @@
 //! From the networks' normalised states to poses, the same for both inference paths (the pure-Rust
 //! [`super::Retargeter`] and, with `learn`, libtorch's): the standing start state, the rollout loop,
-//! and [`StateDecoder`], which integrates the root, clamps joints into their limits, rolls the wheels
+//! and `StateDecoder`, which integrates the root, clamps joints into their limits, rolls the wheels
 //! from the base motion and applies the cleanup.
 
 use std::path::Path;
@@ -18,7 +18,7 @@ use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 
 /// Largest ratio between a character's body length and the one its checkpoint was trained with
-/// ([`check_character`]).
+/// (`check_character`).
 pub const BODY_LENGTH_TOLERANCE: f32 = 1.25;
 
 /// A retargeted motion: one state and one pose per human frame.

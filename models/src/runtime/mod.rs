@@ -3,7 +3,7 @@
 //! A [`Retargeter`] reads a checkpoint directory's files as training wrote them (`config.json`,
 //! `prior.safetensors`, `ace.json`, `generator.safetensors`; the discriminator is not needed) through
 //! the same checks as the libtorch path ([`crate::checkpoint`]), and runs, per frame and for each
-//! character of a batch, `ẑ = G(x^h_t, x^r_{t−1})` and `x^r_t = π(ẑ, x^r_{t−1})` ([`nets`]): the x^h
+//! character of a batch, `ẑ = G(x^h_t, x^r_{t−1})` and `x^r_t = π(ẑ, x^r_{t−1})` (`nets`): the x^h
 //! normalisation, the generator, the prior's gated mixture of experts, its state mask and the clamp to
 //! its state bounds. Turning states into poses — root integration, joint limits, wheel angles rolled
 //! from the base motion, the cleanup — is [`decode`], which the libtorch path
