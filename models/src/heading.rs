@@ -22,12 +22,14 @@ use serde::{Deserialize, Serialize};
 use crate::character_state::{CharacterLayout, read_quat};
 use crate::frame::{heading_yaw, quat_wxyz, wrap_pi};
 use crate::human::layout as human_layout;
+use crate::human_set::PROJECT_FPS;
 
 /// How hard the cleanup steers a character back onto the person's heading.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct HeadingSteering {
-    /// Time constant (s) in which a gap closes (values below a frame count as one frame).
+    /// Time constant (s) in which a gap closes (values below a frame, at [`PROJECT_FPS`], count as one
+    /// frame).
     pub seconds: f32,
     /// The fastest extra turn (rad/s); the character datasets turn at up to 1 rad/s (paper §7.1).
     pub max_rate: f32,
@@ -44,7 +46,7 @@ impl HeadingSteering {
     /// over the time constant, within ±`max_rate`; the shorter way round, and none on the heading.
     pub fn rate(&self, gap: f32) -> f32 {
         let limit = self.max_rate.max(0.0);
-        (-gap.sin() / self.seconds.max(1.0 / 120.0)).clamp(-limit, limit)
+        (-gap.sin() / self.seconds.max(1.0 / PROJECT_FPS)).clamp(-limit, limit)
     }
 }
 
@@ -112,7 +114,10 @@ mod tests {
         // The shorter way round: 350° left is 10° right.
         assert!(s.rate(350f32.to_radians()) > 0.0);
         assert_eq!(HeadingSteering { max_rate: -1.0, ..s }.rate(0.3), 0.0);
-        assert!(HeadingSteering { seconds: 0.0, ..s }.rate(0.01).is_finite());
+        // Twice as fast at half the time constant; no faster than one frame.
+        assert!((HeadingSteering { seconds: 0.5, ..s }.rate(0.1) + 2.0 * 0.1f32.sin()).abs() < 1e-6);
+        let instant = HeadingSteering { seconds: 0.0, ..s }.rate(0.001);
+        assert!((instant + 0.001f32.sin() * PROJECT_FPS).abs() < 1e-5, "{instant}");
     }
 
     #[test]
