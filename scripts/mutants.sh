@@ -45,6 +45,7 @@ declare -A how=(
   [models/src/foot_lock.rs]="$core -- --lib -- foot_lock"
   [models/src/collision_guard.rs]="$core -- --lib -- collision_guard"
   [models/src/heading.rs]="$core -- --lib -- heading"
+  [models/src/standing.rs]="$core -- --lib -- standing"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
   [models/src/learn/prior.rs]="$learn --re start_or_resume -- --lib"
@@ -52,6 +53,7 @@ declare -A how=(
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
+       models/src/standing.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
 files=("$@")

@@ -188,6 +188,10 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
                 assert!(f[k].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{c}: {k} in {f}");
             }
             assert!(md.contains(&format!("BL/s, {:.1}°/s", f["standing_turn"].as_f64().unwrap())), "{md}");
+            // The cleanup's standing hold keeps every root in place (the networks alone travel
+            // 0.05–0.28 body lengths/s here; Stretch drives 1.5 m).
+            let travel = f["standing_travel"].as_f64().unwrap();
+            assert!(travel < 0.01, "{c} travels {travel} body lengths/s while the person stands");
         }
         // The person turns 20° left on the walk; the heading steering keeps every character within
         // 30° of that (9–22° when written; the networks alone turn 64–145° off it).

@@ -1,6 +1,6 @@
-//! The cleanup every generated pose passes through before anyone sees it: heading steering
-//! ([`crate::heading`], on the state before its root is integrated, so it runs in the retargeters'
-//! state decoder), foot locking ([`crate::foot_lock`]), then the collision guard
+//! The cleanup every generated pose passes through before anyone sees it: the standing hold
+//! ([`crate::standing`]) and heading steering ([`crate::heading`]), on the state before its root is
+//! integrated, so they run in the retargeters' state decoder; then foot locking ([`crate::foot_lock`]), then the collision guard
 //! ([`crate::collision_guard`]), which has the last word so that no output pose collides with itself
 //! or the ground. All are causal, so the offline retargeter and a live stream give the same poses; all
 //! can be switched off to see the networks' raw output.
@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::collision_guard::{CollisionGuard, GuardState};
 use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
 use crate::heading::HeadingSteering;
+use crate::standing::StandingHold;
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 
@@ -23,6 +24,8 @@ pub struct Cleanup {
     pub foot_lock: Option<FootLockConfig>,
     /// Steering the character's root back onto the person's heading (`None`: off).
     pub heading: Option<HeadingSteering>,
+    /// Holding the character's root in place while the person stands (`None`: off).
+    pub standing: Option<StandingHold>,
 }
 
 impl Default for Cleanup {
@@ -31,6 +34,7 @@ impl Default for Cleanup {
             collision_guard: true,
             foot_lock: Some(FootLockConfig::default()),
             heading: Some(HeadingSteering::default()),
+            standing: Some(StandingHold::default()),
         }
     }
 }
@@ -41,6 +45,7 @@ impl Cleanup {
         collision_guard: false,
         foot_lock: None,
         heading: None,
+        standing: None,
     };
 }
 

@@ -37,6 +37,7 @@ pub mod learn;
 pub mod metrics;
 pub mod morphology;
 pub mod runtime;
+pub mod standing;
 pub mod temporary;
 #[cfg(test)]
 mod test_data;

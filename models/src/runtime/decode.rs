@@ -12,6 +12,7 @@ use crate::checkpoint::{CharacterInfo, LearnError, Normaliser, StateBounds};
 use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
 use crate::controller::wheels;
 use crate::heading::{HeadingSteering, SteeringState};
+use crate::standing::{HoldState, StandingHold};
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -139,8 +140,8 @@ pub(crate) fn roll_out<S>(
 }
 
 /// Turns a character's successive denormalised states into poses (see the module docs): the
-/// integrated root (steered onto the person's heading when the cleanup says), joint limits, rolled
-/// wheels, the cleanup and its memory.
+/// integrated root (held while the person stands and steered onto the person's heading when the
+/// cleanup says), joint limits, rolled wheels, the cleanup and its memory.
 #[derive(Debug)]
 pub(crate) struct StateDecoder {
     layout: CharacterLayout,
@@ -150,6 +151,7 @@ pub(crate) struct StateDecoder {
     cleanup: CleanupPass,
     cleanup_state: CleanupState,
     steering: Option<(HeadingSteering, SteeringState)>,
+    standing: Option<(StandingHold, HoldState)>,
     root_height_range: Option<(f32, f32)>,
     prev_pose: CharacterPose,
     recomputed: Vec<f32>,
@@ -163,6 +165,7 @@ impl StateDecoder {
         let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup_config);
         StateDecoder {
             steering: cleanup_config.heading.map(|h| (h, SteeringState::new(&standing.root))),
+            standing: cleanup_config.standing.map(|h| (h, HoldState::default())),
             wheels: wheels::find(tree, morph, &standing),
             root: standing.root,
             wheel_q: standing.q.clone(),
@@ -185,6 +188,10 @@ impl StateDecoder {
         let steering = self.steering.as_mut().zip(human);
         if let Some(((config, memory), _)) = &steering {
             memory.steer(config, layout, state, dt);
+        }
+        let hold = self.standing.as_mut().zip(human);
+        if let Some(((config, memory), _)) = &hold {
+            memory.hold(config, layout, state);
         }
         if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.is_active()) {
             // The prior's clamp leaves a margin beyond the data; a low body can sink into the
@@ -211,6 +218,9 @@ impl StateDecoder {
         state[layout.joint_positions()].copy_from_slice(&pose.q);
         if let Some(((_, memory), x_h)) = steering {
             memory.observe(&pose.root, x_h, PROJECT_FPS);
+        }
+        if let Some(((config, memory), x_h)) = hold {
+            memory.observe(config, x_h, PROJECT_FPS);
         }
         self.root = pose.root;
         self.prev_pose = pose.clone();
