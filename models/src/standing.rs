@@ -128,6 +128,21 @@ mod tests {
             assert!((0.0..=0.02).contains(&s[layout.root_displacement()][0]), "a share of the travel");
             s == moving()
         });
-        assert!(released.is_some_and(|frames| (3..=12).contains(&frames)), "released after {released:?} frames");
+        // Exponential smoothing over half a second: 1 − e^(−1/15) of the way each frame, from 0.01 m/s
+        // to 1 m/s, passes 0.25 m/s on the fifth frame.
+        assert_eq!(released, Some(5));
+        let mut fresh = HoldState::default();
+        fresh.observe(&hold, &person(0.0), fps);
+        fresh.observe(&hold, &person(1.0), fps);
+        let want = 1.0 - (-1.0f32 / 15.0).exp();
+        assert!((fresh.speed.unwrap() - want).abs() < 1e-6, "{:?} against {want}", fresh.speed);
+        fresh.observe(&hold, &person(0.0), fps);
+        assert!((fresh.speed.unwrap() - want * (-1.0f32 / 15.0).exp()).abs() < 1e-6, "{:?}", fresh.speed);
+        // A time constant below a frame counts as one frame.
+        let mut instant = HoldState::default();
+        let at_once = StandingHold { seconds: 0.0, ..hold };
+        instant.observe(&at_once, &person(0.0), fps);
+        instant.observe(&at_once, &person(1.0), fps);
+        assert!((instant.speed.unwrap() - (1.0 - (-1.0f32).exp())).abs() < 1e-6, "{:?}", instant.speed);
     }
 }
