@@ -12,7 +12,7 @@ mod screenshot;
 use std::path::PathBuf;
 
 use bevy::prelude::*;
-use screenshot::{ScreenshotAt, take_screenshot};
+use screenshot::{ScreenshotAt, report_errors, take_screenshot};
 use bevy_ace::ace_models::human::Joint;
 use bevy_ace::prelude::*;
 
@@ -96,11 +96,5 @@ fn draw_grid_and_bones(mut gizmos: Gizmos, players: Query<&HumanJoints>, joints:
                 gizmos.line(a.translation(), b.translation(), Color::srgb(0.3, 0.6, 1.0));
             }
         }
-    }
-}
-
-fn report_errors(mut errors: MessageReader<RetargetError>) {
-    for e in errors.read() {
-        error!("{}: {}", e.entity, e.message);
     }
 }
