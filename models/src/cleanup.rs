@@ -1,18 +1,22 @@
-//! The cleanup every generated pose passes through before anyone sees it: the standing hold
-//! ([`crate::standing`]) and heading steering ([`crate::heading`]), on the state before its root is
-//! integrated, so they run in the retargeters' state decoder; then foot locking ([`crate::foot_lock`]), then the collision guard
-//! ([`crate::collision_guard`]), which has the last word so that no output pose collides with itself
-//! or the ground. All are causal, so the offline retargeter and a live stream give the same poses; all
-//! can be switched off to see the networks' raw output.
+//! The cleanup every generated pose passes through before anyone sees it. Two steps act on the next
+//! frame's state before its root is integrated ([`CleanupPass::adjust_root`]): heading steering
+//! ([`crate::heading`]) and the standing hold ([`crate::standing`]), which both follow the person.
+//! Two act on the pose ([`CleanupPass::apply`]): foot locking ([`crate::foot_lock`]), then the
+//! collision guard ([`crate::collision_guard`]), which has the last word so that no output pose
+//! collides with itself or the ground. All are causal, so the offline retargeter and a live stream
+//! give the same poses; all can be switched off to see the networks' raw output.
 
+use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
+use crate::character_state::CharacterLayout;
 use crate::collision_guard::{CollisionGuard, GuardState};
 use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
-use crate::heading::HeadingSteering;
-use crate::standing::StandingHold;
+use crate::heading::{HeadingSteering, SteeringState};
+use crate::human_set::PROJECT_FPS;
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
+use crate::standing::{HoldState, StandingHold};
 
 /// Which cleanups run (all by default).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -52,13 +56,17 @@ impl Cleanup {
 /// The cleanups set up for one character.
 #[derive(Clone, Debug)]
 pub struct CleanupPass {
+    steering: Option<HeadingSteering>,
+    standing: Option<StandingHold>,
     guard: Option<CollisionGuard>,
     lock: Option<FootLock>,
 }
 
 /// The memory of a cleanup pass for one character being driven.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct CleanupState {
+    steering: Option<SteeringState>,
+    hold: Option<HoldState>,
     guard: GuardState,
     lock: Option<FootLockState>,
     scratch: FootLockScratch,
@@ -75,32 +83,66 @@ impl CleanupPass {
     /// The cleanups of `cleanup` for a character at `fps` frames per second.
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, cleanup: &Cleanup) -> CleanupPass {
         CleanupPass {
+            steering: cleanup.heading,
+            standing: cleanup.standing,
             guard: cleanup.collision_guard.then(|| CollisionGuard::new(tree, morph)),
             lock: cleanup.foot_lock.map(|c| FootLock::new(tree, morph, fps, c)),
         }
     }
 
-    /// Whether it changes anything at all.
-    pub fn is_active(&self) -> bool {
+    /// Whether it changes poses ([`Self::apply`]): foot locking or the collision guard. Only then is
+    /// the root height clamped into the dataset's range, and are the state's end effectors recomputed
+    /// from the cleaned-up joints.
+    pub fn changes_poses(&self) -> bool {
         self.guard.is_some() || self.lock.is_some()
     }
 
-    /// A fresh state (nothing planted, no previous pose).
-    pub fn start(&self) -> CleanupState {
+    /// A fresh state for a stream starting from the root `start` (nothing planted, no previous pose,
+    /// no turn yet).
+    pub fn start(&self, start: &Isometry3<f32>) -> CleanupState {
         CleanupState {
+            steering: self.steering.map(|_| SteeringState::new(start)),
+            hold: self.standing.map(|_| HoldState::default()),
             guard: GuardState::default(),
             lock: self.lock.as_ref().map(FootLock::start),
             scratch: FootLockScratch::default(),
         }
     }
 
-    /// Cleans up one frame in place, advancing `state`.
+    /// Steers and holds the root of the next frame's denormalised state `x` (laid out as `layout`),
+    /// before its root is integrated, when a person drives the frame (`human`, the frame's x^h row;
+    /// `None` for random latents, which have nobody to follow).
+    pub fn adjust_root(&self, state: &CleanupState, layout: &CharacterLayout, x: &mut [f32], human: Option<&[f32]>) {
+        if human.is_none() {
+            return;
+        }
+        if let (Some(config), Some(memory)) = (&self.steering, &state.steering) {
+            memory.steer(config, layout, x, 1.0 / PROJECT_FPS);
+        }
+        if let (Some(config), Some(memory)) = (&self.standing, &state.hold) {
+            memory.hold(config, layout, x);
+        }
+    }
+
+    /// Cleans up one frame's pose in place, advancing `state`.
     pub fn apply(&self, tree: &KinematicTree, state: &mut CleanupState, pose: &mut CharacterPose) {
         if let (Some(l), Some(s)) = (&self.lock, &mut state.lock) {
             l.apply(tree, s, pose, &mut state.scratch);
         }
         if let Some(g) = &self.guard {
             g.apply(tree, &mut state.guard, pose);
+        }
+    }
+
+    /// Records the frame shown, with its root `root`, and the person's x^h row `human` it followed
+    /// (nothing to record without one), for the next frame's [`Self::adjust_root`].
+    pub fn observe(&self, state: &mut CleanupState, root: &Isometry3<f32>, human: Option<&[f32]>) {
+        let Some(x_h) = human else { return };
+        if let Some(memory) = &mut state.steering {
+            memory.observe(root, x_h, PROJECT_FPS);
+        }
+        if let (Some(config), Some(memory)) = (&self.standing, &mut state.hold) {
+            memory.observe(config, x_h, PROJECT_FPS);
         }
     }
 }

@@ -11,8 +11,6 @@ use crate::character_state::{CharacterLayout, StateScratch, character_state, cha
 use crate::checkpoint::{CharacterInfo, LearnError, Normaliser, StateBounds};
 use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
 use crate::controller::wheels;
-use crate::heading::{HeadingSteering, SteeringState};
-use crate::standing::{HoldState, StandingHold};
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -150,8 +148,6 @@ pub(crate) struct StateDecoder {
     wheel_q: Vec<f32>,
     cleanup: CleanupPass,
     cleanup_state: CleanupState,
-    steering: Option<(HeadingSteering, SteeringState)>,
-    standing: Option<(StandingHold, HoldState)>,
     root_height_range: Option<(f32, f32)>,
     prev_pose: CharacterPose,
     recomputed: Vec<f32>,
@@ -164,12 +160,10 @@ impl StateDecoder {
         let standing = tree.standing_pose();
         let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup_config);
         StateDecoder {
-            steering: cleanup_config.heading.map(|h| (h, SteeringState::new(&standing.root))),
-            standing: cleanup_config.standing.map(|h| (h, HoldState::default())),
             wheels: wheels::find(tree, morph, &standing),
             root: standing.root,
             wheel_q: standing.q.clone(),
-            cleanup_state: cleanup.start(),
+            cleanup_state: cleanup.start(&standing.root),
             cleanup,
             root_height_range,
             recomputed: vec![0.0; layout.dim()],
@@ -185,15 +179,8 @@ impl StateDecoder {
     pub(crate) fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32], human: Option<&[f32]>) -> CharacterPose {
         let layout = &self.layout;
         let dt = 1.0 / PROJECT_FPS;
-        let steering = self.steering.as_mut().zip(human);
-        if let Some(((config, memory), _)) = &steering {
-            memory.steer(config, layout, state, dt);
-        }
-        let hold = self.standing.as_mut().zip(human);
-        if let Some(((config, memory), _)) = &hold {
-            memory.hold(config, layout, state);
-        }
-        if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.is_active()) {
+        self.cleanup.adjust_root(&self.cleanup_state, layout, state, human);
+        if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.changes_poses()) {
             // The prior's clamp leaves a margin beyond the data; a low body can sink into the
             // ground inside it.
             let h = &mut state[layout.root_height()][0];
@@ -207,7 +194,7 @@ impl StateDecoder {
         for w in &self.wheels {
             pose.q[w.dof] = self.wheel_q[w.dof];
         }
-        if self.cleanup.is_active() {
+        if self.cleanup.changes_poses() {
             self.cleanup.apply(tree, &mut self.cleanup_state, &mut pose);
             // The end-effector entries follow the cleaned-up joints.
             character_state_into(tree, morph, &self.prev_pose, &pose, dt, &mut self.scratch, &mut self.recomputed);
@@ -216,12 +203,7 @@ impl StateDecoder {
             }
         }
         state[layout.joint_positions()].copy_from_slice(&pose.q);
-        if let Some(((_, memory), x_h)) = steering {
-            memory.observe(&pose.root, x_h, PROJECT_FPS);
-        }
-        if let Some(((config, memory), x_h)) = hold {
-            memory.observe(config, x_h, PROJECT_FPS);
-        }
+        self.cleanup.observe(&mut self.cleanup_state, &pose.root, human);
         self.root = pose.root;
         self.prev_pose = pose.clone();
         pose
