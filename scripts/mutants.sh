@@ -46,6 +46,7 @@ declare -A how=(
   [models/src/collision_guard.rs]="$core -- --lib -- collision_guard"
   [models/src/heading.rs]="$core -- --lib -- heading"
   [models/src/standing.rs]="$core -- --lib -- standing"
+  [models/src/effector_hold.rs]="$core -- --lib -- effector_hold"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
   [models/src/learn/prior.rs]="$learn --re start_or_resume -- --lib"
@@ -53,7 +54,7 @@ declare -A how=(
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
-       models/src/standing.rs
+       models/src/standing.rs models/src/effector_hold.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
 files=("$@")

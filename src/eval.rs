@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 
 use ace::models::cleanup::Cleanup;
 use ace::models::dataset::generate;
+use ace::models::features::EndEffectorMapping;
 use ace::models::human_set::{HumanRow, HumanSet, HumanSetClip, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::nkn::NknCheckpoint;
@@ -213,7 +214,7 @@ pub fn evaluate(
     // The baselines, with ACE's cleanup.
     let loaded: Vec<(&str, Runner)> = baselines
         .iter()
-        .map(|(name, b)| Ok((*name, Runner::new(b, cleanup, tree, morph)?)))
+        .map(|(name, b)| Ok((*name, Runner::new(b, cleanup, &retargeter.ace().record.correspondence.mapping, tree, morph)?)))
         .collect::<Result<_>>()?;
     for (name, runner) in &loaded {
         let motions = clips.iter().map(|c| runner.retarget(tree, morph, &c.states)).collect::<Result<Vec<_>>>()?;
@@ -262,11 +263,12 @@ pub fn evaluate(
 /// A loaded baseline that retargets like ACE (same cleanup).
 enum Runner<'a> {
     Ace(Retargeter),
-    Nkn(&'a NknCheckpoint, Cleanup),
+    Nkn(&'a NknCheckpoint, Cleanup, EndEffectorMapping),
 }
 
 impl<'a> Runner<'a> {
-    fn new(b: &'a Baseline, cleanup: Cleanup, tree: &KinematicTree, morph: &Morphology) -> Result<Runner<'a>> {
+    /// `mapping` pairs the end effectors for NKN's cleanup (NKN learns no correspondence of its own).
+    fn new(b: &'a Baseline, cleanup: Cleanup, mapping: &EndEffectorMapping, tree: &KinematicTree, morph: &Morphology) -> Result<Runner<'a>> {
         Ok(match b {
             Baseline::Ace(dir) => {
                 let mut r = Retargeter::load(dir, ace::models::learn::default_device())?;
@@ -274,14 +276,14 @@ impl<'a> Runner<'a> {
                 r.set_cleanup(cleanup);
                 Runner::Ace(r)
             }
-            Baseline::Nkn(n) => Runner::Nkn(n, cleanup),
+            Baseline::Nkn(n) => Runner::Nkn(n, cleanup, mapping.clone()),
         })
     }
 
     fn retarget(&self, tree: &KinematicTree, morph: &Morphology, x_h: &[HumanRow]) -> Result<RetargetedMotion> {
         Ok(match self {
             Runner::Ace(r) => r.retarget_states(tree, morph, x_h)?,
-            Runner::Nkn(n, cleanup) => n.retarget_states(tree, morph, x_h, *cleanup)?,
+            Runner::Nkn(n, cleanup, mapping) => n.retarget_states(tree, morph, x_h, *cleanup, mapping)?,
         })
     }
 }

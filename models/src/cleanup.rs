@@ -1,6 +1,7 @@
-//! The cleanup every generated pose passes through before anyone sees it. Two steps act on the next
-//! frame's state before its root is integrated ([`CleanupPass::adjust_root`]): heading steering
-//! ([`crate::heading`]) and the standing hold ([`crate::standing`]), which both follow the person.
+//! The cleanup every generated pose passes through before anyone sees it. Three steps act on the next
+//! frame's state before its root is integrated and its pose read ([`CleanupPass::adjust_state`]), and
+//! follow the person: heading steering ([`crate::heading`]), the standing hold ([`crate::standing`])
+//! and the end-effector hold ([`crate::effector_hold`]).
 //! Two act on the pose ([`CleanupPass::apply`]): foot locking ([`crate::foot_lock`]), then the
 //! collision guard ([`crate::collision_guard`]), which has the last word so that no output pose
 //! collides with itself or the ground. All are causal, so the offline retargeter and a live stream
@@ -11,6 +12,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::character_state::CharacterLayout;
 use crate::collision_guard::{CollisionGuard, GuardState};
+use crate::effector_hold::{EffectorHold, EffectorHoldState, HeldChains};
+use crate::features::EndEffectorMapping;
 use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
 use crate::heading::{HeadingSteering, SteeringState};
 use crate::human_set::PROJECT_FPS;
@@ -30,6 +33,9 @@ pub struct Cleanup {
     pub heading: Option<HeadingSteering>,
     /// Holding the character's root in place while the person stands (`None`: off).
     pub standing: Option<StandingHold>,
+    /// Holding the character's arms and head while the person's matching end effector rests (`None`:
+    /// off).
+    pub effector_hold: Option<EffectorHold>,
 }
 
 impl Default for Cleanup {
@@ -39,6 +45,7 @@ impl Default for Cleanup {
             foot_lock: Some(FootLockConfig::default()),
             heading: Some(HeadingSteering::default()),
             standing: Some(StandingHold::default()),
+            effector_hold: Some(EffectorHold::default()),
         }
     }
 }
@@ -50,6 +57,7 @@ impl Cleanup {
         foot_lock: None,
         heading: None,
         standing: None,
+        effector_hold: None,
     };
 }
 
@@ -58,6 +66,7 @@ impl Cleanup {
 pub struct CleanupPass {
     steering: Option<HeadingSteering>,
     standing: Option<StandingHold>,
+    effector_hold: Option<(EffectorHold, HeldChains)>,
     guard: Option<CollisionGuard>,
     lock: Option<FootLock>,
 }
@@ -67,6 +76,7 @@ pub struct CleanupPass {
 pub struct CleanupState {
     steering: Option<SteeringState>,
     hold: Option<HoldState>,
+    effector_hold: Option<EffectorHoldState>,
     guard: GuardState,
     lock: Option<FootLockState>,
     scratch: FootLockScratch,
@@ -80,21 +90,26 @@ impl CleanupState {
 }
 
 impl CleanupPass {
-    /// The cleanups of `cleanup` for a character at `fps` frames per second.
-    pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, cleanup: &Cleanup) -> CleanupPass {
+    /// The cleanups of `cleanup` for a character at `fps` frames per second whose end effectors follow
+    /// the human's as `mapping` says (the checkpoint's correspondence).
+    pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, cleanup: &Cleanup, mapping: &EndEffectorMapping) -> CleanupPass {
         CleanupPass {
             steering: cleanup.heading,
             standing: cleanup.standing,
+            effector_hold: cleanup
+                .effector_hold
+                .map(|h| (h, HeldChains::new(tree, morph, mapping)))
+                .filter(|(_, chains)| !chains.is_empty()),
             guard: cleanup.collision_guard.then(|| CollisionGuard::new(tree, morph)),
             lock: cleanup.foot_lock.map(|c| FootLock::new(tree, morph, fps, c)),
         }
     }
 
-    /// Whether it changes poses ([`Self::apply`]): foot locking or the collision guard. Only then is
-    /// the root height clamped into the dataset's range, and are the state's end effectors recomputed
-    /// from the cleaned-up joints.
+    /// Whether it changes the networks' joints: foot locking or the collision guard ([`Self::apply`]),
+    /// or the end-effector hold. Only then is the root height clamped into the dataset's range, and
+    /// are the state's end effectors recomputed from the cleaned-up joints.
     pub fn changes_poses(&self) -> bool {
-        self.guard.is_some() || self.lock.is_some()
+        self.guard.is_some() || self.lock.is_some() || self.effector_hold.is_some()
     }
 
     /// A fresh state for a stream starting from the root `start` (nothing planted, no previous pose,
@@ -103,16 +118,18 @@ impl CleanupPass {
         CleanupState {
             steering: self.steering.map(|_| SteeringState::new(start)),
             hold: self.standing.map(|_| HoldState::default()),
+            effector_hold: self.effector_hold.as_ref().map(|(_, chains)| EffectorHoldState::new(chains)),
             guard: GuardState::default(),
             lock: self.lock.as_ref().map(FootLock::start),
             scratch: FootLockScratch::default(),
         }
     }
 
-    /// Steers and holds the root of the next frame's denormalised state `x` (laid out as `layout`),
-    /// before its root is integrated, when a person drives the frame (`human`, the frame's x^h row;
-    /// `None` for random latents, which have nobody to follow).
-    pub fn adjust_root(&self, state: &CleanupState, layout: &CharacterLayout, x: &mut [f32], human: Option<&[f32]>) {
+    /// Steers and holds the root, and holds the resting arms, of the next frame's denormalised state
+    /// `x` (laid out as `layout`) before its root is integrated and its pose read; `shown` is the
+    /// previous frame's joints as shown. Only when a person drives the frame (`human`, the frame's x^h
+    /// row; `None` for random latents, which have nobody to follow).
+    pub fn adjust_state(&self, state: &CleanupState, layout: &CharacterLayout, x: &mut [f32], shown: &[f32], human: Option<&[f32]>) {
         if human.is_none() {
             return;
         }
@@ -121,6 +138,9 @@ impl CleanupPass {
         }
         if let (Some(config), Some(memory)) = (&self.standing, &state.hold) {
             memory.hold(config, layout, x);
+        }
+        if let (Some((config, chains)), Some(memory)) = (&self.effector_hold, &state.effector_hold) {
+            memory.hold(config, chains, layout, x, shown);
         }
     }
 
@@ -135,7 +155,7 @@ impl CleanupPass {
     }
 
     /// Records the frame shown, with its root `root`, and the person's x^h row `human` it followed
-    /// (nothing to record without one), for the next frame's [`Self::adjust_root`].
+    /// (nothing to record without one), for the next frame's [`Self::adjust_state`].
     pub fn observe(&self, state: &mut CleanupState, root: &Isometry3<f32>, human: Option<&[f32]>) {
         let Some(x_h) = human else { return };
         if let Some(memory) = &mut state.steering {
@@ -143,6 +163,9 @@ impl CleanupPass {
         }
         if let (Some(config), Some(memory)) = (&self.standing, &mut state.hold) {
             memory.observe(config, x_h, PROJECT_FPS);
+        }
+        if let (Some((config, chains)), Some(memory)) = (&self.effector_hold, &mut state.effector_hold) {
+            memory.observe(config, chains, x_h, PROJECT_FPS);
         }
     }
 }

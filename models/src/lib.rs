@@ -21,6 +21,7 @@ pub mod controller;
 pub mod correspondence;
 pub mod dataset;
 pub mod dynamic_similarity;
+pub mod effector_hold;
 pub mod export;
 pub mod features;
 pub mod foot_lock;

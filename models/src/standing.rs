@@ -35,11 +35,23 @@ impl Default for StandingHold {
 impl StandingHold {
     /// The share of the networks' root travel kept at a smoothed person's speed of `speed` m/s.
     pub fn share(&self, speed: f32) -> f32 {
-        if self.moving <= self.still {
-            return if speed > self.still { 1.0 } else { 0.0 };
-        }
-        ((speed - self.still) / (self.moving - self.still)).clamp(0.0, 1.0)
+        ramp(self.still, self.moving, speed)
     }
+}
+
+/// The share (0–1) of a motion a hold keeps at a smoothed speed `speed`: 0 at and below `still`, 1
+/// at and above `moving`, linear between (a step at `still` when `moving` is not above it).
+pub(crate) fn ramp(still: f32, moving: f32, speed: f32) -> f32 {
+    if moving <= still {
+        return if speed > still { 1.0 } else { 0.0 };
+    }
+    ((speed - still) / (moving - still)).clamp(0.0, 1.0)
+}
+
+/// The fraction of the way to a new value that an exponential smoothing with time constant `seconds`
+/// goes in one frame at `fps` frames per second (a time constant below a frame counts as one frame).
+pub(crate) fn smoothing(seconds: f32, fps: f32) -> f32 {
+    1.0 - (-1.0 / (fps * seconds.max(1.0 / fps))).exp()
 }
 
 /// One character's memory of the person's smoothed speed.
@@ -71,7 +83,7 @@ impl HoldState {
     pub fn observe(&mut self, hold: &StandingHold, x_h: &[f32], fps: f32) {
         let v = &x_h[human_layout::ROOT_LINEAR_VELOCITY];
         let now = v[0].hypot(v[1]);
-        let a = 1.0 - (-1.0 / (fps * hold.seconds.max(1.0 / fps))).exp();
+        let a = smoothing(hold.seconds, fps);
         self.speed = Some(self.speed.map_or(now, |s| s + a * (now - s)));
     }
 }

@@ -53,6 +53,7 @@ use super::retarget::{RetargetedMotion, roll_out};
 use super::train_ace::{AceInputs, FeatureMatching, human_windows, log_step, normalised_dataset, tracked, weighted_sum};
 use crate::character_state::CharacterLayout;
 use crate::cleanup::Cleanup;
+use crate::features::EndEffectorMapping;
 use crate::human::layout as human_layout;
 use crate::human_set::{HumanRow, HumanSplit, HumanStats, PROJECT_FPS};
 use crate::kinematics::KinematicTree;
@@ -331,20 +332,23 @@ impl NknCheckpoint {
     }
 
     /// Retargets x^h rows at [`PROJECT_FPS`]: R over the whole sequence, then the same pose decoding,
-    /// limits and `cleanup` as ACE's [`super::retarget::Retargeter`].
+    /// limits and `cleanup` as ACE's [`super::retarget::Retargeter`]; NKN learns no correspondence,
+    /// so the cleanup's end-effector hold pairs the end effectors as `mapping` says (the ACE
+    /// checkpoint's it is compared with).
     pub fn retarget_states(
         &self,
         tree: &KinematicTree,
         morph: &Morphology,
         x_h: &[HumanRow],
         cleanup: Cleanup,
+        mapping: &EndEffectorMapping,
     ) -> Result<RetargetedMotion, LearnError> {
         let device = self.prior.prior.device();
         let s = &self.record.human_stats;
         let t = |v: &[f32]| Tensor::from_slice(v).view([1, -1]).to_device(device);
         let x = (super::rows_to_tensor(x_h, device)? - t(&s.mean)) / t(&s.std);
         let states = tch::no_grad(|| self.nkn.states(&x.unsqueeze(0))).squeeze_dim(0);
-        roll_out(tree, morph, &self.prior, cleanup, x_h.len(), x_h, &mut |i, _| states.narrow(0, i as i64, 1))
+        roll_out(tree, morph, &self.prior, cleanup, mapping, x_h.len(), x_h, &mut |i, _| states.narrow(0, i as i64, 1))
     }
 }
 
@@ -538,7 +542,7 @@ mod tests {
             let ckpt = NknCheckpoint::load(&dir, tree, morph, Device::Cpu).unwrap();
             assert_eq!(ckpt.record.step, steps);
             let walk = &bundled_humans().clips[1].states;
-            let m = ckpt.retarget_states(tree, morph, walk, Cleanup::default()).unwrap();
+            let m = ckpt.retarget_states(tree, morph, walk, Cleanup::default(), &inputs.correspondence.mapping).unwrap();
             assert_eq!(m.poses.len(), walk.len());
             for p in &m.poses {
                 assert!(p.q.iter().chain(p.root.translation.vector.iter()).all(|v| v.is_finite()));

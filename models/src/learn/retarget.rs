@@ -26,6 +26,7 @@ use super::files::CheckpointFiles;
 use super::prior::normals;
 use super::{rows_to_tensor, tensor_to_rows};
 use crate::cleanup::Cleanup;
+use crate::features::EndEffectorMapping;
 use crate::human::HumanClip;
 use crate::human_set::HumanRow;
 use crate::kinematics::KinematicTree;
@@ -126,7 +127,7 @@ impl Retargeter {
         let start = self.start_state(tree, morph)?;
         Ok(CharacterStream {
             prev: rows_to_tensor(&[start], self.prior.prior.device())?,
-            decoder: StateDecoder::new(tree, morph, &self.cleanup, prior_root_height_range(&self.prior)),
+            decoder: StateDecoder::new(tree, morph, &self.cleanup, &self.ace.record.correspondence.mapping, prior_root_height_range(&self.prior)),
         })
     }
 
@@ -201,7 +202,7 @@ impl Retargeter {
         let human = rows_to_tensor(x_h, self.prior.prior.device())?;
         let human = (human - &self.human_mean) / &self.human_std;
         self.check_character(tree, morph)?;
-        roll_out(tree, morph, &self.prior, self.cleanup, x_h.len(), x_h, &mut |t, prev| {
+        roll_out(tree, morph, &self.prior, self.cleanup, &self.ace.record.correspondence.mapping, x_h.len(), x_h, &mut |t, prev| {
             let z = self.ace.generator.forward(&human.narrow(0, t as i64, 1), prev);
             self.prior.prior.decode(&z, prev)
         })
@@ -221,7 +222,7 @@ impl Retargeter {
         let device = self.prior.prior.device();
         let mut rng = Pcg64::seed_from_u64(seed);
         self.check_character(tree, morph)?;
-        roll_out(tree, morph, &self.prior, self.cleanup, frames, &[], &mut |_, prev| {
+        roll_out(tree, morph, &self.prior, self.cleanup, &self.ace.record.correspondence.mapping, frames, &[], &mut |_, prev| {
             let z = Tensor::from_slice(&normals(&mut rng, latent))
                 .view([1, latent as i64])
                 .to_device(device);
@@ -234,19 +235,21 @@ impl Retargeter {
 /// The rollout loop of [`Retargeter`] and of the NKN baseline ([`super::nkn`]) on tensors:
 /// `next(t, prev)` gives the normalised state of frame `t` (`[1, D]`) from the normalised previous one
 /// (the first is the standing state); poses come from the shared [`decode::roll_out`] with the
-/// character's joint limits, its wheels and `cleanup` (steering onto the heading of the x^h rows
-/// `human`, if any), as a [`CharacterStream`] makes them.
+/// character's joint limits, its wheels and `cleanup` (following the x^h rows `human`, if any, with the
+/// end effectors paired as `mapping` says), as a [`CharacterStream`] makes them.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn roll_out(
     tree: &KinematicTree,
     morph: &Morphology,
     prior: &PriorCheckpoint,
     cleanup: Cleanup,
+    mapping: &EndEffectorMapping,
     frames: usize,
     human: &[HumanRow],
     next: &mut dyn FnMut(usize, &Tensor) -> Tensor,
 ) -> Result<RetargetedMotion, LearnError> {
     let start = rows_to_tensor(&[standing_state(&prior.stats, &prior.mask, tree, morph)], prior.prior.device())?;
-    let decoder = StateDecoder::new(tree, morph, &cleanup, prior_root_height_range(prior));
+    let decoder = StateDecoder::new(tree, morph, &cleanup, mapping, prior_root_height_range(prior));
     let dim = prior.prior.state_dim();
     decode::roll_out(tree, morph, start, decoder, frames, human, &mut |t, prev| {
         let cur = tch::no_grad(|| next(t, prev));

@@ -11,6 +11,7 @@ use crate::character_state::{CharacterLayout, StateScratch, character_state, cha
 use crate::checkpoint::{CharacterInfo, LearnError, Normaliser, StateBounds};
 use crate::cleanup::{Cleanup, CleanupPass, CleanupState};
 use crate::controller::wheels;
+use crate::features::EndEffectorMapping;
 use crate::human::HumanClip;
 use crate::human_set::{HumanRow, PROJECT_FPS};
 use crate::kinematics::{CharacterPose, KinematicTree};
@@ -155,10 +156,16 @@ pub(crate) struct StateDecoder {
 }
 
 impl StateDecoder {
-    pub(crate) fn new(tree: &KinematicTree, morph: &Morphology, cleanup_config: &Cleanup, root_height_range: Option<(f32, f32)>) -> StateDecoder {
+    pub(crate) fn new(
+        tree: &KinematicTree,
+        morph: &Morphology,
+        cleanup_config: &Cleanup,
+        mapping: &EndEffectorMapping,
+        root_height_range: Option<(f32, f32)>,
+    ) -> StateDecoder {
         let layout = CharacterLayout::new(tree, morph);
         let standing = tree.standing_pose();
-        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup_config);
+        let cleanup = CleanupPass::new(tree, morph, PROJECT_FPS, cleanup_config, mapping);
         StateDecoder {
             wheels: wheels::find(tree, morph, &standing),
             root: standing.root,
@@ -179,7 +186,7 @@ impl StateDecoder {
     pub(crate) fn decode(&mut self, tree: &KinematicTree, morph: &Morphology, state: &mut [f32], human: Option<&[f32]>) -> CharacterPose {
         let layout = &self.layout;
         let dt = 1.0 / PROJECT_FPS;
-        self.cleanup.adjust_root(&self.cleanup_state, layout, state, human);
+        self.cleanup.adjust_state(&self.cleanup_state, layout, state, &self.prev_pose.q, human);
         if let Some((lo, hi)) = self.root_height_range.filter(|_| self.cleanup.changes_poses()) {
             // The prior's clamp leaves a margin beyond the data; a low body can sink into the
             // ground inside it.

@@ -110,7 +110,7 @@ fn frame_by_frame(
     runtime: &Retargeter,
     rows: &[HumanRow],
 ) -> (Vec<CharacterPose>, Vec<CharacterPose>, f32) {
-    let decoder = || StateDecoder::new(tree, morph, &runtime.cleanup, runtime.root_height_range);
+    let decoder = || StateDecoder::new(tree, morph, &runtime.cleanup, &runtime.record.correspondence.mapping, runtime.root_height_range);
     let (mut ours, mut theirs) = (decoder(), decoder());
     let mut prev = runtime.start_state(tree, morph).unwrap();
     let (mut got, mut want, mut raw) = (Vec::new(), Vec::new(), 0.0f32);

@@ -143,7 +143,7 @@ impl Retargeter {
     pub fn stream(&self, tree: &KinematicTree, morph: &Morphology) -> Result<CharacterStream, LearnError> {
         Ok(CharacterStream {
             prev: self.start_state(tree, morph)?,
-            decoder: StateDecoder::new(tree, morph, &self.cleanup, self.root_height_range),
+            decoder: StateDecoder::new(tree, morph, &self.cleanup, &self.record.correspondence.mapping, self.root_height_range),
         })
     }
 
@@ -196,7 +196,7 @@ impl Retargeter {
         x_h: &[HumanRow],
     ) -> Result<RetargetedMotion, LearnError> {
         let start = self.start_state(tree, morph)?;
-        let decoder = StateDecoder::new(tree, morph, &self.cleanup, self.root_height_range);
+        let decoder = StateDecoder::new(tree, morph, &self.cleanup, &self.record.correspondence.mapping, self.root_height_range);
         decode::roll_out(tree, morph, start, decoder, x_h.len(), x_h, &mut |t, prev| {
             let cur = self.networks(&x_h[t..=t], prev);
             let state = self.denormalise(&cur);
