@@ -223,9 +223,11 @@ mod tests {
         let hold = EffectorHold::default();
         let fps = 30.0;
         let shown = [0.1, 0.2, 0.3, 0.4];
+        // Values where `shown + 1·(network − shown)` is not `network` in f32: a free joint passes the
+        // networks' value exactly.
         let network = || {
             let mut s = vec![0.0; layout.dim()];
-            s[layout.joint_positions()].copy_from_slice(&[0.5, 0.6, 0.7, 0.8]);
+            s[layout.joint_positions()].copy_from_slice(&[0.001, 0.003, 0.007, 0.8]);
             s
         };
         let joints = |memory: &EffectorHoldState| {
@@ -235,9 +237,9 @@ mod tests {
         };
         let mut memory = EffectorHoldState::new(&chains);
         // Nothing seen, then one position (no speed yet): the networks move every joint.
-        assert_eq!(joints(&memory), [0.5, 0.6, 0.7, 0.8]);
+        assert_eq!(joints(&memory), [0.001, 0.003, 0.007, 0.8]);
         memory.observe(&hold, &chains, &person([0.0; 3], [0.0; 3]), fps);
-        assert_eq!(joints(&memory), [0.5, 0.6, 0.7, 0.8]);
+        assert_eq!(joints(&memory), [0.001, 0.003, 0.007, 0.8]);
         // Both hands rest: both chains hold, the joint on neither moves.
         memory.observe(&hold, &chains, &person([0.0; 3], [0.0; 3]), fps);
         assert_eq!(joints(&memory), [0.1, 0.2, 0.3, 0.8]);
@@ -249,19 +251,34 @@ mod tests {
             memory.observe(&hold, &chains, &person([0.0; 3], [0.0, 0.0, z]), fps);
             let q = joints(&memory);
             assert_eq!(q[0], 0.1, "the resting hand's arm moved");
-            assert!((0.3..=0.7).contains(&q[2]), "a share of the step: {q:?}");
-            q[2] == 0.7
+            assert!((0.007..=0.3).contains(&q[2]), "a share of the step: {q:?}");
+            q[2] == 0.007
         });
         // 1 − e^(−1/7.5) of the way each frame from 0 to 0.6 m/s passes 0.2 m/s on the fourth frame.
         assert_eq!(released, Some(4));
-        assert_eq!(joints(&memory), [0.1, 0.6, 0.7, 0.8]);
+        assert_eq!(joints(&memory), [0.1, 0.003, 0.007, 0.8]);
         // Half way up the ramp the joint moves half the step.
         let mut half = EffectorHoldState::new(&chains);
         let speed = (hold.still + hold.moving) / 2.0;
         half.observe(&hold, &chains, &person([0.0; 3], [0.0; 3]), fps);
         half.observe(&hold, &chains, &person([speed / fps, 0.0, 0.0], [0.0; 3]), fps);
         let q = joints(&half);
-        assert!((q[0] - 0.3).abs() < 1e-5 && (q[1] - 0.4).abs() < 1e-5 && q[2] == 0.3, "{q:?}");
+        assert!((q[0] - 0.0505).abs() < 1e-5 && (q[1] - 0.1015).abs() < 1e-5 && q[2] == 0.3, "{q:?}");
+    }
+
+    #[test]
+    fn a_character_with_nothing_to_hold_leaves_its_joints_and_states_alone() {
+        use crate::cleanup::CleanupPass;
+        let (tree, morph) = character("characters/crab.urdf");
+        let only_hold = Cleanup { effector_hold: Some(EffectorHold::default()), ..Cleanup::NONE };
+        let by_side = EndEffectorMapping::by_side(&tree, &morph);
+        assert!(CleanupPass::new(&tree, &morph, 30.0, &only_hold, &by_side).changes_poses());
+        // No end effector mapped: no chain, so the hold is off and the decoder neither clamps the root
+        // height nor recomputes the end effectors for it.
+        let unmapped = EndEffectorMapping::new(vec![None; by_side.human.len()]);
+        assert!(HeldChains::new(&tree, &morph, &unmapped).is_empty());
+        assert!(!CleanupPass::new(&tree, &morph, 30.0, &only_hold, &unmapped).changes_poses());
+        assert!(!CleanupPass::new(&tree, &morph, 30.0, &Cleanup::NONE, &by_side).changes_poses());
     }
 
     #[test]
