@@ -26,7 +26,7 @@
 //! frequency is Alexander's `v / (2.3·h·Fr^0.3)`. Where a stance would not fit in the step radius,
 //! the duty factor is first lowered within the gait's range ([`gait::Gait::duty_fitting`]) and only
 //! then the frequency raised; it is capped so that swings last at least [`LegConfig::min_swing_frames`] frames
-//! ([`LegConfig::walking_min_swing_frames`] in the walks, judged by the body's speed alone). The bundled Spot-like
+//! ([`LegConfig::walking_min_swing_frames`] in the walks). The bundled Spot-like
 //! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
 //! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
 //!
@@ -571,10 +571,6 @@ impl<'a> Controller<'a> {
         // already takes walking swings.
         let slower = (v.norm() + wz.abs() * rig.foot_radius).min(v_ahead.norm() + wz_ahead.abs() * rig.foot_radius);
         let fr_slower = dynamic_similarity::froude(slower, h);
-        // Whether it walks, for the shortest swing, goes by the body's speed, as Froude's number and the
-        // gait measure's walking swings do: a turn adds the feet's speed about the root, which the
-        // cadence above needs but which made a turning spider take trotting swings at walking speeds.
-        let fr_body = dynamic_similarity::froude(v.norm().min(v_ahead.norm()), h);
         let drift = self
             .legs
             .iter()
@@ -640,7 +636,7 @@ impl<'a> Controller<'a> {
             frequency: self.frequency,
             duty,
             lift: 0.7 + 0.3 * fr.min(1.0),
-            min_swing: rig::min_swing_frames(&self.cfg, fr_body) as f32 * self.dt,
+            min_swing: rig::min_swing_frames(&self.cfg, fr_slower) as f32 * self.dt,
             clearance: rig.clearance,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
