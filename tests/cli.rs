@@ -251,6 +251,7 @@ fn dataset_and_metrics_on_bundled_and_real_characters() {
         ("phantomx", "robots/phantomx_hexapod/phantomx_description/urdf/phantomx.urdf", 0.05),
         ("stretch-re1", "robots/stretch_re1/stretch_description_RE1V0_tool_stretch_gripper.urdf", 0.05),
         ("fox", "creatures/Fox/Fox.glb", 0.005),
+        ("spider", "creatures/Quaternius_Spider/Spider.glb", 0.005),
     ] {
         let Some(p) = shared(rel) else { continue };
         characters.push((name.to_string(), p.to_str().unwrap().to_string(), limit));
@@ -266,12 +267,14 @@ fn dataset_and_metrics_on_bundled_and_real_characters() {
         assert!(v["fid"].is_null() && v["feature_loss"].is_null(), "{name}: no reference, no source");
         let ufr = v["ufr"]["rates"]["ufr"].as_f64().unwrap();
         assert!(ufr <= limit, "{name}: dataset UFR {:.3} % above {:.1} %", 100.0 * ufr, 100.0 * limit);
-        // Legged characters get the gait measure: steps, and none of them pops.
+        // Legged characters get the gait measure: steps, none of them pops, and none is shorter than
+        // 4 frames where it walks (Fr < 0.3).
         if name.contains("stretch") {
             assert!(v["gait"].is_null(), "{name}: wheels have no gait");
         } else {
             assert!(v["gait"]["strides"].as_u64().unwrap() > 50, "{name}: {}", v["gait"]);
             assert_eq!(v["gait"]["one_or_two_frame_swings"], 0, "{name}: {}", v["gait"]);
+            assert_eq!(v["gait"]["short_walking_swings"], 0, "{name}: {}", v["gait"]);
             assert!(!v["gait"]["bins"].as_array().unwrap().is_empty(), "{name}");
         }
     }
