@@ -120,25 +120,31 @@ mod tests {
         assert!((instant + 0.001f32.sin() * PROJECT_FPS).abs() < 1e-5, "{instant}");
     }
 
+    /// The next state of a character the networks turn left at 0.2 rad/s, 2 cm a frame ahead.
+    fn turning_left(layout: &CharacterLayout, dt: f32) -> Vec<f32> {
+        let mut state = vec![0.0; layout.dim()];
+        state[layout.root_height()][0] = 0.5;
+        state[layout.root_orientation()][0] = 1.0;
+        state[layout.root_displacement()][0] = 0.02;
+        let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.2 * dt);
+        state[layout.root_delta_rotation()].copy_from_slice(&quat_wxyz(&q));
+        state[layout.root_angular_velocity().start + 2] = 0.2;
+        state
+    }
+
     #[test]
     fn a_character_turning_away_from_a_person_walking_straight_is_steered_back() {
         let layout = CharacterLayout { dof: 0, end_effectors: 0 };
         let (fps, dt) = (30.0, 1.0 / 30.0);
         let steering = HeadingSteering { seconds: 1.0, max_rate: 0.5 };
         let x_h = vec![0.0; human_layout::DIM];
-        // The networks turn the character left at 0.2 rad/s, 2 cm a frame ahead, for 10 s.
+        // The networks turn the character left for 10 s.
         let drift = |steer: bool| {
             let mut root = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.5), UnitQuaternion::identity());
             let mut s = SteeringState::new(&root);
             let mut worst = 0.0f32;
             for _ in 0..300 {
-                let mut state = vec![0.0; layout.dim()];
-                state[layout.root_height()][0] = 0.5;
-                state[layout.root_orientation()][0] = 1.0;
-                state[layout.root_displacement()][0] = 0.02;
-                let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.2 * dt);
-                state[layout.root_delta_rotation()].copy_from_slice(&quat_wxyz(&q));
-                state[layout.root_angular_velocity().start + 2] = 0.2;
+                let mut state = turning_left(&layout, dt);
                 if steer {
                     s.steer(&steering, &layout, &mut state, dt);
                 }
@@ -165,10 +171,7 @@ mod tests {
         x[human_layout::ROOT_ANGULAR_VELOCITY.start + 2] = -1.0;
         let mut root = Isometry3::identity();
         for _ in 0..30 {
-            let mut state = vec![0.0; layout.dim()];
-            state[layout.root_orientation()][0] = 1.0;
-            let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.2 * dt);
-            state[layout.root_delta_rotation()].copy_from_slice(&quat_wxyz(&q));
+            let mut state = turning_left(&layout, dt);
             s.steer(&steering, &layout, &mut state, dt);
             root = integrate_root(&layout, &root, &state);
             s.observe(&root, &x, fps);
