@@ -16,7 +16,6 @@ use crate::effector_hold::{EffectorHold, EffectorHoldState, HeldChains};
 use crate::features::EndEffectorMapping;
 use crate::foot_lock::{FootLock, FootLockConfig, FootLockScratch, FootLockState};
 use crate::heading::{HeadingSteering, SteeringState};
-use crate::human_set::PROJECT_FPS;
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 use crate::standing::{HoldState, StandingHold};
@@ -64,6 +63,7 @@ impl Cleanup {
 /// The cleanups set up for one character.
 #[derive(Clone, Debug)]
 pub struct CleanupPass {
+    fps: f32,
     steering: Option<HeadingSteering>,
     standing: Option<StandingHold>,
     effector_hold: Option<(EffectorHold, HeldChains)>,
@@ -94,6 +94,7 @@ impl CleanupPass {
     /// the human's as `mapping` says (the checkpoint's correspondence).
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32, cleanup: &Cleanup, mapping: &EndEffectorMapping) -> CleanupPass {
         CleanupPass {
+            fps,
             steering: cleanup.heading,
             standing: cleanup.standing,
             effector_hold: cleanup
@@ -134,7 +135,7 @@ impl CleanupPass {
             return;
         }
         if let (Some(config), Some(memory)) = (&self.steering, &state.steering) {
-            memory.steer(config, layout, x, 1.0 / PROJECT_FPS);
+            memory.steer(config, layout, x, 1.0 / self.fps);
         }
         if let (Some(config), Some(memory)) = (&self.standing, &state.hold) {
             memory.hold(config, layout, x);
@@ -159,13 +160,13 @@ impl CleanupPass {
     pub fn observe(&self, state: &mut CleanupState, root: &Isometry3<f32>, human: Option<&[f32]>) {
         let Some(x_h) = human else { return };
         if let Some(memory) = &mut state.steering {
-            memory.observe(root, x_h, PROJECT_FPS);
+            memory.observe(root, x_h, self.fps);
         }
         if let (Some(config), Some(memory)) = (&self.standing, &mut state.hold) {
-            memory.observe(config, x_h, PROJECT_FPS);
+            memory.observe(config, x_h, self.fps);
         }
         if let (Some((config, chains)), Some(memory)) = (&self.effector_hold, &mut state.effector_hold) {
-            memory.observe(config, chains, x_h, PROJECT_FPS);
+            memory.observe(config, chains, x_h, self.fps);
         }
     }
 }
