@@ -113,7 +113,8 @@ impl DatasetConfig {
     /// The configuration a dataset file or a prior's provenance recorded. Settings added since are
     /// read as the behaviour the record was made with, not as today's defaults, so that a recorded
     /// dataset regenerates byte for byte: a record without `controller.legs.cadence_limit` predates
-    /// the cadence limit and reads as `None`.
+    /// the cadence limit and reads as `None`, and one without `controller.legs.walks_by_body_speed`
+    /// judged the walks by the feet's speed and reads as `false`.
     pub fn from_record(mut record: serde_json::Value) -> Result<Self, serde_json::Error> {
         if let Some(legs) = record
             .get_mut("controller")
@@ -121,6 +122,7 @@ impl DatasetConfig {
             .and_then(|l| l.as_object_mut())
         {
             legs.entry("cadence_limit").or_insert(serde_json::Value::Null);
+            legs.entry("walks_by_body_speed").or_insert(serde_json::Value::Bool(false));
         }
         serde_json::from_value(record)
     }

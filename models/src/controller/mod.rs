@@ -26,7 +26,8 @@
 //! frequency is Alexander's `v / (2.3·h·Fr^0.3)`. Where a stance would not fit in the step radius,
 //! the duty factor is first lowered within the gait's range ([`gait::Gait::duty_fitting`]) and only
 //! then the frequency raised; it is capped so that swings last at least [`LegConfig::min_swing_frames`] frames
-//! ([`LegConfig::walking_min_swing_frames`] in the walks). The bundled Spot-like
+//! ([`LegConfig::walking_min_swing_frames`] in the walks, judged by the body's speed:
+//! [`LegConfig::walks_by_body_speed`]). The bundled Spot-like
 //! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
 //! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
 //!
@@ -155,6 +156,12 @@ pub struct LegConfig {
     /// Shortest swing in frames (as `min_swing_frames`) in the walks, below
     /// [`crate::dynamic_similarity::WALK_TROT_FROUDE`].
     pub walking_min_swing_frames: u32,
+    /// Whether a walk, for the shortest swing, is judged by the body's own speed, as Froude's number
+    /// and the gait measure's walking swings are, rather than by the feet's `|v| + |ω|·R`, which a turn
+    /// raises: judged by the feet's, a turning long-legged spider took trotting swings at walking
+    /// speeds. `false`: the feet's (the datasets recorded before this setting, which the shipped
+    /// checkpoints were trained on).
+    pub walks_by_body_speed: bool,
     /// Probability per episode that the fast quadruped gait is the bound rather than the gallop.
     pub bound_probability: f32,
     /// Time constant of the stepping frequency filter (s).
@@ -177,6 +184,7 @@ impl Default for LegConfig {
             swing_height: 0.12,
             min_swing_frames: 4,
             walking_min_swing_frames: 5,
+            walks_by_body_speed: true,
             bound_probability: 0.3,
             frequency_time_constant: 0.15,
             cadence_limit: Some(1.25),
@@ -571,6 +579,11 @@ impl<'a> Controller<'a> {
         // already takes walking swings.
         let slower = (v.norm() + wz.abs() * rig.foot_radius).min(v_ahead.norm() + wz_ahead.abs() * rig.foot_radius);
         let fr_slower = dynamic_similarity::froude(slower, h);
+        let fr_walk = if self.cfg.legs.walks_by_body_speed {
+            dynamic_similarity::froude(v.norm().min(v_ahead.norm()), h)
+        } else {
+            fr_slower
+        };
         let drift = self
             .legs
             .iter()
@@ -636,7 +649,7 @@ impl<'a> Controller<'a> {
             frequency: self.frequency,
             duty,
             lift: 0.7 + 0.3 * fr.min(1.0),
-            min_swing: rig::min_swing_frames(&self.cfg, fr_slower) as f32 * self.dt,
+            min_swing: rig::min_swing_frames(&self.cfg, fr_walk) as f32 * self.dt,
             clearance: rig.clearance,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
