@@ -29,6 +29,7 @@ use ace_models::human::clip::HumanFrame;
 use ace_models::human::state::HumanState;
 use ace_models::human_set::{HumanRow, PROJECT_FPS};
 use ace_models::checkpoint::CharacterInfo;
+use ace_models::cleanup::Cleanup;
 use bevy::asset::LoadState;
 use bevy::prelude::*;
 
@@ -50,12 +51,21 @@ pub struct Retargeter {
     pub checkpoint: Handle<CheckpointAsset>,
     /// The entity holding the [`HumanClipPlayer`] or [`LiveHuman`].
     pub source: Entity,
+    /// The cleanup of this character's poses ([`ace_models::cleanup`]): everything on by default, as
+    /// `ace retarget` does; [`Cleanup::NONE`] shows the networks' raw output.
+    pub cleanup: Cleanup,
 }
 
 impl Retargeter {
-    /// A retargeter following `source` with `checkpoint`.
+    /// A retargeter following `source` with `checkpoint`, with the default cleanup.
     pub fn new(checkpoint: Handle<CheckpointAsset>, source: Entity) -> Self {
-        Self { checkpoint, source }
+        Self { checkpoint, source, cleanup: Cleanup::default() }
+    }
+
+    /// The same retargeter with `cleanup` instead (e.g. a robot that should not be steered onto the
+    /// person's heading: `Cleanup { heading: None, ..Cleanup::default() }`).
+    pub fn with_cleanup(self, cleanup: Cleanup) -> Self {
+        Self { cleanup, ..self }
     }
 }
 
@@ -369,7 +379,7 @@ pub(crate) fn request_poses(
                 }
                 Job {
                     entity,
-                    start: Some((Arc::clone(&urdf.tree), Arc::clone(&urdf.morphology))),
+                    start: Some((Arc::clone(&urdf.tree), Arc::clone(&urdf.morphology), retargeter.cleanup)),
                     rows: vec![row(target, true)],
                     last_tick: target,
                 }

@@ -12,6 +12,7 @@ use std::thread;
 use ace_models::human_set::HumanRow;
 use ace_models::kinematics::{CharacterPose, KinematicTree};
 use ace_models::checkpoint::CheckpointFiles;
+use ace_models::cleanup::Cleanup;
 use ace_models::runtime::{CharacterStream, Retargeter};
 use ace_models::morphology::Morphology;
 use bevy::prelude::Entity;
@@ -19,8 +20,8 @@ use bevy::prelude::Entity;
 /// What one character needs this frame.
 pub(crate) struct Job {
     pub entity: Entity,
-    /// Start (or restart) the character standing at rest, as this character.
-    pub start: Option<(Arc<KinematicTree>, Arc<Morphology>)>,
+    /// Start (or restart) the character standing at rest, as this character, with this cleanup.
+    pub start: Option<(Arc<KinematicTree>, Arc<Morphology>, Cleanup)>,
     /// Tick `k`'s human state is `rows[k]`; the pose after the last one is sent back.
     pub rows: Vec<HumanRow>,
     /// The tick of the last row (reported back with the pose).
@@ -130,7 +131,7 @@ fn step(r: &Retargeter, driven: &mut HashMap<Entity, Driven>, jobs: Vec<Job>) ->
     let mut ready: Vec<(Job, Driven)> = Vec::new();
     for mut job in jobs {
         let d = match job.start.take() {
-            Some((tree, morph)) => match r.stream(&tree, &morph) {
+            Some((tree, morph, cleanup)) => match r.stream_with(&tree, &morph, &cleanup) {
                 Ok(stream) => Driven { stream, tree, morph },
                 Err(e) => {
                     driven.remove(&job.entity);

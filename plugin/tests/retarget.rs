@@ -6,6 +6,7 @@
 use std::path::Path;
 use std::time::Duration;
 
+use ace_models::cleanup::Cleanup;
 use ace_models::human::state::HumanState;
 use ace_models::human::{HumanClip, HumanFrame, ImportOptions, Joint};
 use ace_models::human_set::HumanRow;
@@ -25,8 +26,14 @@ use support::*;
 /// What `ace retarget` writes for a bundled clip and character with its shipped checkpoint (the CLI
 /// calls this same function; the CLI tests check the files).
 fn offline(character: &str, clip: &str) -> RetargetedMotion {
+    offline_with(character, clip, Cleanup::default())
+}
+
+/// [`offline`] with another cleanup (`Cleanup::NONE` is `ace retarget --no-cleanup`).
+fn offline_with(character: &str, clip: &str, cleanup: Cleanup) -> RetargetedMotion {
     let (tree, morph) = load_character(&asset_path(&format!("characters/{character}.urdf"))).unwrap();
-    let r = Offline::load(&asset_path(&format!("checkpoints/{character}"))).unwrap();
+    let mut r = Offline::load(&asset_path(&format!("checkpoints/{character}"))).unwrap();
+    r.set_cleanup(cleanup);
     let clip = HumanClip::from_bvh_file(&asset_path(&format!("motions/{clip}")), &ImportOptions::default()).unwrap();
     r.retarget_clip(&tree, &morph, &clip).unwrap()
 }
@@ -136,6 +143,32 @@ fn one_clip_drives_several_characters_and_a_seek_back_starts_over() {
         let (d, _) = link_gap(&app, e, &want.poses[0]);
         assert!(d < 2e-3, "restarted at the clip's first pose ({d} m away)");
     }
+}
+
+/// Each character keeps its own cleanup: Spot without any beside Spot with the default, on one
+/// checkpoint and clip (one batch), each moves as `ace retarget` writes it with that cleanup.
+#[test]
+fn each_character_keeps_its_own_cleanup() {
+    let (cleaned, raw) = (offline("spot", "walk.bvh"), offline_with("spot", "walk.bvh", Cleanup::NONE));
+    let mut app = retargeting_app();
+    let player = paused_player(&mut app, "walk.bvh");
+    let default = spawn_driven(&mut app, "spot", "spot", player, 1.5);
+    let bare = spawn_driven(&mut app, "spot", "spot", player, 3.0);
+    let with_none = app.world().get::<Retargeter>(bare).unwrap().clone().with_cleanup(Cleanup::NONE);
+    app.world_mut().entity_mut(bare).insert(with_none);
+    start_together(&mut app, player, &[default, bare]);
+    let mut apart = 0.0f32;
+    for _ in 0..60 {
+        app.update();
+        for (e, want) in [(default, &cleaned), (bare, &raw)] {
+            let t = tick(&app, e).unwrap() as usize;
+            let (d, a) = link_gap(&app, e, &want.poses[t]);
+            assert!(d < 2e-3 && a < 2e-2, "tick {t}: links {d} m and {a} rad from the offline motion");
+            apart = apart.max(link_gap(&app, bare, &cleaned.poses[t]).0);
+        }
+    }
+    // The raw output is another motion: the cleanup moves Spot's links by centimetres on the walk.
+    assert!(apart > 0.02, "the raw and the cleaned walk differ by {apart} m");
 }
 
 /// A jump of the source's clock by at most `MAX_CATCH_UP` ticks is caught up on, tick by tick, as if

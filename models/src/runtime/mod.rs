@@ -141,9 +141,15 @@ impl Retargeter {
     /// Starts driving one character (the checkpoint's): standing at rest at the origin facing +x,
     /// with this retargeter's cleanup. Advance it with [`Retargeter::step`].
     pub fn stream(&self, tree: &KinematicTree, morph: &Morphology) -> Result<CharacterStream, LearnError> {
+        self.stream_with(tree, morph, &self.cleanup)
+    }
+
+    /// [`Retargeter::stream`] with a cleanup of the stream's own: streams with different cleanups
+    /// still step together in one batch.
+    pub fn stream_with(&self, tree: &KinematicTree, morph: &Morphology, cleanup: &Cleanup) -> Result<CharacterStream, LearnError> {
         Ok(CharacterStream {
             prev: self.start_state(tree, morph)?,
-            decoder: StateDecoder::new(tree, morph, &self.cleanup, &self.record.correspondence.mapping, self.root_height_range),
+            decoder: StateDecoder::new(tree, morph, cleanup, &self.record.correspondence.mapping, self.root_height_range),
         })
     }
 
