@@ -164,9 +164,7 @@ pub fn run(b: &BatchArgs) -> Result<()> {
                 (&next, &slots, &files, &jobs_out, &opts, &tree, &morph, &dir, &inputs);
             workers.push(s.spawn(move || -> Result<()> {
                 let mut networks = Networks::load(dir, a.backend)?;
-                if !a.cleanup {
-                    networks.set_cleanup(ace::models::cleanup::Cleanup::NONE);
-                }
+                networks.set_cleanup(a.cleanup);
                 let scorer = Scorer::new(networks.record(), networks.character(), dir)?;
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);

@@ -5,8 +5,8 @@
 //!   than training's, as many frames as the held-out clips: the realism and diversity reference (its
 //!   FID is the floor sampling noise gives);
 //! - **ACE**: the generator choosing latents for the prior from each held-out clip;
-//! - **ACE without cleanup**: the same without the self-collision guard and foot locking
-//!   ([`ace::models::cleanup`]): the networks' raw output;
+//! - **ACE without cleanup**: the same without any cleanup step ([`ace::models::cleanup`]): the
+//!   networks' raw output;
 //! - **Prior with random z**: the same prior driven by latents drawn from N(0, I) for as many frames, with
 //!   the cleanup: what the prior does without the generator, the reference L_fea and FID are judged
 //!   against.

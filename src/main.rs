@@ -153,9 +153,13 @@ enum Command {
         /// glTF creatures: write only the skeleton, its skin and the clip (no meshes, materials or images).
         #[arg(long, conflicts_with = "keep_animations")]
         animation_only: bool,
-        /// Write the networks' raw output: no foot locking, no collision guard.
+        /// Write the networks' raw output: no cleanup at all (no heading steering, standing or
+        /// end-effector hold, foot locking or collision guard).
         #[arg(long)]
         no_cleanup: bool,
+        /// Leave these cleanup steps out (comma-separated or repeated); the others run.
+        #[arg(long, value_enum, value_delimiter = ',', conflicts_with = "no_cleanup")]
+        without: Vec<retarget::CleanupStep>,
         /// A joint-mapping file (TOML) for a BVH skeleton the automatic matching cannot read
         /// [default: `<clip>.mapping.toml` beside the clip, when there is one].
         #[arg(long)]
@@ -241,7 +245,20 @@ fn main() -> ExitCode {
             train::prior(&train::TrainArgs { dataset_config, ..train_args(opts, frames, seed, None) })
         }
         Command::Train { opts, humans } => train::ace(&train_args(opts, None, None, humans)),
-        Command::Retarget { clip, character, checkpoint, out, jobs, no_human, keep_animations, animation_only, no_cleanup, mapping, backend } => {
+        Command::Retarget {
+            clip,
+            character,
+            checkpoint,
+            out,
+            jobs,
+            no_human,
+            keep_animations,
+            animation_only,
+            no_cleanup,
+            without,
+            mapping,
+            backend,
+        } => {
             let one = retarget::RetargetArgs {
                 clip,
                 character,
@@ -249,7 +266,7 @@ fn main() -> ExitCode {
                 out,
                 with_human: !no_human,
                 rig: ace::models::export::RigClipOptions { name: None, keep_animations, animation_only },
-                cleanup: !no_cleanup,
+                cleanup: retarget::cleanup_without(no_cleanup, &without),
                 mapping,
                 backend,
             };

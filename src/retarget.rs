@@ -51,6 +51,39 @@ pub enum Backend {
     Tch,
 }
 
+/// A step of the cleanup `ace retarget --without` leaves out ([`ace::models::cleanup`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CleanupStep {
+    /// Steering the root back onto the person's heading.
+    HeadingSteering,
+    /// Holding the root while the person stands.
+    StandingHold,
+    /// Holding an arm (or the head) while the person's matching hand (or head) rests.
+    EffectorHold,
+    /// Planting the feet that come down.
+    FootLock,
+    /// Moving colliding poses back to the last free one.
+    CollisionGuard,
+}
+
+/// The cleanup with every step on but those in `without`, or none at all (`raw`).
+pub fn cleanup_without(raw: bool, without: &[CleanupStep]) -> Cleanup {
+    if raw {
+        return Cleanup::NONE;
+    }
+    let mut c = Cleanup::default();
+    for step in without {
+        match step {
+            CleanupStep::HeadingSteering => c.heading = None,
+            CleanupStep::StandingHold => c.standing = None,
+            CleanupStep::EffectorHold => c.effector_hold = None,
+            CleanupStep::FootLock => c.foot_lock = None,
+            CleanupStep::CollisionGuard => c.collision_guard = false,
+        }
+    }
+    c
+}
+
 /// A checkpoint's networks loaded on one [`Backend`]; both give the same poses up to float rounding.
 pub enum Networks {
     Rust(Retargeter),
@@ -131,7 +164,8 @@ pub struct RetargetArgs {
     pub with_human: bool,
     /// How a glTF creature's rig clip is written (its name is the clip's).
     pub rig: RigClipOptions,
-    pub cleanup: bool,
+    /// The cleanup of the poses written.
+    pub cleanup: Cleanup,
     /// A joint-mapping file for the clip's skeleton.
     pub mapping: Option<PathBuf>,
     /// Which implementation runs the networks.
@@ -183,9 +217,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     let mut retargeter = Networks::load(&dir, a.backend)?;
     retargeter.check_character(&tree, &morph)?;
     warn_on_other_character_file(retargeter.record(), &urdf)?;
-    if !a.cleanup {
-        retargeter.set_cleanup(Cleanup::NONE);
-    }
+    retargeter.set_cleanup(a.cleanup);
     let clip = HumanClip::from_bvh_file(&a.clip, &import_options(a.mapping.as_deref())?)?;
     for w in clip.warnings() {
         eprintln!("warning: {w}");
