@@ -51,6 +51,8 @@ impl Default for EffectorHold {
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeldChains {
     chains: Vec<(EndEffector, Vec<usize>)>,
+    /// Each held DoF with the chains it is on (indices into `chains`).
+    dofs: Vec<(usize, Vec<usize>)>,
 }
 
 impl HeldChains {
@@ -81,7 +83,21 @@ impl HeldChains {
                 human.filter(|_| !chain.is_empty()).map(|h| (h, chain))
             })
             .collect();
-        HeldChains { chains }
+        HeldChains::from_chains(chains)
+    }
+
+    /// The chains `chains` (human end effector and DoFs of each), with each DoF's chains listed.
+    fn from_chains(chains: Vec<(EndEffector, Vec<usize>)>) -> HeldChains {
+        let mut dofs: Vec<(usize, Vec<usize>)> = Vec::new();
+        for (c, (_, chain)) in chains.iter().enumerate() {
+            for &d in chain {
+                match dofs.iter_mut().find(|(e, _)| *e == d) {
+                    Some((_, on)) => on.push(c),
+                    None => dofs.push((d, vec![c])),
+                }
+            }
+        }
+        HeldChains { chains, dofs }
     }
 
     /// Per held end effector, the human end effector it follows and its DoFs (end effector first).
@@ -113,17 +129,12 @@ impl EffectorHoldState {
     /// Moves the held joints of the next frame's denormalised state `state` from the shown joints
     /// `shown` (the previous frame's pose) by their share of the networks' step.
     pub fn hold(&self, hold: &EffectorHold, chains: &HeldChains, layout: &CharacterLayout, state: &mut [f32], shown: &[f32]) {
-        let mut share: Vec<Option<f32>> = vec![None; layout.dof];
-        for ((_, dofs), speed) in chains.chains.iter().zip(&self.speed) {
-            let s = speed.map_or(1.0, |v| ramp(hold.still, hold.moving, v));
-            for &d in dofs {
-                share[d] = Some(share[d].map_or(s, |o| o.max(s)));
-            }
-        }
+        let share = |c: usize| self.speed[c].map_or(1.0, |v| ramp(hold.still, hold.moving, v));
         let q = &mut state[layout.joint_positions()];
-        for ((v, s), &before) in q.iter_mut().zip(share).zip(shown) {
-            if let Some(s) = s.filter(|&s| s < 1.0) {
-                *v = before + s * (*v - before);
+        for (d, on) in &chains.dofs {
+            let s = on.iter().map(|&c| share(c)).fold(0.0, f32::max);
+            if s < 1.0 {
+                q[*d] = shown[*d] + s * (q[*d] - shown[*d]);
             }
         }
     }
@@ -219,7 +230,7 @@ mod tests {
     fn a_resting_hand_holds_its_arm_and_a_moving_hand_releases_it() {
         let layout = CharacterLayout { dof: 4, end_effectors: 0 };
         // Joint 1 is on both chains.
-        let chains = HeldChains { chains: vec![(EndEffector::LeftHand, vec![0, 1]), (EndEffector::RightHand, vec![1, 2])] };
+        let chains = HeldChains::from_chains(vec![(EndEffector::LeftHand, vec![0, 1]), (EndEffector::RightHand, vec![1, 2])]);
         let hold = EffectorHold::default();
         let fps = 30.0;
         let shown = [0.1, 0.2, 0.3, 0.4];
