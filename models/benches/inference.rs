@@ -18,6 +18,11 @@
 //!
 //! Both run on one thread (libtorch's setting in the plugin; a game has other work for the other cores).
 //! Each figure is the median (and 90th percentile) over many frames after a warm-up.
+//!
+//! A second table gives this core's floor for `G + π ×N`, measured in the same run: every parameter
+//! is read once per pass (one character streams four bytes per parameter from the cache, as the
+//! bench's repeated frames keep them in L3) and costs one multiply-add per character (at this core's
+//! measured f32 fused multiply-add peak). No exact implementation of these networks goes below it.
 
 use std::path::Path;
 use std::time::Instant;
@@ -102,6 +107,7 @@ fn main() {
             tc.0 / rt.0
         );
     };
+    let mut floors = Vec::new();
     for (name, file) in [
         ("spot", "characters/spot.urdf"),
         ("crab", "characters/crab.urdf"),
@@ -139,7 +145,98 @@ fn main() {
         let rt = per_frame(&mut || ours.retarget_states(&tree, &morph, &looped).expect("retarget").poses.len());
         let tc = per_frame(&mut || theirs.retarget_states(&tree, &morph, &looped).expect("retarget").poses.len());
         row(name, &format!("whole frame ×1 (5 runs of {} frames)", looped.len()), looped.len(), rt, tc);
+        floors.push((name, ours.parameter_count()));
     }
+
+    let peak = fma_peak_gflops();
+    println!();
+    match peak {
+        Some((gflops, isa)) => println!("This core's f32 multiply-add peak: {gflops:.0} GFLOP/s ({isa}, one thread)."),
+        None => println!("This core's f32 multiply-add peak: not measured (no AVX2 or AVX-512)."),
+    }
+    println!();
+    println!("| character | parameters | streamed once (ms) | floor ×1 (ms) | floor ×64 | floor ×256 |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for (name, parameters) in floors {
+        let stream = stream_ms(parameters);
+        let floor = |n: usize| match peak {
+            Some((gflops, _)) => format!("{:.3}", stream.max(2.0 * (n * parameters) as f64 / (gflops * 1e6))),
+            None => "–".into(),
+        };
+        println!("| {name} | {parameters} | {stream:.3} | {} | {} | {} |", floor(1), floor(64), floor(256));
+    }
+}
+
+/// Median milliseconds to read `parameters` f32s once from a buffer that stays cached between passes,
+/// as the networks' weights do between the bench's frames.
+fn stream_ms(parameters: usize) -> f64 {
+    let data: Vec<f32> = (0..parameters).map(|i| (i % 7) as f32).collect();
+    let mut sink = 0.0f32;
+    let (median, _) = time(300, &mut |_| {
+        // Sixteen independent sums, so that reading, not adding, sets the pace.
+        let mut acc = [0.0f32; 16];
+        for chunk in data.chunks_exact(16) {
+            acc.iter_mut().zip(chunk).for_each(|(a, v)| *a += v);
+        }
+        sink += acc.iter().sum::<f32>();
+    });
+    std::hint::black_box(sink);
+    median
+}
+
+/// This core's f32 fused multiply-add throughput in GFLOP/s with the widest vector unit it has, and
+/// that unit's name; `None` without AVX2 and FMA.
+fn fma_peak_gflops() -> Option<(f64, &'static str)> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        const ITERS: usize = 20_000_000;
+        let (flops_per_iter, isa, run): (f64, &str, fn(usize) -> f32) = if is_x86_feature_detected!("avx512f") {
+            // SAFETY (both arms): the CPU has the features each function is compiled for.
+            (12.0 * 16.0 * 2.0, "AVX-512", |n| unsafe { fma_avx512(n) })
+        } else if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            (12.0 * 8.0 * 2.0, "AVX2", |n| unsafe { fma_avx2(n) })
+        } else {
+            return None;
+        };
+        run(ITERS / 10);
+        let t0 = Instant::now();
+        std::hint::black_box(run(ITERS));
+        Some((flops_per_iter * ITERS as f64 / t0.elapsed().as_secs_f64() / 1e9, isa))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    None
+}
+
+/// `n` rounds of twelve independent vector multiply-adds (enough in flight to fill both FMA ports).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn fma_avx512(n: usize) -> f32 {
+    use std::arch::x86_64::*;
+    let (b, c) = (_mm512_set1_ps(0.999_999), _mm512_set1_ps(1e-7));
+    let mut a = [_mm512_set1_ps(1.0); 12];
+    for _ in 0..n {
+        for v in a.iter_mut() {
+            *v = _mm512_fmadd_ps(*v, b, c);
+        }
+    }
+    a.iter().map(|v| _mm512_reduce_add_ps(*v)).sum()
+}
+
+/// [`fma_avx512`] with AVX2's eight lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn fma_avx2(n: usize) -> f32 {
+    use std::arch::x86_64::*;
+    let (b, c) = (_mm256_set1_ps(0.999_999), _mm256_set1_ps(1e-7));
+    let mut a = [_mm256_set1_ps(1.0); 12];
+    for _ in 0..n {
+        for v in a.iter_mut() {
+            *v = _mm256_fmadd_ps(*v, b, c);
+        }
+    }
+    let mut out = [0.0f32; 8];
+    // SAFETY: `out` holds eight f32s.
+    a.iter().map(|v| unsafe { _mm256_storeu_ps(out.as_mut_ptr(), *v); out.iter().sum::<f32>() }).sum()
 }
 
 /// The networks alone for `batch` characters (see the module docs), fed the states of a rollout.

@@ -233,6 +233,14 @@ impl Retargeter {
         y
     }
 
+    /// How many network parameters (f32 weights and biases of G, π's gate and π's experts) one pass
+    /// of [`Retargeter::networks`] reads. Each is read once per pass, whatever the batch, and used in
+    /// one multiply-add per character: the bytes a single character streams from memory per frame
+    /// are four times this, and a batch of N costs about N times this many multiply-adds.
+    pub fn parameter_count(&self) -> usize {
+        self.generator.parameters() + self.decoder.parameters()
+    }
+
     /// `x·std + mean` of one normalised state.
     fn denormalise(&self, x: &[f32]) -> Vec<f32> {
         x.iter().zip(&self.stats.std).zip(&self.stats.mean).map(|((v, s), m)| v * s + m).collect()
@@ -273,6 +281,20 @@ mod tests {
 
     fn load(files: BTreeMap<String, Vec<u8>>) -> Result<Retargeter, LearnError> {
         Retargeter::load_files(&CheckpointFiles::in_memory(&spot_dir(), files))
+    }
+
+    #[test]
+    fn the_parameter_count_is_every_tensor_inference_reads() {
+        // G's file whole, and the prior's decoder (gate and experts) without its encoder, which only
+        // training uses.
+        let files = spot_files();
+        let count = |file: &str, keep: &dyn Fn(&str) -> bool| -> usize {
+            let t = safetensors::SafeTensors::deserialize(&files[file]).unwrap();
+            t.tensors().iter().filter(|(n, _)| keep(n)).map(|(_, v)| v.shape().iter().product::<usize>()).sum()
+        };
+        let expected = count(GENERATOR_FILE, &|_| true) + count(WEIGHTS_FILE, &|n| n.starts_with("decoder."));
+        assert!(count(WEIGHTS_FILE, &|n| n.starts_with("encoder.")) > 0);
+        assert_eq!(load(spot_files()).unwrap().parameter_count(), expected);
     }
 
     #[test]
