@@ -35,7 +35,8 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # run is mutated (each mutant relinks libtorch, about a minute; the training loops themselves are
 # checked by the end-to-end runs). The plugin's `retarget.rs` runs its crate's own Retargeter tests
 # (`plugin/tests/retarget.rs`, no libtorch); the rigged creatures' scene tests stay in the `ace` crate,
-# which trains their small checkpoints with the `ace` binary.
+# which trains their small checkpoints with the `ace` binary. The pure-Rust networks (`runtime/nets.rs`)
+# are checked against libtorch's by the runtime's equivalence tests, so they need `learn` too.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -47,6 +48,7 @@ declare -A how=(
   [models/src/heading.rs]="$core -- --lib -- heading"
   [models/src/standing.rs]="$core -- --lib -- standing"
   [models/src/effector_hold.rs]="$core -- --lib -- effector_hold"
+  [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
   [models/src/learn/prior.rs]="$learn --re start_or_resume -- --lib"
@@ -54,7 +56,7 @@ declare -A how=(
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
-       models/src/standing.rs models/src/effector_hold.rs
+       models/src/standing.rs models/src/effector_hold.rs models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
 files=("$@")
