@@ -46,12 +46,9 @@ impl Matrix {
 /// the calling thread.
 fn matmul(x: &[f32], rows: usize, w: &Matrix, out: &mut [f32], accumulate: bool) {
     assert!(x.len() == rows * w.k && out.len() == rows * w.n && w.data.len() == w.k * w.n);
-    if rows == 0 || w.n == 0 {
-        return;
-    }
     // SAFETY: the assert above gives every pointer `rows·k`, `k·n` and `rows·n` valid elements for the
     // row-major strides passed (column stride 1, row stride the width); `out` does not alias the
-    // inputs (a unique borrow).
+    // inputs (a unique borrow). With no rows or no columns `gemm` returns before reading any.
     unsafe {
         gemm::gemm(
             rows,
@@ -323,5 +320,41 @@ impl Mann {
             }
         }
         h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A gate with no hidden layer whose logits are `x·W` for `W` `[input, K]` given row by row.
+    fn gate(w: &[&[f32]]) -> Mann {
+        let (input, k) = (w.len(), w[0].len());
+        let out = Linear { w: Matrix { k: input, n: k, data: w.concat() }, b: vec![0.0; k] };
+        Mann { gate: Mlp { hidden: Vec::new(), out, activation: Activation::Elu }, layers: Vec::new(), latent: 0 }
+    }
+
+    #[test]
+    fn the_gate_blends_with_a_softmax_that_large_logits_do_not_overflow() {
+        // Logits [100, 90, 0] (exp(100) overflows f32) and [1, 0, −1], two rows in one batch.
+        let m = gate(&[&[100.0, 90.0, 0.0], &[1.0, 0.0, -1.0]]);
+        let a = m.coefficients(&[1.0, 0.0, 0.0, 1.0], 2);
+        assert!(a.iter().all(|v| v.is_finite()), "{a:?}");
+        let softmax = |l: [f64; 3]| l.map(|v| v.exp() / l.iter().map(|u| u.exp()).sum::<f64>());
+        let want: Vec<f64> = [softmax([0.0, -10.0, -100.0]), softmax([1.0, 0.0, -1.0])].concat();
+        for (got, want) in a.iter().zip(&want) {
+            assert!((*got as f64 - want).abs() < 1e-6, "{a:?} against {want:?}");
+        }
+    }
+
+    #[test]
+    fn a_batch_of_no_rows_gives_no_rows() {
+        let w = Matrix { k: 2, n: 3, data: vec![1.0; 6] };
+        let mut out = Vec::new();
+        matmul(&[], 0, &w, &mut out, false);
+        assert!(out.is_empty());
+        let linear = Linear { w, b: vec![0.5; 3] };
+        assert_eq!(linear.forward(&[1.0, 2.0], 1), vec![3.5; 3]);
+        assert!(linear.forward(&[], 0).is_empty());
     }
 }
