@@ -141,17 +141,15 @@ fn main() {
     println!("| characters | N | frame without retargeters (median / p90) | with retargeters (median / p90) | added (median) |");
     println!("|---|---:|---:|---:|---:|");
     let linked = |w: &World, e: Entity| w.get::<CharacterLinks>(e).is_some();
-    for n in [1usize, 4, 16, 64] {
-        let base = time(spot_app(n, false, 0.0), linked);
-        let with = time(spot_app(n, true, 0.0), |w, e| linked(w, e) && running(w, e));
-        row("Spot (URDF)", n, base, with);
-    }
     // The worker steps the networks while the rest of the frame runs: with the game's own work in the
     // frame, what the retargeters add is what the frame waits for beyond it.
-    for n in [16usize, 64] {
-        let base = time(spot_app(n, false, GAME_WORK_MS), linked);
-        let with = time(spot_app(n, true, GAME_WORK_MS), |w, e| linked(w, e) && running(w, e));
-        row(&format!("Spot (URDF), beside {GAME_WORK_MS} ms of game work"), n, base, with);
+    let beside = format!("Spot (URDF), beside {GAME_WORK_MS} ms of game work");
+    for (what, work, sizes) in [("Spot (URDF)", 0.0, &[1usize, 4, 16, 64][..]), (beside.as_str(), GAME_WORK_MS, &[16, 64])] {
+        for &n in sizes {
+            let base = time(spot_app(n, false, work), linked);
+            let with = time(spot_app(n, true, work), |w, e| linked(w, e) && running(w, e));
+            row(what, n, base, with);
+        }
     }
     #[cfg(feature = "scene")]
     {

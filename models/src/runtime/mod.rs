@@ -294,7 +294,7 @@ mod tests {
         };
         let expected = count(GENERATOR_FILE, &|_| true) + count(WEIGHTS_FILE, &|n| n.starts_with("decoder."));
         assert!(count(WEIGHTS_FILE, &|n| n.starts_with("encoder.")) > 0);
-        assert_eq!(load(spot_files()).unwrap().parameter_count(), expected);
+        assert_eq!(load(files).unwrap().parameter_count(), expected);
     }
 
     #[test]
