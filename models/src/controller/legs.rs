@@ -66,6 +66,8 @@ pub struct LegState {
     pub phase: LegPhase,
     /// The foot's target world position this frame.
     pub foot: Point3<f32>,
+    /// The body's path (m) and time (s) since the foot last touched down: the stride's speed so far.
+    stride: [f32; 2],
 }
 
 impl LegState {
@@ -74,6 +76,7 @@ impl LegState {
         LegState {
             phase: LegPhase::Stance { time: 1.0 },
             foot,
+            stride: [0.0; 2],
         }
     }
 
@@ -167,12 +170,26 @@ pub struct StepParams {
     pub duty: f32,
     /// Swing height scale (× the leg's swing height).
     pub lift: f32,
-    /// Shortest swing (s).
+    /// Shortest swing (s), by the body's speed now.
     pub min_swing: f32,
+    /// The walks' shortest swing by the stride, when set: see [`StrideWalk`].
+    pub stride_walk: Option<StrideWalk>,
     /// Height above the sole a swinging foot reaches before it moves horizontally, and below which it
     /// comes straight down (m): at least the first and last [`EDGE`] of the swing, longer when the
     /// swing is low next to this (at most [`MAX_EDGE`]).
     pub clearance: f32,
+}
+
+/// A swing that ends a stride at a walk lasts at least the walks' shortest swing, judged by the
+/// body's mean speed since the foot last touched down (the stride's speed, as the gait measure takes
+/// it) as well as by its speed now, and also once the foot is in the air: a body that speeds up from a
+/// walk, or slows to one, lands the foot with a walking swing.
+#[derive(Clone, Copy, Debug)]
+pub struct StrideWalk {
+    /// Speeds below this are walks (m/s).
+    pub below: f32,
+    /// The walks' shortest swing (s).
+    pub min_swing: f32,
 }
 
 /// Minimum-jerk profile 10s³ − 15s⁴ + 6s⁵.
@@ -198,6 +215,12 @@ impl LegState {
         dt: f32,
         force: bool,
     ) -> bool {
+        self.stride[0] += base.v.norm() * dt;
+        self.stride[1] += dt;
+        let min_swing = match p.stride_walk {
+            Some(w) if self.stride[0] < w.below * self.stride[1] => p.min_swing.max(w.min_swing),
+            _ => p.min_swing,
+        };
         let stance_time = p.duty / p.frequency;
         let window = 1.0 - p.duty;
         let phase = (p.clock - offset).rem_euclid(1.0);
@@ -222,11 +245,11 @@ impl LegState {
                 } else {
                     nominal
                 };
-                let duration = duration.clamp(p.min_swing.max(0.5 * nominal).min(nominal), nominal);
+                let duration = duration.clamp(min_swing.max(0.5 * nominal).min(nominal), nominal);
                 self.phase = LegPhase::Swing {
                     frame: 0,
                     frames: ((duration / dt).round() as u32)
-                        .max((p.min_swing / dt).round() as u32)
+                        .max((min_swing / dt).round() as u32)
                         .max(1),
                     from: self.foot,
                     landing: None,
@@ -240,6 +263,12 @@ impl LegState {
             landing,
         } = &mut self.phase
         {
+            let shortest = (min_swing / dt).round() as u32;
+            if p.stride_walk.is_some() && shortest > *frames {
+                // Lengthened by at most as much as keeps `frame / frames` from falling next frame, so
+                // that the foot never moves back; it reaches the shortest swing over the next frames.
+                *frames = shortest.min(*frames + *frames / (*frame).max(1));
+            }
             *frame += 1;
             let s = (*frame as f32 / *frames as f32).min(1.0);
             let remaining = (*frames - (*frame).min(*frames)) as f32 * dt;
@@ -255,6 +284,7 @@ impl LegState {
             if *frame >= *frames {
                 self.foot = Point3::new(target.x, target.y, leg.sole);
                 self.phase = LegPhase::Stance { time: 0.0 };
+                self.stride = [0.0; 2];
             } else {
                 let u = min_jerk((s - edge) / (1.0 - 2.0 * edge));
                 let xy = Vector2::new(from.x, from.y) + (target - Vector2::new(from.x, from.y)) * u;
@@ -343,6 +373,7 @@ mod tests {
             duty: 0.5,
             lift: 1.0,
             min_swing: 0.1,
+            stride_walk: None,
             clearance,
         };
         let mut state = LegState::standing(Point3::new(0.5, 0.2, 0.0));
@@ -358,6 +389,72 @@ mod tests {
             prev = state.foot;
         }
         (worst, (state.foot.xy() - start.xy()).norm())
+    }
+
+    /// Frames in the air of a swing forced at frame `liftoff`, the body moving forward at `speeds[k]`
+    /// (m/s) in frame `k` (the last speed from then on), its speed now a walk from frame `walk_now`
+    /// (then the shortest swing is `walk` frames, before it the trot's 4); with `stride_walk`, strides
+    /// below 1 m/s are walks (5 frames). Also whether the foot ever moved backwards.
+    fn air_frames(speeds: &[f32], liftoff: usize, walk_now: usize, walk: f32, stride_walk: bool) -> (usize, bool) {
+        let (leg, dt) = (leg(), 1.0 / 30.0);
+        let mut base = BaseMotion {
+            position: Vector2::zeros(),
+            yaw: 0.0,
+            v: Vector2::zeros(),
+            wz: 0.0,
+            v_target: Vector2::zeros(),
+            wz_target: 0.0,
+            tau: 0.3,
+        };
+        let mut p = StepParams {
+            stepping: false,
+            clock: 0.0,
+            frequency: 5.0,
+            duty: 0.5,
+            lift: 1.0,
+            min_swing: 0.0,
+            stride_walk: stride_walk.then_some(StrideWalk { below: 1.0, min_swing: 5.0 * dt }),
+            clearance: 0.0,
+        };
+        let mut state = LegState::standing(Point3::new(0.5, 0.2, 0.0));
+        let (mut air, mut back) = (0, false);
+        for k in 0.. {
+            let v = Vector2::new(speeds[k.min(speeds.len() - 1)], 0.0);
+            (base.v, base.v_target) = (v, v);
+            base.position += v * dt;
+            p.min_swing = if k >= walk_now { walk } else { 4.0 } * dt;
+            let x = state.foot.x;
+            state.step(&leg, leg.nominal, 0.0, &base, &p, dt, k == liftoff);
+            back |= state.foot.x < x - 1e-6;
+            if k >= liftoff {
+                if state.in_stance() {
+                    break;
+                }
+                air += 1;
+            }
+        }
+        (air, back)
+    }
+
+    #[test]
+    fn a_swing_ending_a_walking_stride_is_a_walking_swing() {
+        // Speeding up from a walk: five frames at 0.5 m/s, lift-off at 2 m/s. The stride so far
+        // averages 0.7 m/s, a walk, though the body's speed now is a trot's.
+        let speeding = [0.5, 0.5, 0.5, 0.5, 0.5, 2.0];
+        assert_eq!(air_frames(&speeding, 5, usize::MAX, 5.0, true), (4, false));
+        assert_eq!(air_frames(&speeding, 5, usize::MAX, 5.0, false), (3, false));
+        // Slowing to a walk in any frame of a trotting swing (3 frames in the air from lift-off at
+        // frame 5): the swing under way lengthens by a frame, and the foot keeps going forwards.
+        let slowing = [2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 0.3];
+        for walk_now in 6..=8 {
+            assert_eq!(air_frames(&slowing, 5, walk_now, 5.0, true), (4, false), "walk from {walk_now}");
+            assert_eq!(air_frames(&slowing, 5, walk_now, 5.0, false), (3, false), "walk from {walk_now}");
+        }
+        // A much longer shortest swing, late in the air: the swing lengthens frame by frame to it,
+        // never by so much at once that the foot would move back.
+        assert_eq!(air_frames(&slowing, 5, 8, 8.0, true), (7, false));
+        // A trot all the way takes the trot's swing.
+        assert_eq!(air_frames(&[2.0], 5, usize::MAX, 5.0, true), (3, false));
     }
 
     #[test]

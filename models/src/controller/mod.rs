@@ -26,8 +26,8 @@
 //! frequency is Alexander's `v / (2.3·h·Fr^0.3)`. Where a stance would not fit in the step radius,
 //! the duty factor is first lowered within the gait's range ([`gait::Gait::duty_fitting`]) and only
 //! then the frequency raised; it is capped so that swings last at least [`LegConfig::min_swing_frames`] frames
-//! ([`LegConfig::walking_min_swing_frames`] in the walks, judged by the body's speed:
-//! [`LegConfig::walks_by_body_speed`]). The bundled Spot-like
+//! ([`LegConfig::walking_min_swing_frames`] in the walks, judged by the body's speed now and over the
+//! stride: [`LegConfig::walks_by_body_speed`]). The bundled Spot-like
 //! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
 //! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
 //!
@@ -59,7 +59,7 @@ use thiserror::Error;
 pub use chain::{Chain, ChainScratch, IkResult};
 pub use commands::{Command, CommandConfig, CommandGenerator};
 pub use gait::{Gait, GaitKind, GaitSelector};
-pub use legs::{BaseMotion, LegPhase, LegState, StepParams};
+pub use legs::{BaseMotion, LegPhase, LegState, StepParams, StrideWalk};
 pub use reach::{ReachConfig, ReachEvents, ReachState};
 pub use rig::{BaseMode, Leg, ReachGroup, ReachKind, Rig, Wheel};
 
@@ -159,8 +159,9 @@ pub struct LegConfig {
     /// Whether a walk, for the shortest swing, is judged by the body's own speed, as Froude's number
     /// and the gait measure's walking swings are, rather than by the feet's `|v| + |ω|·R`, which a turn
     /// raises: judged by the feet's, a turning long-legged spider took trotting swings at walking
-    /// speeds. `false`: the feet's (the datasets recorded before this setting, which the shipped
-    /// checkpoints were trained on).
+    /// speeds. By the body's, the speed now and the stride's mean speed both count, also while the
+    /// foot is in the air ([`StrideWalk`]). `false`: the feet's, at lift-off (the datasets recorded
+    /// before this setting, which the shipped checkpoints were trained on).
     pub walks_by_body_speed: bool,
     /// Probability per episode that the fast quadruped gait is the bound rather than the gallop.
     pub bound_probability: f32,
@@ -650,6 +651,10 @@ impl<'a> Controller<'a> {
             duty,
             lift: 0.7 + 0.3 * fr.min(1.0),
             min_swing: rig::min_swing_frames(&self.cfg, fr_walk) as f32 * self.dt,
+            stride_walk: self.cfg.legs.walks_by_body_speed.then(|| StrideWalk {
+                below: dynamic_similarity::speed_at_froude(dynamic_similarity::WALK_TROT_FROUDE, h),
+                min_swing: rig::min_swing_frames(&self.cfg, 0.0) as f32 * self.dt,
+            }),
             clearance: rig.clearance,
         };
         for (i, (state, leg)) in self.legs.iter_mut().zip(&rig.legs).enumerate() {
