@@ -25,7 +25,7 @@ use anyhow::{Context, Result, bail};
 
 use crate::characters;
 use crate::output::{Outputs, Planned};
-use crate::scoring::{HumanSource, Scorer};
+use crate::scoring::{FrameFlags, HumanSource, Scorer};
 
 /// Where a bundled character's shipped checkpoint lives.
 pub fn shipped_checkpoint(name: &str) -> PathBuf {
@@ -248,8 +248,8 @@ pub struct Retargeted {
     pub motion: RetargetedMotion,
     /// DIV, FID, L_fea and UFR of the motion.
     pub report: MetricsReport,
-    /// Per frame, whether a UFR detector flags it.
-    pub flagged: Vec<bool>,
+    /// Per frame, whether a UFR detector flags it and whether a foot pops.
+    pub flags: FrameFlags,
 }
 
 /// Retargets one clip (already at the project frame rate) and scores it with the checkpoint's
@@ -272,8 +272,8 @@ pub fn retarget_and_score(
     let body = scorer.human_body(human_body_length(clip));
     let human_psi = scorer.human_psi(&human, body);
     let source = HumanSource { psi: &human_psi, bodies: &[body] };
-    let (report, ufr) = scorer.report_with_flags(tree, morph, &psi, Some(source), &motion.poses, &[0..motion.poses.len()]);
-    Ok(Retargeted { human, motion, report, flagged: ufr.any })
+    let (report, flags) = scorer.report_with_flags(tree, morph, &psi, Some(source), &motion.poses, &[0..motion.poses.len()]);
+    Ok(Retargeted { human, motion, report, flags })
 }
 
 /// Fails when `rig` asks for something only a rigged glTF creature has and `character` is a URDF.

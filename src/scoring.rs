@@ -18,7 +18,7 @@ use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::checkpoint::CharacterInfo;
 use ace::models::checkpoint::ace::AceRecord;
 use ace::models::metrics::{
-    DivConfig, FollowingConfig, FollowingSummary, GaussianFit, MetricsInput, MetricsReport, UfrConfig, UfrReport,
+    DivConfig, FollowingConfig, FollowingSummary, GaussianFit, MetricsInput, MetricsReport, UfrConfig,
     following, frechet_distance, gait_of_poses, ufr_episodes,
 };
 use ace::models::morphology::Morphology;
@@ -78,6 +78,16 @@ fn check_reference_origin(v: &serde_json::Value, record: &AceRecord) -> Result<(
         }
     }
     Ok(())
+}
+
+/// Per-frame flags of a scored motion, for a timeline.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameFlags {
+    /// Whether a UFR detector flags the frame.
+    pub ufr: Vec<bool>,
+    /// Whether a popping swing ([`ace::models::metrics::GaitReport::pop_frames`]) is in the air; all
+    /// false for a character without feet.
+    pub pops: Vec<bool>,
 }
 
 /// Ψ of the human clips a motion was retargeted from, aligned with its frames.
@@ -265,7 +275,7 @@ impl Scorer {
         self.report_with_flags(tree, morph, psi, human, poses, episodes).0
     }
 
-    /// [`Scorer::report`] with the UFR detectors' per-frame flags.
+    /// [`Scorer::report`] with per-frame flags for a timeline.
     pub fn report_with_flags(
         &self,
         tree: &KinematicTree,
@@ -274,7 +284,7 @@ impl Scorer {
         human: Option<HumanSource<'_>>,
         poses: &[CharacterPose],
         episodes: &[Range<usize>],
-    ) -> (MetricsReport, UfrReport) {
+    ) -> (MetricsReport, FrameFlags) {
         let ufr = ufr_episodes(tree, morph, poses, episodes, PROJECT_FPS, &UfrConfig::for_character(tree, morph));
         let mut report = MetricsReport::compute(
             &MetricsInput {
@@ -287,8 +297,10 @@ impl Scorer {
             },
             &ufr,
         );
-        report.gait = gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None).map(|g| g.summary);
+        let gait = gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None);
+        let pops = gait.as_ref().map_or_else(|| vec![false; poses.len()], |g| g.pop_frames.clone());
+        report.gait = gait.map(|g| g.summary);
         report.following = human.map(|h| self.following(psi, h, episodes));
-        (report, ufr)
+        (report, FrameFlags { ufr: ufr.any, pops })
     }
 }

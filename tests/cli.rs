@@ -955,3 +955,45 @@ fn scores_without_the_cleanup_are_of_the_joints_shown() {
         }
     }
 }
+
+/// The frames a timeline marks as popping are those of every swing of 1–2 frames, found here by hand
+/// from the feet's contacts (the UFR's band): on the shipped Spot's raw networks over the bundled walk,
+/// which pop, and after the cleanup, which does not.
+#[test]
+fn the_flags_mark_the_frames_of_popping_swings() {
+    use ace::models::cleanup::Cleanup;
+    use ace::models::human::HumanClip;
+    use ace::models::metrics::{FootTracks, UfrConfig};
+    use ace::models::morphology::load_character;
+    use ace::retarget::{Backend, Networks, retarget_and_score, shipped_checkpoint};
+    use ace::scoring::Scorer;
+
+    let (tree, morph) = load_character(&root().join("assets/characters/spot.urdf")).unwrap();
+    let dir = shipped_checkpoint("spot");
+    let mut networks = Networks::load(&dir, Backend::Rust).unwrap();
+    let scorer = Scorer::new(networks.record(), networks.character(), &dir).unwrap();
+    let clip = HumanClip::from_bvh_file(&root().join("assets/motions/walk.bvh"), &Default::default()).unwrap();
+    for (cleanup, pops) in [(Cleanup::NONE, true), (Cleanup::default(), false)] {
+        networks.set_cleanup(cleanup);
+        let scored = retarget_and_score(&networks, &scorer, &tree, &morph, &clip).unwrap();
+        let poses = &scored.motion.poses;
+        let band = UfrConfig::for_character(&tree, &morph).contact_height;
+        let tracks = FootTracks::from_poses(&tree, &morph, poses, band);
+        let mut want = vec![false; poses.len()];
+        for k in 0..tracks.feet {
+            let contact: Vec<bool> = (0..poses.len()).map(|t| tracks.contact[t * tracks.feet + k]).collect();
+            let mut last = None;
+            for t in (0..poses.len()).filter(|&t| contact[t]) {
+                if let Some(l) = last.filter(|&l: &usize| t - l - 1 <= 2 && t - l > 1) {
+                    want[l + 1..t].iter_mut().for_each(|f| *f = true);
+                }
+                last = Some(t);
+            }
+        }
+        let flags = &scored.flags;
+        assert_eq!(flags.pops, want, "{cleanup:?}");
+        assert_eq!(flags.pops.iter().any(|&f| f), pops, "{cleanup:?}: {} popping frames", want.iter().filter(|&&f| f).count());
+        assert_eq!(flags.ufr.len(), poses.len());
+        assert_eq!(scored.report.gait.as_ref().unwrap().pops > 0, pops, "{cleanup:?}");
+    }
+}

@@ -199,3 +199,80 @@ fn the_loss_plot_carries_the_retrains_logged_losses() {
         }
     }
 }
+
+/// The timeline marks every frame a UFR detector flags in the strip's upper half, and every frame of a
+/// popping swing in its lower half. The preview's own flags are swapped for those of the shipped Spot's
+/// raw networks on the same clip (no cleanup), whose feet pop and slide; the cleaned preview has none.
+/// The Metrics panel shows the preview's steps.
+#[test]
+fn the_timeline_marks_ufr_frames_and_popping_swings() {
+    use ace::models::cleanup::Cleanup;
+    use ace::models::human::{HumanClip, ImportOptions};
+    use ace::models::human_set::PROJECT_FPS;
+    use ace::retarget::{Backend, Networks, retarget_and_score};
+    use ace::scoring::Scorer;
+    use bevy_egui::egui;
+
+    use crate::ui::{POP_MARK, UFR_MARK, UiState, metrics_and_export, timeline};
+
+    let checkpoint = repo().join("assets/checkpoints/spot");
+    let character = repo().join("assets/characters/spot.urdf");
+    let mut preview = Preview::default();
+    let mut result = preview::compute(&PreviewInputs { character: character.clone(), checkpoint: checkpoint.clone(), clip: walk() }).unwrap();
+    let (tree, morph) = load_character(&character).unwrap();
+    let mut networks = Networks::load(&checkpoint, Backend::Rust).unwrap();
+    networks.set_cleanup(Cleanup::NONE);
+    let scorer = Scorer::new(networks.record(), networks.character(), &checkpoint).unwrap();
+    let clip = HumanClip::from_bvh_file(&walk(), &ImportOptions { fps: Some(PROJECT_FPS), mapping: None }).unwrap();
+    let raw = retarget_and_score(&networks, &scorer, &tree, &morph, &clip).unwrap().flags;
+    let count = |f: &[bool]| f.iter().filter(|&&f| f).count();
+    assert_eq!(count(&result.retargeted.flags.pops), 0, "the cleaned walk pops");
+    let (ufr, pops) = (count(&raw.ufr), count(&raw.pops));
+    assert!(ufr > 0 && pops > 0 && ufr != pops, "raw: {ufr} UFR frames, {pops} popping");
+    result.retargeted.flags = raw;
+    preview.result = Some(result);
+
+    let mut player = bevy_ace::prelude::HumanClipPlayer::new(Handle::default());
+    let ctx = egui::Context::default();
+    let mut out = ctx.run_ui(Default::default(), |ui| timeline(ui, &mut player, &preview));
+    out.textures_delta.clear();
+    // (colour, whether in the lower half) of each mark; the strip is the background rectangle's.
+    let strip = out
+        .shapes
+        .iter()
+        .find_map(|s| match &s.shape {
+            egui::Shape::Rect(r) if r.fill == egui::Color32::from_gray(40) => Some(r.rect),
+            _ => None,
+        })
+        .expect("the timeline's strip");
+    let marks: Vec<(egui::Color32, bool)> = out
+        .shapes
+        .iter()
+        .filter_map(|s| match &s.shape {
+            egui::Shape::LineSegment { points, stroke } if [UFR_MARK, POP_MARK].contains(&stroke.color) => {
+                Some((stroke.color, points[0].y.min(points[1].y) >= strip.center().y - 1e-3))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(marks.iter().filter(|m| **m == (UFR_MARK, false)).count(), ufr);
+    assert_eq!(marks.iter().filter(|m| **m == (POP_MARK, true)).count(), pops);
+    assert_eq!(marks.len(), ufr + pops);
+
+    // The Metrics panel's steps are the cleaned walk's gait.
+    let gait = preview.result.as_ref().unwrap().retargeted.report.gait.clone().unwrap();
+    let mut out = ctx.run_ui(Default::default(), |ui| metrics_and_export(ui, &preview, &mut UiState::default()));
+    out.textures_delta.clear();
+    let texts: Vec<String> = out
+        .shapes
+        .iter()
+        .filter_map(|s| match &s.shape {
+            egui::Shape::Text(t) => Some(t.galley.text().to_owned()),
+            _ => None,
+        })
+        .collect();
+    let want = format!("{} swings, median {:.0} frames", gait.swings, gait.median_swing_frames);
+    assert!(gait.swings > 10 && texts.contains(&want), "{want} not among {texts:?}");
+    let ratio = format!("{:.2}×", gait.median_ratio.unwrap());
+    assert!(texts.contains(&ratio), "{ratio} not among {texts:?}");
+}

@@ -293,7 +293,7 @@ pub(crate) fn weights_and_retrain(ui: &mut egui::Ui, preview: &Preview, retrain:
     }
 }
 
-fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState) {
+pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState) {
     let Some(result) = &preview.result else {
         ui.label(if preview.busy() { "retargeting…" } else { "no preview" });
         return;
@@ -313,7 +313,16 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState)
             ("  foot sliding", format!("{:.2} %", 100.0 * rates.sliding)),
             ("DIV", format!("{:.3}", r.div)),
             ("FID (lower is better)", opt(r.fid)),
-        ] {
+        ]
+        .into_iter()
+        .chain(r.gait.iter().flat_map(|g| {
+            [
+                ("steps", format!("{} swings, median {:.0} frames", g.swings, g.median_swing_frames)),
+                ("  pops (a foot up 1–2 frames)", format!("{:.1} %", 100.0 * g.pop_rate())),
+                ("  micro-steps (under 0.1 body lengths)", format!("{:.1} %", 100.0 * g.micro_step_rate())),
+                ("  stride frequency ÷ Alexander's law", g.median_ratio.map_or("n/a".into(), |x| format!("{x:.2}×"))),
+            ]
+        })) {
             ui.label(name);
             ui.label(value);
             ui.end_row();
@@ -360,25 +369,35 @@ fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &mut UiState)
     }
 }
 
-fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) {
-    let flagged: &[bool] = preview.result.as_ref().map_or(&[], |r| &r.retargeted.flagged);
-    let duration = (flagged.len().max(1) - 1) as f32 / PROJECT_FPS;
+/// The timeline's marks: frames a UFR detector flags (the strip's upper half) and frames a popping
+/// swing is in the air (its lower half).
+pub(crate) const UFR_MARK: egui::Color32 = egui::Color32::from_rgb(230, 80, 70);
+pub(crate) const POP_MARK: egui::Color32 = egui::Color32::from_rgb(240, 180, 40);
+
+pub(crate) fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) {
+    let flags = preview.result.as_ref().map(|r| &r.retargeted.flags);
+    let (ufr, pops): (&[bool], &[bool]) = flags.map_or((&[], &[]), |f| (&f.ufr, &f.pops));
+    let duration = (ufr.len().max(1) - 1) as f32 / PROJECT_FPS;
     ui.horizontal(|ui| {
         if ui.button(if player.paused { "▶ play" } else { "⏸ pause" }).clicked() {
             player.paused = !player.paused;
         }
         ui.add(egui::Slider::new(&mut player.speed, 0.1..=2.0).text("speed"));
         ui.label(format!("{:.2} / {duration:.2} s, frame {}", player.time, (player.time * PROJECT_FPS).round() as usize));
-        let count = flagged.iter().filter(|&&f| f).count();
-        ui.colored_label(egui::Color32::from_rgb(230, 80, 70), format!("{count} frames flagged by the UFR detectors"));
+        let count = |f: &[bool]| f.iter().filter(|&&f| f).count();
+        ui.colored_label(UFR_MARK, format!("{} frames flagged by the UFR detectors", count(ufr)));
+        ui.colored_label(POP_MARK, format!("{} frames of popping swings (a foot up 1–2 frames)", count(pops)));
     });
     let (rect, response) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 26.0), egui::Sense::click_and_drag());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 3.0, egui::Color32::from_gray(40));
     let x_of = |t: f32| rect.left() + rect.width() * (t / duration.max(1e-6)).clamp(0.0, 1.0);
-    for (k, _) in flagged.iter().enumerate().filter(|(_, f)| **f) {
-        let x = x_of(k as f32 / PROJECT_FPS);
-        painter.line_segment([egui::pos2(x, rect.top() + 3.0), egui::pos2(x, rect.bottom() - 3.0)], egui::Stroke::new(2.0, egui::Color32::from_rgb(230, 80, 70)));
+    let (top, middle, bottom) = (rect.top() + 3.0, rect.center().y, rect.bottom() - 3.0);
+    for (marks, colour, [y0, y1]) in [(ufr, UFR_MARK, [top, middle]), (pops, POP_MARK, [middle, bottom])] {
+        for (k, _) in marks.iter().enumerate().filter(|(_, f)| **f) {
+            let x = x_of(k as f32 / PROJECT_FPS);
+            painter.line_segment([egui::pos2(x, y0), egui::pos2(x, y1)], egui::Stroke::new(2.0, colour));
+        }
     }
     let x = x_of(player.time);
     painter.line_segment([egui::pos2(x, rect.top()), egui::pos2(x, rect.bottom())], egui::Stroke::new(2.5, egui::Color32::WHITE));
