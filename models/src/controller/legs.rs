@@ -266,7 +266,8 @@ impl LegState {
             let shortest = (min_swing / dt).round() as u32;
             if p.stride_walk.is_some() && shortest > *frames {
                 // Lengthened by at most as much as keeps `frame / frames` from falling next frame, so
-                // that the foot never moves back; it reaches the shortest swing over the next frames.
+                // that the foot never moves back along its arc; it reaches the shortest swing over the
+                // next frames.
                 *frames = shortest.min(*frames + *frames / (*frame).max(1));
             }
             *frame += 1;
@@ -394,7 +395,8 @@ mod tests {
     /// Frames in the air of a swing forced at frame `liftoff`, the body moving forward at `speeds[k]`
     /// (m/s) in frame `k` (the last speed from then on), its speed now a walk from frame `walk_now`
     /// (then the shortest swing is `walk` frames, before it the trot's 4); with `stride_walk`, strides
-    /// below 1 m/s are walks (5 frames). Also whether the foot ever moved backwards.
+    /// below 1 m/s are walks (5 frames). Also whether the swing's progress `frame / frames` ever fell
+    /// (the foot moving back along its arc).
     fn air_frames(speeds: &[f32], liftoff: usize, walk_now: usize, walk: f32, stride_walk: bool) -> (usize, bool) {
         let (leg, dt) = (leg(), 1.0 / 30.0);
         let mut base = BaseMotion {
@@ -423,9 +425,13 @@ mod tests {
             (base.v, base.v_target) = (v, v);
             base.position += v * dt;
             p.min_swing = if k >= walk_now { walk } else { 4.0 } * dt;
-            let x = state.foot.x;
+            let progress = |state: &LegState| match state.phase {
+                LegPhase::Swing { frame, frames, .. } => frame as f32 / frames as f32,
+                LegPhase::Stance { .. } => 0.0,
+            };
+            let before = progress(&state);
             state.step(&leg, leg.nominal, 0.0, &base, &p, dt, k == liftoff);
-            back |= state.foot.x < x - 1e-6;
+            back |= !state.in_stance() && progress(&state) < before;
             if k >= liftoff {
                 if state.in_stance() {
                     break;
@@ -444,7 +450,7 @@ mod tests {
         assert_eq!(air_frames(&speeding, 5, usize::MAX, 5.0, true), (4, false));
         assert_eq!(air_frames(&speeding, 5, usize::MAX, 5.0, false), (3, false));
         // Slowing to a walk in any frame of a trotting swing (3 frames in the air from lift-off at
-        // frame 5): the swing under way lengthens by a frame, and the foot keeps going forwards.
+        // frame 5): the swing under way lengthens by a frame, and its progress never falls.
         let slowing = [2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 0.3];
         for walk_now in 6..=8 {
             assert_eq!(air_frames(&slowing, 5, walk_now, 5.0, true), (4, false), "walk from {walk_now}");
@@ -453,6 +459,8 @@ mod tests {
         // A much longer shortest swing, late in the air: the swing lengthens frame by frame to it,
         // never by so much at once that the foot would move back.
         assert_eq!(air_frames(&slowing, 5, 8, 8.0, true), (7, false));
+        // Early in the air too: three times the swing, reached without the swing's progress falling.
+        assert_eq!(air_frames(&slowing, 5, 6, 12.0, true), (11, false));
         // A trot all the way takes the trot's swing.
         assert_eq!(air_frames(&[2.0], 5, usize::MAX, 5.0, true), (3, false));
     }
