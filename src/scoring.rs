@@ -297,9 +297,13 @@ impl Scorer {
             },
             &ufr,
         );
-        let gait = gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None);
-        let pops = gait.as_ref().map_or_else(|| vec![false; poses.len()], |g| g.pop_frames.clone());
-        report.gait = gait.map(|g| g.summary);
+        let pops = match gait_of_poses(tree, morph, poses, episodes, PROJECT_FPS, None) {
+            Some(g) => {
+                report.gait = Some(g.summary);
+                g.pop_frames
+            }
+            None => vec![false; poses.len()],
+        };
         report.following = human.map(|h| self.following(psi, h, episodes));
         (report, FrameFlags { ufr: ufr.any, pops })
     }

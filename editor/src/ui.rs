@@ -369,9 +369,9 @@ pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &m
     }
 }
 
-/// The timeline's marks: frames a UFR detector flags (the strip's upper half) and frames a popping
-/// swing is in the air (its lower half).
+/// The timeline's mark of a frame a UFR detector flags (in the strip's upper half).
 pub(crate) const UFR_MARK: egui::Color32 = egui::Color32::from_rgb(230, 80, 70);
+/// The timeline's mark of a frame a popping swing is in the air (in the strip's lower half).
 pub(crate) const POP_MARK: egui::Color32 = egui::Color32::from_rgb(240, 180, 40);
 
 pub(crate) fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview: &Preview) {
