@@ -133,8 +133,8 @@ impl BaseMotion {
     /// Mean linear velocity and yaw rate over `[t0, t0 + t]`.
     pub fn mean_velocity(&self, t0: f32, t: f32) -> (Vector2<f32>, f32) {
         let (v0, w0) = self.velocity_at(t0);
-        let ahead = BaseMotion { v: v0, wz: w0, ..*self };
-        let a = ahead.mean_approach(t);
+        // The lag from there on is the same filter's (only `tau` matters).
+        let a = self.mean_approach(t);
         (v0 + (self.v_target - v0) * a, w0 + (self.wz_target - w0) * a)
     }
 
