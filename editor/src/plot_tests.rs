@@ -213,7 +213,7 @@ fn the_timeline_marks_ufr_frames_and_popping_swings() {
     use ace::scoring::Scorer;
     use bevy_egui::egui;
 
-    use crate::ui::{POP_MARK, UFR_MARK, UiState, metrics_and_export, timeline};
+    use crate::ui::{POP_MARK, STRIP, UFR_MARK, UiState, metrics_and_export, timeline};
 
     let checkpoint = repo().join("assets/checkpoints/spot");
     let character = repo().join("assets/characters/spot.urdf");
@@ -241,7 +241,7 @@ fn the_timeline_marks_ufr_frames_and_popping_swings() {
         .shapes
         .iter()
         .find_map(|s| match &s.shape {
-            egui::Shape::Rect(r) if r.fill == egui::Color32::from_gray(40) => Some(r.rect),
+            egui::Shape::Rect(r) if r.fill == STRIP => Some(r.rect),
             _ => None,
         })
         .expect("the timeline's strip");

@@ -369,6 +369,8 @@ pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &m
     }
 }
 
+/// The timeline strip's background.
+pub(crate) const STRIP: egui::Color32 = egui::Color32::from_gray(40);
 /// The timeline's mark of a frame a UFR detector flags (in the strip's upper half).
 pub(crate) const UFR_MARK: egui::Color32 = egui::Color32::from_rgb(230, 80, 70);
 /// The timeline's mark of a frame a popping swing is in the air (in the strip's lower half).
@@ -390,7 +392,7 @@ pub(crate) fn timeline(ui: &mut egui::Ui, player: &mut HumanClipPlayer, preview:
     });
     let (rect, response) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 26.0), egui::Sense::click_and_drag());
     let painter = ui.painter_at(rect);
-    painter.rect_filled(rect, 3.0, egui::Color32::from_gray(40));
+    painter.rect_filled(rect, 3.0, STRIP);
     let x_of = |t: f32| rect.left() + rect.width() * (t / duration.max(1e-6)).clamp(0.0, 1.0);
     let (top, middle, bottom) = (rect.top() + 3.0, rect.center().y, rect.bottom() - 3.0);
     for (marks, colour, [y0, y1]) in [(ufr, UFR_MARK, [top, middle]), (pops, POP_MARK, [middle, bottom])] {

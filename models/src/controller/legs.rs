@@ -221,6 +221,7 @@ impl LegState {
             Some(w) if self.stride[0] < w.below * self.stride[1] => p.min_swing.max(w.min_swing),
             _ => p.min_swing,
         };
+        let shortest = (min_swing / dt).round() as u32;
         let stance_time = p.duty / p.frequency;
         let window = 1.0 - p.duty;
         let phase = (p.clock - offset).rem_euclid(1.0);
@@ -249,7 +250,7 @@ impl LegState {
                 self.phase = LegPhase::Swing {
                     frame: 0,
                     frames: ((duration / dt).round() as u32)
-                        .max((min_swing / dt).round() as u32)
+                        .max(shortest)
                         .max(1),
                     from: self.foot,
                     landing: None,
@@ -263,7 +264,6 @@ impl LegState {
             landing,
         } = &mut self.phase
         {
-            let shortest = (min_swing / dt).round() as u32;
             if p.stride_walk.is_some() && shortest > *frames {
                 // Lengthened by at most as much as keeps `frame / frames` from falling next frame, so
                 // that the foot never moves back along its arc; it reaches the shortest swing over the
