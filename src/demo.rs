@@ -152,18 +152,19 @@ pub fn run(
 
 fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String {
     let mut s = String::from(
-        "| character | clip | frames | L_fea | following | heading error | standing: travel, turning | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| character | clip | frames | L_fea | following | heading error | pace | standing: travel, turning | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let opt = |v: Option<f32>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
     for (c, clip, r, _) in rows {
         let u = &r.ufr.rates;
         let _ = writeln!(
             s,
-            "| {c} | {clip} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
+            "| {c} | {clip} | {} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
             r.frames,
             opt(r.feature_loss),
             opt(crate::eval::following_score(r)),
             crate::eval::heading(r),
+            crate::eval::pace(r),
             crate::eval::standing(r),
             100.0 * u.ufr,
             100.0 * u.self_collision,

@@ -392,6 +392,17 @@ pub fn heading(m: &MetricsReport) -> String {
     heading_error(m).map_or("n/a".into(), |v| format!("{v:.0}°"))
 }
 
+/// A motion's pace (median over its clips where the human walks): the character's root travel over
+/// the human's at the dataset's speed scale ([`ace::models::metrics::following()`]).
+pub fn pace_ratio(m: &MetricsReport) -> Option<f32> {
+    m.following.as_ref().and_then(|f| f.pace)
+}
+
+/// [`pace_ratio`] for a table, "0.82", or "n/a" where the human never walks.
+pub fn pace(m: &MetricsReport) -> String {
+    pace_ratio(m).map_or("n/a".into(), |v| format!("{v:.2}"))
+}
+
 /// How far the character travels and turns while the human stands
 /// ([`ace::models::metrics::following()`]), "0.012 BL/s, 1.3°/s", or "n/a" where the human never stands.
 pub fn standing(m: &MetricsReport) -> String {
@@ -410,7 +421,7 @@ pub fn markdown(e: &Evaluation) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | pace → 1 | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         e.character,
         e.held_out_clips.len(),
         e.frames
@@ -420,13 +431,14 @@ pub fn markdown(e: &Evaluation) -> String {
         let u = &m.ufr.rates;
         let _ = writeln!(
             s,
-            "| {} | {:.3} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            "| {} | {:.3} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
             r.system,
             m.div,
             opt(m.fid),
             opt(m.feature_loss),
             opt(following_score(m)),
             heading(m),
+            pace(m),
             100.0 * u.ufr,
             100.0 * u.self_collision,
             100.0 * u.penetration,
@@ -550,14 +562,14 @@ pub fn markdown(e: &Evaluation) -> String {
 
 /// The table as CSV (one row per system).
 pub fn csv(e: &Evaluation) -> String {
-    let mut s = String::from("character,system,frames,div,fid,l_fea,following,heading_error_deg,ufr,self_collision,penetration,sliding\n");
+    let mut s = String::from("character,system,frames,div,fid,l_fea,following,heading_error_deg,pace,ufr,self_collision,penetration,sliding\n");
     for r in &e.rows {
         let m = &r.metrics;
         let u = &m.ufr.rates;
         let o = |v: Option<f32>| v.map_or(String::new(), |v| v.to_string());
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
             e.character,
             r.system,
             m.frames,
@@ -566,6 +578,7 @@ pub fn csv(e: &Evaluation) -> String {
             o(m.feature_loss),
             o(following_score(m)),
             o(heading_error(m)),
+            o(pace_ratio(m)),
             u.ufr,
             u.self_collision,
             u.penetration,

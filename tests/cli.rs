@@ -478,10 +478,10 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
         let cells: Vec<&str> = row.split(',').collect();
         assert!(row.starts_with(&format!("stretch,{system},")), "{csv}");
-        // div, fid, l_fea, following and heading error (the last three empty for the dataset, which
-        // has no human), ufr.
-        for (k, c) in cells[3..9].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
+        // div, fid, l_fea, following, heading error and pace (the last four empty for the dataset,
+        // which has no human; the bundled walk gives every other row a pace), ufr.
+        for (k, c) in cells[3..10].iter().enumerate() {
+            let humanless = c.is_empty() && system == "Dataset" && (2..=5).contains(&k);
             assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
         }
     }

@@ -307,6 +307,7 @@ pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &m
             ("L_fea (lower is better)", opt(r.feature_loss)),
             ("following (higher is better)", opt(r.following.as_ref().and_then(|f| f.score))),
             ("heading error (lower is better)", ace::eval::heading(r)),
+            ("pace (1 = the human's, at the speed scale)", ace::eval::pace(r)),
             ("UFR (lower is better)", format!("{:.2} %", 100.0 * rates.ufr)),
             ("  self-collision", format!("{:.2} %", 100.0 * rates.self_collision)),
             ("  foot penetration", format!("{:.2} %", 100.0 * rates.penetration)),

@@ -279,3 +279,47 @@ fn a_character_that_turns_away_from_the_humans_path_is_caught_by_heading() {
     let one = f.score_poses(&[f.tree.neutral_pose(Isometry3::identity())], 1.0);
     assert_eq!(one.heading_error, None);
 }
+
+/// Pace: on the bundled walk (the person walks at about 1.2 m/s), Stretch driven straight ahead at the
+/// person's speed times L_fea's speed scale keeps the person's pace (about 1), at half that speed 0.5,
+/// and standing 0; where the person stands there is no pace to keep.
+#[test]
+fn a_character_that_falls_behind_a_walking_human_is_caught_by_pace() {
+    let mut f = fixture();
+    let text = std::fs::read_to_string(repo("assets/motions/walk.bvh")).unwrap();
+    let clip = HumanClip::from_bvh_str(&text, "walk.bvh", &ImportOptions::default()).unwrap().resampled(FPS);
+    f.human = clip.states().into_iter().map(|s| s.0.to_vec()).collect();
+    // The person's mean horizontal pelvis speed once walking (after the first second).
+    let speeds: Vec<f32> = f.human[30..].iter().map(|x| x[hl::ROOT_LINEAR_VELOCITY][0].hypot(x[hl::ROOT_LINEAR_VELOCITY][1])).collect();
+    let person = speeds.iter().sum::<f32>() / speeds.len() as f32;
+    assert!((1.0..1.4).contains(&person), "the bundled walk is about 1.2 m/s: {person}");
+    let scale = 0.5; // the character dataset's human-equivalent speed scale
+    let factor = ace_models::features::human_speed_factor(scale, f.human_body, f.character_body);
+    let (n, tree) = (f.human.len(), f.tree.clone());
+    let driving = |v: f32| -> Vec<CharacterPose> {
+        (0..n).map(|t| tree.neutral_pose(Isometry3::translation(v * t as f32 / FPS, 0.0, 0.0))).collect()
+    };
+    let pace = |v: f32| f.score_poses(&driving(v), factor).pace.unwrap();
+    let keeping = pace(scale * person);
+    // The pelvis sways a little beside its path, so the person's travel is a little longer than a
+    // straight line's.
+    assert!((0.9..=1.02).contains(&keeping), "at the person's scaled speed: {keeping}");
+    let half = pace(0.5 * scale * person);
+    assert!((half - 0.5 * keeping).abs() < 0.02, "at half of it: {half} against {keeping}");
+    assert_eq!(pace(0.0), 0.0);
+    // The speed scale counts: told the human's velocity was not scaled, the same motion reads slower.
+    let unscaled = f.score_scaled(&driving(scale * person), 1.0, 1.0).pace.unwrap();
+    assert!((unscaled - keeping * factor).abs() < 0.02 * keeping, "{unscaled} against {keeping} · {factor}");
+    // Summaries take the median over the clips where the human walks.
+    let clips: Vec<(FollowingReport, f32)> =
+        [1.0, 0.5, 0.0].iter().map(|k| (f.score_poses(&driving(k * scale * person), factor), f.human_body)).collect();
+    f.standing_human(0.0);
+    let standing = f.score_poses(&driving(0.3)[..f.human.len()], factor);
+    assert_eq!(standing.pace, None, "a standing person sets no pace");
+    // Nor does one shuffling at 0.1 m/s (not standing, not walking).
+    f.standing_human(0.1);
+    assert_eq!(f.score_poses(&driving(0.3)[..f.human.len()], factor).pace, None);
+    let s = FollowingSummary::new([clips, vec![(standing, f.human_body)]].concat());
+    assert_eq!(s.walking_clips, 3);
+    assert_eq!(s.pace, Some(half));
+}

@@ -35,6 +35,13 @@
 //!   heading frame and cannot see a character that turns where the human walks straight, or walks on
 //!   where the human turns: it leaves the human's path. 0 is a character that turns as the human does.
 //!
+//! - **Pace** (the whole body): within the windows where the human's root travels at least
+//!   [`FollowingConfig::walking_speed`], the character's root travel over the human's at the character
+//!   dataset's speed scale (the speed L_fea asks for, [`crate::features::human_speed_factor`]), median
+//!   over those windows. The end effectors are measured from the root, and the heading only turns:
+//!   neither sees a character that keeps the person's heading at a third of the person's pace and
+//!   falls behind. 1 keeps the person's pace; 0.5 walks half as fast.
+//!
 //! A clip's [`FollowingReport::score`] is the mean combined score of its pairs. Over many clips,
 //! [`FollowingSummary`] gives per pair the median vertical correlation and amplitude ratio over the
 //! clips where the human's end effector moves at least [`MOVING_VERTICAL_M`] up and down, and the
@@ -58,19 +65,25 @@ pub struct FollowingConfig {
     pub still_turn_deg: f32,
     /// Length of the stillness windows (s); consecutive windows overlap by half.
     pub window_s: f32,
+    /// The human's least mean root speed (m/s) within a window for the window to count towards the
+    /// pace.
+    pub walking_speed: f32,
     /// Frame rate of the poses (frames per second).
     pub fps: f32,
 }
 
 impl FollowingConfig {
     /// The project's thresholds at `fps`: axes where the human moves at least 0.02 body lengths,
-    /// still when within 5 cm (and, for the root, turning at most 10°) over 1 s.
+    /// still when within 5 cm (and, for the root, turning at most 10°) over 1 s, walking at 0.25 m/s
+    /// or more over 1 s (the speed at which the cleanup's standing hold lets the root move freely,
+    /// [`crate::standing::StandingHold`]).
     pub fn new(fps: f32) -> Self {
         FollowingConfig {
             min_motion: 0.02,
             still_extent_m: 0.05,
             still_turn_deg: 10.0,
             window_s: 1.0,
+            walking_speed: 0.25,
             fps,
         }
     }
@@ -140,6 +153,10 @@ pub struct FollowingReport {
     /// since the first frame; `None` for a clip of one frame.
     #[serde(default)]
     pub heading_error: Option<f32>,
+    /// The character's median root travel over the human's (at the dataset's speed scale) while the
+    /// human walks; `None` when the human never walks for a window.
+    #[serde(default)]
+    pub pace: Option<f32>,
 }
 
 /// The following of a clip from the character's Ψ and the human's Ψ (same [`FeatureLayout`], aligned
@@ -206,15 +223,20 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
     let combined: Vec<f32> = out.iter().filter_map(|p| p.combined).collect();
     // Standing: the windows where the human's root travels at most `still_extent_m` metres (its Ψ
     // velocity taken back from L_fea's speed scale and its body lengths) and turns at most
-    // `still_turn_deg`; in them the character's travel (body lengths) and turning, per second.
-    let (mut travels, mut turns) = (Vec::new(), Vec::new());
+    // `still_turn_deg`; in them the character's travel (body lengths) and turning, per second. Pace:
+    // the windows where it travels at least `walking_speed`; in them the character's travel over the
+    // human's, both in the character's body lengths at the speed scale.
+    let (mut travels, mut turns, mut paces) = (Vec::new(), Vec::new(), Vec::new());
     for w in windows(character.len(), window) {
         let (travel, degrees) = root_motion(layout, &human[w.clone()], config.fps);
-        if travel / human_speed * human_body <= config.still_extent_m && degrees <= config.still_turn_deg {
-            let (travel, turn) = root_motion(layout, &character[w.clone()], config.fps);
-            let seconds = w.len() as f32 / config.fps;
-            travels.push(travel / seconds);
-            turns.push(turn / seconds);
+        let (c_travel, c_turn) = root_motion(layout, &character[w.clone()], config.fps);
+        let seconds = w.len() as f32 / config.fps;
+        let metres = travel / human_speed * human_body;
+        if metres <= config.still_extent_m && degrees <= config.still_turn_deg {
+            travels.push(c_travel / seconds);
+            turns.push(c_turn / seconds);
+        } else if metres >= config.walking_speed * seconds {
+            paces.push(c_travel / travel);
         }
     }
     let med = |mut v: Vec<f32>| (!v.is_empty()).then(|| median(&mut v));
@@ -224,6 +246,7 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
         standing_travel: med(travels),
         standing_turn: med(turns),
         heading_error: heading_error(layout, character, human, config.fps),
+        pace: med(paces),
     }
 }
 
@@ -351,6 +374,12 @@ pub struct FollowingSummary {
     /// Median of the clips' [`FollowingReport::heading_error`] (degrees).
     #[serde(default)]
     pub heading_error: Option<f32>,
+    /// Clips where the human walks for at least one window.
+    #[serde(default)]
+    pub walking_clips: usize,
+    /// Median of those clips' [`FollowingReport::pace`].
+    #[serde(default)]
+    pub pace: Option<f32>,
     /// Each clip's report, in order, with its human's body length (m).
     pub clips: Vec<(FollowingReport, f32)>,
 }
@@ -392,6 +421,8 @@ impl FollowingSummary {
             standing_travel: med(standing.iter().filter_map(|r| r.standing_travel).collect()),
             standing_turn: med(standing.iter().filter_map(|r| r.standing_turn).collect()),
             heading_error: med(clips.iter().filter_map(|c| c.0.heading_error).collect()),
+            walking_clips: clips.iter().filter(|c| c.0.pace.is_some()).count(),
+            pace: med(clips.iter().filter_map(|c| c.0.pace).collect()),
             clips,
         }
     }
@@ -417,6 +448,14 @@ impl std::fmt::Display for FollowingSummary {
             self.heading_error.map_or("n/a".to_string(), |v| format!("{v:.0}")),
             if single { "" } else { " (median over the clips)" }
         )?;
+        write!(
+            f,
+            "\n        pace (where the human walks): the character travels {} times as far as the human at the speed scale",
+            opt(self.pace)
+        )?;
+        if !single {
+            write!(f, " ({} clips)", self.walking_clips)?;
+        }
         for (k, p) in self.pairs.iter().enumerate() {
             if single {
                 let c = &self.clips[0].0.pairs[k];
