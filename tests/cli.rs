@@ -444,6 +444,28 @@ fn train_prior_generates_its_dataset_with_the_given_settings_and_records_them() 
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--dataset-config"));
 }
 
+/// `ace eval`'s `eval.csv` in `dir`: a header naming its columns, then one row per system of
+/// `character`, in order, with finite div, fid, l_fea, following, heading error, pace and ufr (the
+/// four that need a person empty for the dataset only; the bundled walk gives every other row a
+/// pace).
+fn check_eval_csv(dir: &Path, character: &str, systems: &[&str]) {
+    let csv = std::fs::read_to_string(dir.join("eval.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let columns = ["div", "fid", "l_fea", "following", "heading_error_deg", "pace", "ufr"];
+    assert_eq!(&header[3..10], &columns, "{csv}");
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), systems.len(), "{csv}");
+    for (row, system) in rows.iter().zip(systems) {
+        assert!(row.starts_with(&format!("{character},{system},")), "{csv}");
+        let cells: Vec<&str> = row.split(',').collect();
+        for (column, c) in columns.iter().zip(&cells[3..10]) {
+            let humanless = c.is_empty() && *system == "Dataset" && ["l_fea", "following", "heading_error_deg", "pace"].contains(column);
+            assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{column} in {row}");
+        }
+    }
+}
+
 #[test]
 fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     let dir = tmp("pipeline");
@@ -472,19 +494,7 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     let eval_dir = dir.join("eval");
     let stdout = run(&["--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--humans", "assets/motions", "--seconds", "4", "--out", &s(&eval_dir)]);
     assert!(stdout.contains("| ACE |"), "{stdout}");
-    let csv = std::fs::read_to_string(eval_dir.join("eval.csv")).unwrap();
-    let rows: Vec<&str> = csv.lines().skip(1).collect();
-    assert_eq!(rows.len(), 4, "{csv}");
-    for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
-        let cells: Vec<&str> = row.split(',').collect();
-        assert!(row.starts_with(&format!("stretch,{system},")), "{csv}");
-        // div, fid, l_fea, following, heading error and pace (the last four empty for the dataset,
-        // which has no human; the bundled walk gives every other row a pace), ufr.
-        for (k, c) in cells[3..10].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (2..=5).contains(&k);
-            assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
-        }
-    }
+    check_eval_csv(&eval_dir, "stretch", &["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]);
     let e: Value = serde_json::from_str(&std::fs::read_to_string(eval_dir.join("eval.json")).unwrap()).unwrap();
     for st in e["stability"].as_array().unwrap() {
         assert_eq!(st["finite"], true, "{st}");
@@ -519,17 +529,7 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     let compare = ["--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--humans", "assets/motions", "--baselines", "--quick", "--runs", &s(&runs), "--out", &s(&cmp_dir)];
     let stdout = run(&compare);
     let systems = ["Dataset", "ACE", "ACE without cleanup", "Prior with random z", "NKN", "ACE w/o feature", "ACE w/o adversarial"];
-    let csv = std::fs::read_to_string(cmp_dir.join("eval.csv")).unwrap();
-    let rows: Vec<&str> = csv.lines().skip(1).collect();
-    assert_eq!(rows.len(), systems.len(), "{csv}");
-    for (row, system) in rows.iter().zip(systems) {
-        let cells: Vec<&str> = row.split(',').collect();
-        assert_eq!(cells[1], system, "{csv}");
-        for (k, c) in cells[3..9].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
-            assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
-        }
-    }
+    check_eval_csv(&cmp_dir, "stretch", &systems);
     for (system, slug) in [("NKN", "nkn"), ("ACE w/o feature", "ace-no-feature"), ("ACE w/o adversarial", "ace-no-adversarial")] {
         assert!(stdout.contains(&format!("{system}: trained in")), "{stdout}");
         assert!(runs.join(slug).join("prior.safetensors").is_file(), "{slug} has no prior");
@@ -661,17 +661,7 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("edited/Fox.glb is not the character file"), "{err}");
-    let csv = std::fs::read_to_string(eval_dir.join("eval.csv")).unwrap();
-    let rows: Vec<&str> = csv.lines().skip(1).collect();
-    assert_eq!(rows.len(), 4, "{csv}");
-    for (row, system) in rows.iter().zip(["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]) {
-        assert!(row.starts_with(&format!("Fox,{system},")), "{csv}");
-        let cells: Vec<&str> = row.split(',').collect();
-        for (k, c) in cells[3..9].iter().enumerate() {
-            let humanless = c.is_empty() && system == "Dataset" && (2..=4).contains(&k);
-            assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{row}");
-        }
-    }
+    check_eval_csv(&eval_dir, "Fox", &["Dataset", "ACE", "ACE without cleanup", "Prior with random z"]);
     let frames = inspect_json(&root().join("assets/motions/walk.bvh"))["frames"].as_u64().unwrap() as usize;
     let csv = std::fs::read_to_string(glb.with_extension("csv")).unwrap();
     assert_eq!(csv.lines().count(), frames + 1);
