@@ -195,11 +195,11 @@ impl Scorer {
     /// checkpoint's fixed human body length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body(clip_body);
-        let speed = self.speed_scale.map(|s| human_speed_factor(s, body, self.body));
+        let factor = self.speed_factor(body);
         x_h.iter()
             .map(|x| {
                 let mut psi = human_features(x, body, &self.mapping);
-                if let Some(factor) = speed {
+                if self.speed_scale.is_some() {
                     scale_human_speed(&mut psi, &self.features, factor);
                 }
                 centre_human_features(&mut psi, &self.feature_offset);
@@ -212,6 +212,14 @@ impl Scorer {
     /// checkpoint's fixed one when it was trained with one.
     pub fn human_body(&self, clip_body: f32) -> f32 {
         self.human_body_override.unwrap_or(clip_body)
+    }
+
+    /// The factor a human's Ψ velocity (its body lengths per second) is multiplied by to be the
+    /// speed L_fea asks of the character, in the character's body lengths per second, for a human of
+    /// `body` metres ([`human_speed_factor`] at the checkpoint's speed scale; 1 for a checkpoint
+    /// trained without it).
+    pub fn speed_factor(&self, body: f32) -> f32 {
+        self.speed_scale.map_or(1.0, |s| human_speed_factor(s, body, self.body))
     }
 
     /// L_fea split by feature block (each block's weighted share; they add up to L_fea).
@@ -252,9 +260,7 @@ impl Scorer {
                 .zip(human.bodies)
                 .map(|(e, &body)| {
                     let (c, h) = (&psi[e.clone()], &human.psi[e.clone()]);
-                    // The factor `human_psi` multiplied the human's velocity by.
-                    let speed = self.speed_scale.map_or(1.0, |s| human_speed_factor(s, body, self.body));
-                    (following(&self.features, &self.pairs, c, h, body, speed, &config), body)
+                    (following(&self.features, &self.pairs, c, h, body, self.speed_factor(body), &config), body)
                 })
                 .collect(),
         )

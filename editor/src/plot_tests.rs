@@ -42,7 +42,8 @@ fn assert_close(got: &[f32], want: &[f32], tolerance: f32, what: &str) {
 
 /// The timeline plots one point per frame of the clip; the pairs are the checkpoint's mapping, in its
 /// order; the human's speed and heights are those of the clip's pelvis and end-effector joints, the
-/// character's those of the poses shown, each in its own body lengths.
+/// character's those of the poses shown, each in its own body lengths, the human's speed brought to
+/// Spot's speed scale as L_fea asks it of Spot.
 #[test]
 fn the_following_plots_of_the_walk_on_spot_are_the_clip_and_the_poses() {
     let result = spot_walk();
@@ -79,21 +80,29 @@ fn the_following_plots_of_the_walk_on_spot_are_the_clip_and_the_poses() {
         })
         .collect();
     let speed: Vec<f32> = ground_speeds(&pelvis, result.clip.fps).iter().map(|v| v / body).collect();
-    assert_close(&series.human_speed, &speed, 1e-4, "human speed");
-    // A walk: the human is on the move most of the time (so the comparisons above can fail).
+    // A walk: the human is on the move most of the time (so the comparisons here can fail).
     let mean = speed.iter().sum::<f32>() / frames as f32;
     assert!(mean > 0.3, "the human walks {mean} body lengths/s on average");
+    // Asked of Spot: the pelvis's speed times Spot's speed scale (ace.json), in Spot's body lengths.
+    let character_body = json["body_lengths"]["character"].as_f64().unwrap() as f32;
+    let scale = json["speed_scale"].as_f64().unwrap() as f32;
+    let asked: Vec<f32> = speed.iter().map(|v| v * body * scale / character_body).collect();
+    assert_close(&series.human_speed, &asked, 1e-4, "the speed asked of Spot");
     for p in &series.pairs {
         let heights: Vec<f32> = result.clip.frames.iter().map(|f| f.positions[p.human.joint().index()].z / body).collect();
         assert_close(&p.human_height, &heights, 1e-5, &format!("human {} height", p.human.name()));
     }
 
     // The character, from the poses' root and the feet's forward kinematics, in Spot's body lengths.
-    let character_body = json["body_lengths"]["character"].as_f64().unwrap() as f32;
     let roots: Vec<[f32; 2]> = result.retargeted.motion.poses.iter().map(|p| [p.root.translation.vector.x, p.root.translation.vector.y]).collect();
     let speed: Vec<f32> = ground_speeds(&roots, 30.0).iter().map(|v| v / character_body).collect();
     assert_close(&series.character_speed, &speed, 1e-4, "character speed");
     assert!(series.character_speed != series.human_speed);
+    // Where the person walks, the two speeds' ratio is the pace the metrics report (a median of
+    // 1-second windows there; here the whole walk after its first second).
+    let pace = result.retargeted.report.following.as_ref().and_then(|f| f.pace).unwrap();
+    let ratio = series.character_speed[30..].iter().sum::<f32>() / series.human_speed[30..].iter().sum::<f32>();
+    assert!((ratio - pace).abs() < 0.1, "the plotted speeds' ratio {ratio} against the pace {pace}");
     // Headings: the human's turn is the clip's (20° to the left after 2 s), measured here from the
     // pelvis's facing in the clip's frames; the character's is its root's, and the largest gap
     // between the two is the heading error the metrics report.

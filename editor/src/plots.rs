@@ -82,7 +82,7 @@ pub fn timeline(ui: &mut egui::Ui, series: &Series, time: f32) -> Option<f32> {
     let speed = against_human(
         ui,
         "root speed",
-        ("root ground speed (body lengths/s) over the clip (s)", "speed"),
+        ("root ground speed (character body lengths/s; human: the speed asked, at the speed scale) over the clip (s)", "speed"),
         (&series.character_speed, &series.human_speed),
         fps,
         time,

@@ -83,6 +83,7 @@ pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
         mapping: &record.correspondence.mapping.human,
         character_body: record.body_lengths.character,
         human_body: scorer.human_body(human_body_length(&clip)),
+        human_speed_factor: scorer.speed_factor(scorer.human_body(human_body_length(&clip))),
         fps: PROJECT_FPS,
     });
     Ok(PreviewResult {

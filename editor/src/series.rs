@@ -4,7 +4,10 @@
 //!
 //! Both bodies are measured in their own body lengths, as Ψ and the following metric
 //! ([`ace::models::metrics::following()`]) compare them: the character's the checkpoint was trained with,
-//! the human's the clip's standing height (or the checkpoint's fixed one). The human's values come
+//! the human's the clip's standing height (or the checkpoint's fixed one). The human's speed is the
+//! one L_fea asks of the character: its pelvis speed brought to the character dataset's speed scale
+//! (`human_speed_factor`), in the character's body lengths per second, as the following metric's pace
+//! compares them; a character that keeps the person's pace runs on the human's curve. The human's values come
 //! from x^h, the generator's input (pelvis velocity, and end effectors in the heading frame at the
 //! pelvis); the character's from the poses the preview shows (root translation, forward kinematics),
 //! after the cleanup. Speeds follow x^h's rule: backward differences, the first frame the forward one.
@@ -38,7 +41,8 @@ pub struct Series {
     pub fps: f32,
     /// The character root's ground speed (character body lengths per second).
     pub character_speed: Vec<f32>,
-    /// The human pelvis's ground speed (human body lengths per second).
+    /// The speed L_fea asks of the character: the human pelvis's ground speed at the speed scale
+    /// (character body lengths per second).
     pub human_speed: Vec<f32>,
     /// The character root's change of heading since the first frame (degrees, left positive).
     pub character_heading: Vec<f32>,
@@ -62,6 +66,9 @@ pub struct SeriesInputs<'a> {
     /// Body lengths (m).
     pub character_body: f32,
     pub human_body: f32,
+    /// What the human's speed in its body lengths per second is multiplied by to be the speed asked
+    /// of the character ([`ace::scoring::Scorer::speed_factor`]).
+    pub human_speed_factor: f32,
     pub fps: f32,
 }
 
@@ -76,6 +83,7 @@ impl Series {
         let ees = i.morph.end_effectors();
         assert_eq!(ees.len(), i.mapping.len(), "one mapping entry per end effector");
         assert!(i.character_body > 0.0 && i.human_body > 0.0, "body lengths must be positive");
+        assert!(i.human_speed_factor > 0.0, "the speed factor must be positive");
         let links: Vec<_> = i.poses.iter().map(|p| i.tree.forward_kinematics(p)).collect();
         let roots: Vec<[f32; 2]> = i.poses.iter().map(|p| [p.root.translation.vector.x, p.root.translation.vector.y]).collect();
         let character_speed = ground_speeds(&roots, i.fps).into_iter().map(|v| v / i.character_body).collect();
@@ -84,7 +92,7 @@ impl Series {
             .iter()
             .map(|x| {
                 let v = &x[layout::ROOT_LINEAR_VELOCITY];
-                v[0].hypot(v[1]) / i.human_body
+                v[0].hypot(v[1]) / i.human_body * i.human_speed_factor
             })
             .collect();
         let mut yaws: Vec<f32> = i.poses.iter().map(|p| heading_yaw(&(p.root.rotation * Vector3::x()))).collect();
