@@ -29,6 +29,8 @@ struct Fixture {
     human: Vec<Vec<f32>>,
     human_body: f32,
     character_body: f32,
+    /// The measure's thresholds (the project's at 30 fps unless a test changes them).
+    config: FollowingConfig,
 }
 
 fn fixture() -> Fixture {
@@ -42,6 +44,7 @@ fn fixture() -> Fixture {
         mapping: EndEffectorMapping::new(vec![Some(EndEffector::RightHand)]),
         human_body: human_body_length(&clip),
         character_body: character_body_length(&tree, &morph),
+        config: FollowingConfig::new(FPS),
         tree,
         morph,
         human,
@@ -94,7 +97,7 @@ impl Fixture {
             })
             .collect();
         let pairs = [("grasp_center".to_string(), EndEffector::RightHand)];
-        following(&features, &pairs, &psi, &human_psi, self.human_body, told, &FollowingConfig::new(FPS))
+        following(&features, &pairs, &psi, &human_psi, self.human_body, told, &self.config)
     }
 
     /// The human of the bundled walk instead (it walks at about 1.2 m/s and turns 20° to the left
@@ -216,6 +219,13 @@ fn a_character_that_drives_off_while_the_human_stands_is_caught_by_standing() {
     assert!(r.standing_travel.unwrap() < 1e-3, "{r:?}");
     let r = f.score_poses(&still, 1.0);
     assert_eq!((r.standing_travel, r.standing_turn), (Some(0.0), Some(0.0)));
+    // Per second, whatever the windows' length.
+    f.config.window_s = 2.0;
+    let r = f.score_poses(&driving, 1.0);
+    assert!((r.standing_travel.unwrap() - expected).abs() < 0.04 * expected, "2 s windows: {r:?} against {expected}");
+    let r = f.score_poses(&turning, 1.0);
+    assert!((r.standing_turn.unwrap() - w).abs() < 0.04 * w, "2 s windows: {r:?}");
+    f.config.window_s = 1.0;
     // A human walking at 1 m/s never stands.
     f.standing_human(1.0);
     let r = f.score_poses(&driving, 1.0);
@@ -321,9 +331,11 @@ fn a_character_that_falls_behind_a_walking_human_is_caught_by_pace() {
     f.standing_human(0.0);
     let standing = f.score_poses(&driving(0.3)[..f.human.len()], factor);
     assert_eq!(standing.pace, None, "a standing person sets no pace");
-    // Nor does one shuffling at 0.1 m/s (not standing, not walking).
+    // Nor does one shuffling at 0.1 m/s (not standing, not walking), over windows of any length.
     f.standing_human(0.1);
     assert_eq!(f.score_poses(&driving(0.3)[..f.human.len()], factor).pace, None);
+    f.config.window_s = 2.0;
+    assert_eq!(f.score_poses(&driving(0.3)[..f.human.len()], factor).pace, None, "2 s windows");
     let s = FollowingSummary::new([clips, vec![(standing, f.human_body)]].concat());
     assert_eq!(s.walking_clips, 3);
     assert_eq!(s.pace, Some(half));
