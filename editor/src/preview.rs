@@ -75,6 +75,7 @@ pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
         .with_context(|| format!("opening {}", inputs.clip.display()))?;
     let retargeted = retarget_and_score(&retargeter, &scorer, &tree, &morph, &clip)?;
     let record = retargeter.record();
+    let human_body = scorer.human_body(human_body_length(&clip));
     let series = Series::new(&SeriesInputs {
         tree: &tree,
         morph: &morph,
@@ -82,8 +83,8 @@ pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
         human: &retargeted.human,
         mapping: &record.correspondence.mapping.human,
         character_body: record.body_lengths.character,
-        human_body: scorer.human_body(human_body_length(&clip)),
-        human_speed_factor: scorer.speed_factor(scorer.human_body(human_body_length(&clip))),
+        human_body,
+        human_speed_factor: scorer.speed_factor(human_body),
         fps: PROJECT_FPS,
     });
     Ok(PreviewResult {
