@@ -195,13 +195,12 @@ impl Scorer {
     /// checkpoint's fixed human body length wins when it was trained with one.
     pub fn human_psi(&self, x_h: &[HumanRow], clip_body: f32) -> Vec<Vec<f32>> {
         let body = self.human_body(clip_body);
+        // 1 without a speed scale: the velocities stay as they are.
         let factor = self.speed_factor(body);
         x_h.iter()
             .map(|x| {
                 let mut psi = human_features(x, body, &self.mapping);
-                if self.speed_scale.is_some() {
-                    scale_human_speed(&mut psi, &self.features, factor);
-                }
+                scale_human_speed(&mut psi, &self.features, factor);
                 centre_human_features(&mut psi, &self.feature_offset);
                 psi
             })

@@ -891,6 +891,27 @@ fn retarget_runs_the_networks_in_pure_rust_and_with_libtorch_alike() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("rust, tch"), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// The shipped Spot (its URDF and checkpoint, on the pure-Rust networks), its scorer, and a bundled
+/// clip (`assets/motions/<name>.bvh`).
+struct ShippedSpot {
+    tree: ace::models::kinematics::KinematicTree,
+    morph: ace::models::morphology::Morphology,
+    networks: ace::retarget::Networks,
+    scorer: ace::scoring::Scorer,
+    clip: ace::models::human::HumanClip,
+}
+
+fn shipped_spot_on(clip: &str) -> ShippedSpot {
+    use ace::retarget::{Backend, Networks, shipped_checkpoint};
+    let (tree, morph) = ace::models::morphology::load_character(&root().join("assets/characters/spot.urdf")).unwrap();
+    let dir = shipped_checkpoint("spot");
+    let networks = Networks::load(&dir, Backend::Rust).unwrap();
+    let scorer = ace::scoring::Scorer::new(networks.record(), networks.character(), &dir).unwrap();
+    let path = root().join("assets/motions").join(format!("{clip}.bvh"));
+    let clip = ace::models::human::HumanClip::from_bvh_file(&path, &Default::default()).unwrap();
+    ShippedSpot { tree, morph, networks, scorer, clip }
+}
+
 /// Without the cleanup the states carry the generator's own predicted end-effector positions, which
 /// disagree with its joints on the shipped Spot's gripper; what is scored is what is shown, the joints'
 /// (`Scorer::shown_psi`), as the cleanup's states already are.
@@ -899,17 +920,10 @@ fn scores_without_the_cleanup_are_of_the_joints_shown() {
     use ace::models::character_state::{CharacterLayout, character_state};
     use ace::models::cleanup::Cleanup;
     use ace::models::features::{FeatureLayout, character_features, human_body_length, mean_feature_loss};
-    use ace::models::human::HumanClip;
     use ace::models::human_set::HumanRow;
-    use ace::models::morphology::load_character;
-    use ace::retarget::{Backend, Networks, retarget_and_score, shipped_checkpoint};
-    use ace::scoring::Scorer;
+    use ace::retarget::retarget_and_score;
 
-    let (tree, morph) = load_character(&root().join("assets/characters/spot.urdf")).unwrap();
-    let dir = shipped_checkpoint("spot");
-    let mut networks = Networks::load(&dir, Backend::Rust).unwrap();
-    let scorer = Scorer::new(networks.record(), networks.character(), &dir).unwrap();
-    let clip = HumanClip::from_bvh_file(&root().join("assets/motions/wave.bvh"), &Default::default()).unwrap();
+    let ShippedSpot { tree, morph, mut networks, scorer, clip } = shipped_spot_on("wave");
     let human: Vec<HumanRow> = clip.states().into_iter().map(|s| s.0).collect();
     let human_psi = scorer.human_psi(&human, scorer.human_body(human_body_length(&clip)));
     let layout = CharacterLayout::new(&tree, &morph);
@@ -952,17 +966,10 @@ fn scores_without_the_cleanup_are_of_the_joints_shown() {
 #[test]
 fn the_flags_mark_the_frames_of_popping_swings() {
     use ace::models::cleanup::Cleanup;
-    use ace::models::human::HumanClip;
     use ace::models::metrics::{FootTracks, UfrConfig};
-    use ace::models::morphology::load_character;
-    use ace::retarget::{Backend, Networks, retarget_and_score, shipped_checkpoint};
-    use ace::scoring::Scorer;
+    use ace::retarget::retarget_and_score;
 
-    let (tree, morph) = load_character(&root().join("assets/characters/spot.urdf")).unwrap();
-    let dir = shipped_checkpoint("spot");
-    let mut networks = Networks::load(&dir, Backend::Rust).unwrap();
-    let scorer = Scorer::new(networks.record(), networks.character(), &dir).unwrap();
-    let clip = HumanClip::from_bvh_file(&root().join("assets/motions/walk.bvh"), &Default::default()).unwrap();
+    let ShippedSpot { tree, morph, mut networks, scorer, clip } = shipped_spot_on("walk");
     for (cleanup, pops) in [(Cleanup::NONE, true), (Cleanup::default(), false)] {
         networks.set_cleanup(cleanup);
         let scored = retarget_and_score(&networks, &scorer, &tree, &morph, &clip).unwrap();
