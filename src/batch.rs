@@ -5,7 +5,8 @@
 //! (`walk/01.bvh` → `DIR/walk/01.glb`, `.json`, `.csv`, `.metrics.json`), each clip's files committed
 //! together once the clip is done. A clip that fails (a malformed file, a skeleton nothing can read) is
 //! listed with its error and the others still run; its earlier outputs, if any, are left as they were.
-//! `DIR/summary.json` lists every clip (frames, UFR, L_fea, following, pops) and every failure, and the
+//! `DIR/summary.json` lists every clip (frames, UFR, L_fea, following, pops, joints over their velocity
+//! limits) and every failure, and the
 //! command fails when any clip did.
 //!
 //! Workers pull clips from a shared counter, each with its own networks and scorer, so the outputs do
@@ -26,7 +27,7 @@ use serde::Serialize;
 
 use crate::output::{Outputs, Planned};
 use crate::progress;
-use crate::retarget::{Networks, RetargetArgs, check_rig_options, default_checkpoint, import_options, output_paths, OUTPUT_ROLES, retarget_and_score, write_with};
+use crate::retarget::{Networks, RetargetArgs, check_rig_options, default_checkpoint, import_options, joint_limit_warning, output_paths, OUTPUT_ROLES, retarget_and_score, write_with};
 use crate::scoring::Scorer;
 use crate::characters;
 
@@ -46,7 +47,10 @@ pub struct ClipDone {
     pub following: Option<f32>,
     /// Share of the feet's swings that are pops (legged characters).
     pub pops: Option<f32>,
-    /// Warnings the import gave (a posture it doubts).
+    /// Share of frames into which a joint moves faster than its velocity limit (characters with
+    /// limits).
+    pub over_velocity: Option<f32>,
+    /// Warnings the import gave (a posture it doubts), and the trajectory's joint limits warning.
     pub warnings: Vec<String>,
 }
 
@@ -264,10 +268,11 @@ fn one_clip(
     mut outputs: Outputs,
 ) -> Result<ClipDone> {
     let clip = HumanClip::from_bvh_file(file, opts)?;
-    let warnings = clip.warnings();
+    let mut warnings = clip.warnings();
     let r = retarget_and_score(networks, scorer, tree, morph, &clip)?;
     let w = write_with(&r, tree, &clip, out, a.with_human, &a.rig, &mut outputs)?;
     outputs.commit()?;
+    warnings.extend(joint_limit_warning(&w.report, &w.json));
     let gait = w.report.gait.as_ref();
     Ok(ClipDone {
         clip: file.to_path_buf(),
@@ -277,6 +282,7 @@ fn one_clip(
         feature_loss: w.report.feature_loss,
         following: w.report.following.as_ref().and_then(|f| f.score),
         pops: gait.filter(|g| g.swings > 0).map(|g| g.pops as f32 / g.swings as f32),
+        over_velocity: crate::eval::over_velocity_share(&w.report),
         warnings,
     })
 }

@@ -152,14 +152,14 @@ pub fn run(
 
 fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String {
     let mut s = String::from(
-        "| character | clip | frames | L_fea | following | heading error | pace | standing: travel, turning | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| character | clip | frames | L_fea | following | heading error | pace | standing: travel, turning | UFR | self-collision | penetration | sliding | DIV | FID | pops | micro-steps | over a velocity limit |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let opt = |v: Option<f32>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
     for (c, clip, r, _) in rows {
         let u = &r.ufr.rates;
         let _ = writeln!(
             s,
-            "| {c} | {clip} | {} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} |",
+            "| {c} | {clip} | {} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.3} | {} | {} | {} | {} |",
             r.frames,
             opt(r.feature_loss),
             opt(crate::eval::following_score(r)),
@@ -174,6 +174,7 @@ fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String 
             opt(r.fid),
             r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} % of {}", 100.0 * g.pop_rate(), g.swings)),
             r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} %", 100.0 * g.micro_step_rate())),
+            crate::eval::velocity_limits(r),
         );
     }
     s

@@ -412,6 +412,24 @@ pub fn standing(m: &MetricsReport) -> String {
     }
 }
 
+/// A motion's share of frames into which some joint moves faster than its velocity limit
+/// ([`ace::models::metrics::joint_limits()`]), for a character with limits.
+pub fn over_velocity_share(m: &MetricsReport) -> Option<f32> {
+    m.joint_limits.as_ref().filter(|j| j.has_velocity_limits()).map(|j| j.over_velocity)
+}
+
+/// [`over_velocity_share`] for a table with the joint fastest against its limit, "4.2 % (joint_lift
+/// 5.6×)", "0.00 %", or "n/a" for a character without velocity limits.
+pub fn velocity_limits(m: &MetricsReport) -> String {
+    match m.joint_limits.as_ref().filter(|j| j.has_velocity_limits()) {
+        None => "n/a".into(),
+        Some(j) => match j.over().first() {
+            Some(u) => format!("{:.2} % ({} {:.1}×)", 100.0 * j.over_velocity, u.joint, u.peak_ratio().unwrap_or(0.0)),
+            None => format!("{:.2} %", 100.0 * j.over_velocity),
+        },
+    }
+}
+
 fn opt(v: Option<f32>) -> String {
     v.map_or("n/a".into(), |v| format!("{v:.3}"))
 }
@@ -421,7 +439,7 @@ pub fn markdown(e: &Evaluation) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | pace → 1 | UFR ↓ | self-collision | penetration | sliding |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | pace → 1 | UFR ↓ | self-collision | penetration | sliding | over a velocity limit ↓ |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         e.character,
         e.held_out_clips.len(),
         e.frames
@@ -431,7 +449,7 @@ pub fn markdown(e: &Evaluation) -> String {
         let u = &m.ufr.rates;
         let _ = writeln!(
             s,
-            "| {} | {:.3} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            "| {} | {:.3} | {} | {} | {} | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {} |",
             r.system,
             m.div,
             opt(m.fid),
@@ -442,7 +460,8 @@ pub fn markdown(e: &Evaluation) -> String {
             100.0 * u.ufr,
             100.0 * u.self_collision,
             100.0 * u.penetration,
-            100.0 * u.sliding
+            100.0 * u.sliding,
+            velocity_limits(m)
         );
     }
     if e.rows.iter().any(|r| r.metrics.following.is_some()) {
@@ -562,14 +581,14 @@ pub fn markdown(e: &Evaluation) -> String {
 
 /// The table as CSV (one row per system).
 pub fn csv(e: &Evaluation) -> String {
-    let mut s = String::from("character,system,frames,div,fid,l_fea,following,heading_error_deg,pace,ufr,self_collision,penetration,sliding\n");
+    let mut s = String::from("character,system,frames,div,fid,l_fea,following,heading_error_deg,pace,ufr,self_collision,penetration,sliding,over_velocity\n");
     for r in &e.rows {
         let m = &r.metrics;
         let u = &m.ufr.rates;
         let o = |v: Option<f32>| v.map_or(String::new(), |v| v.to_string());
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             e.character,
             r.system,
             m.frames,
@@ -582,7 +601,8 @@ pub fn csv(e: &Evaluation) -> String {
             u.ufr,
             u.self_collision,
             u.penetration,
-            u.sliding
+            u.sliding,
+            o(over_velocity_share(m))
         );
     }
     s

@@ -7,7 +7,7 @@ use ace::models::dataset::MotionSet;
 use ace::models::features::{EndEffectorMapping, FeatureLayout, FeatureWeights, character_body_length, character_features};
 use ace::models::kinematics::KinematicTree;
 use ace::models::metrics::{
-    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, gait_of_labelled_poses, ufr_episodes,
+    DivConfig, GaussianFit, MetricsInput, MetricsReport, UfrConfig, gait_of_labelled_poses, joint_limits, ufr_episodes,
 };
 use ace::models::morphology::Morphology;
 use anyhow::{Result, bail};
@@ -82,7 +82,8 @@ pub fn set_features(tree: &KinematicTree, morph: &Morphology, set: &MotionSet) -
 }
 
 /// The metrics of a motion set: UFR over its episodes from its stored poses, DIV of its Ψ, FID
-/// against `reference` when given, and the gait measure from its stance labels (legged characters).
+/// against `reference` when given, the gait measure from its stance labels (legged characters) and the
+/// joint limits.
 pub fn dataset_metrics(tree: &KinematicTree, morph: &Morphology, set: &MotionSet, reference: Option<&MotionSet>) -> MetricsReport {
     let poses: Vec<_> = (0..set.len()).map(|i| set.pose(i)).collect();
     let ufr = ufr_episodes(tree, morph, &poses, &set.episodes, set.fps, &UfrConfig::for_character(tree, morph));
@@ -103,5 +104,6 @@ pub fn dataset_metrics(tree: &KinematicTree, morph: &Morphology, set: &MotionSet
     if set.n_feet == morph.feet.len() {
         report.gait = gait_of_labelled_poses(tree, morph, &poses, &set.contacts, &set.episodes, set.fps).map(|g| g.summary);
     }
+    report.joint_limits = joint_limits(tree, &poses, set.fps, &set.episodes);
     report
 }

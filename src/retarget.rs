@@ -228,7 +228,46 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     outputs.commit()?;
     println!("{} on {} ({} frames)\n{}", clip.name, tree.name, w.report.frames, w.report);
     println!("wrote {}, {}, {} and {}", w.glb.display(), w.json.display(), w.csv.display(), w.metrics.display());
+    if let Some(warning) = joint_limit_warning(&w.report, &w.json) {
+        eprintln!("warning: {warning}");
+    }
     Ok(())
+}
+
+/// The warning for a trajectory (`trajectory`, scored in `report`) in which some joint moves faster
+/// than its velocity limit or leaves its position limits, naming the file and the joints fastest
+/// against their limits; `None` when every joint keeps to its limits.
+pub fn joint_limit_warning(report: &MetricsReport, trajectory: &Path) -> Option<String> {
+    let j = report.joint_limits.as_ref()?;
+    let mut problems = Vec::new();
+    if j.over_velocity > 0.0 {
+        let fastest: Vec<String> = j
+            .over()
+            .iter()
+            .take(3)
+            .map(|u| format!("{} at up to {:.2} times its limit", u.joint, u.peak_ratio().unwrap_or(0.0)))
+            .collect();
+        problems.push(format!(
+            "{:.1} % of the frames move a joint faster than its velocity limit ({})",
+            100.0 * j.over_velocity,
+            fastest.join(", ")
+        ));
+    }
+    if j.outside_position > 0.0 {
+        let outside: Vec<&str> = j.joints.iter().filter(|u| u.frames_outside > 0).map(|u| u.joint.as_str()).collect();
+        problems.push(format!(
+            "{:.1} % of the frames put a joint outside its position limits ({})",
+            100.0 * j.outside_position,
+            outside.join(", ")
+        ));
+    }
+    (!problems.is_empty()).then(|| {
+        format!(
+            "{}: {}; a robot would not execute it as written",
+            trajectory.display(),
+            problems.join("; ")
+        )
+    })
 }
 
 /// The files [`write()`] makes for `out`: the glTF binary, the trajectory (`.json`, `.csv`) and the

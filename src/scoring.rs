@@ -19,7 +19,7 @@ use ace::models::checkpoint::CharacterInfo;
 use ace::models::checkpoint::ace::AceRecord;
 use ace::models::metrics::{
     DivConfig, FollowingConfig, FollowingSummary, GaussianFit, MetricsInput, MetricsReport, UfrConfig,
-    following, frechet_distance, gait_of_poses, ufr_episodes,
+    following, frechet_distance, gait_of_poses, joint_limits, ufr_episodes,
 };
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
@@ -265,8 +265,8 @@ impl Scorer {
         )
     }
 
-    /// DIV, FID, L_fea and following (when `human` is given, aligned with `psi`), UFR and the gait
-    /// measure (legged characters; contacts from the UFR's band) over `poses`, which hold `episodes`
+    /// DIV, FID, L_fea and following (when `human` is given, aligned with `psi`), UFR, the gait
+    /// measure (legged characters; contacts from the UFR's band) and the joint limits over `poses`, which hold `episodes`
     /// back to back (at the project frame rate).
     pub fn report(
         &self,
@@ -310,6 +310,7 @@ impl Scorer {
             None => vec![false; poses.len()],
         };
         report.following = human.map(|h| self.following(psi, h, episodes));
+        report.joint_limits = joint_limits(tree, poses, PROJECT_FPS, episodes);
         (report, FrameFlags { ufr: ufr.any, pops })
     }
 }

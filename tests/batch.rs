@@ -74,6 +74,7 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
         let m: Value = serde_json::from_slice(&std::fs::read(glb.with_extension("metrics.json")).unwrap()).unwrap();
         assert_eq!(m["frames"], d["frames"]);
         assert!(d["frames"].as_u64().unwrap() >= 19, "{d}");
+        assert_eq!(d["over_velocity"], m["joint_limits"]["over_velocity"], "{d}");
     }
     assert!(done.iter().any(|d| d["pops"].as_f64().is_some()), "Spot's feet swing in some clip");
 

@@ -206,6 +206,12 @@ fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
             let vertical = pair["correlation"]["vertical"].as_f64().unwrap();
             assert!(vertical > 0.7, "{c}'s {link} against the right hand on wave: {vertical}");
         }
+        // Every row says how the joints keep to their limits: the robots' files give velocity limits,
+        // the hound's gives none (its column reads n/a).
+        let limits = &m["joint_limits"];
+        let with_velocity = limits["joints"].as_array().unwrap().iter().any(|j| j["velocity_limit"].is_number());
+        assert_eq!(with_velocity, c != "hound", "{c}: {limits}");
+        assert!(limits["over_velocity"].as_f64().is_some_and(|v| (0.0..=1.0).contains(&v)), "{c}: {limits}");
         if c == "stretch" {
             assert!(m["gait"].is_null(), "wheels have no gait: {r}");
         } else {
@@ -372,6 +378,51 @@ fn dataset_and_metrics_reject_bad_input_naming_it() {
 }
 
 /// Tiny networks and step counts: the whole pipeline in seconds, not a useful model.
+#[test]
+fn retarget_warns_when_a_joint_of_the_trajectory_is_faster_than_its_limit() {
+    let dir = tmp("joint-limits");
+    std::fs::create_dir_all(&dir).unwrap();
+    let glb = dir.join("wave.glb");
+    let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "stretch", "--out", glb.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("metrics.json")).unwrap()).unwrap();
+    let limits = &m["joint_limits"];
+    assert_eq!(limits["frames"], m["frames"]);
+    let joints = limits["joints"].as_array().unwrap();
+    let names: Vec<&str> = joints.iter().map(|j| j["joint"].as_str().unwrap()).collect();
+    for j in ["joint_left_wheel", "joint_right_wheel", "joint_lift", "joint_wrist_yaw"] {
+        assert!(names.contains(&j), "{names:?}");
+    }
+    // The measure agrees with the trajectory the same run wrote: each joint's peak speed between two
+    // frames of its `.json`, and the frames over the limit.
+    let traj: Value = serde_json::from_str(&std::fs::read_to_string(glb.with_extension("json")).unwrap()).unwrap();
+    let column = |name: &str| traj["joints"].as_array().unwrap().iter().position(|j| j["name"] == name).unwrap();
+    let frames = traj["frames"].as_array().unwrap();
+    let lift = joints.iter().find(|j| j["joint"] == "joint_lift").unwrap();
+    let k = column("joint_lift");
+    let q: Vec<f64> = frames.iter().map(|f| f["q"][k].as_f64().unwrap()).collect();
+    let peak = q.windows(2).map(|w| (w[1] - w[0]).abs() * traj["fps"].as_f64().unwrap()).fold(0.0, f64::max);
+    assert!((lift["peak_velocity"].as_f64().unwrap() - peak).abs() < 1e-3 * peak.max(1.0), "{lift} against {peak}");
+    // Warned exactly when a joint is over, naming the trajectory file and the fastest joint.
+    let over = limits["over_velocity"].as_f64().unwrap() > 0.0 || limits["outside_position"].as_f64().unwrap() > 0.0;
+    assert_eq!(stderr.contains("a robot would not execute it as written"), over, "{stderr}");
+    if limits["over_velocity"].as_f64().unwrap() > 0.0 {
+        let fastest = joints
+            .iter()
+            .filter(|j| j["frames_over"].as_u64().unwrap() > 0)
+            .max_by(|a, b| {
+                let r = |j: &Value| j["peak_velocity"].as_f64().unwrap() / j["velocity_limit"].as_f64().unwrap();
+                r(a).total_cmp(&r(b))
+            })
+            .unwrap();
+        let warning = stderr.lines().find(|l| l.contains("velocity limit")).unwrap();
+        assert!(warning.contains(glb.with_extension("json").to_str().unwrap()), "{warning}");
+        assert!(warning.contains(fastest["joint"].as_str().unwrap()), "{warning}");
+        assert!(stdout.contains("joint limits:"), "{stdout}");
+    }
+}
+
 const TINY_PRIOR: &str = "steps = 120\nbatch_size = 16\ncheckpoint_every = 60\nencoder_hidden = [32, 32]\ndecoder_hidden = [32, 32]\n";
 const TINY_ACE: &str = "steps = 40\nbatch_size = 8\ncheckpoint_every = 20\ngenerator_hidden = [32, 32]\ndiscriminator_hidden = [32, 32]\n";
 
@@ -454,15 +505,22 @@ fn check_eval_csv(dir: &Path, character: &str, systems: &[&str]) {
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let columns = ["div", "fid", "l_fea", "following", "heading_error_deg", "pace", "ufr"];
     assert_eq!(&header[3..10], &columns, "{csv}");
+    // The share of frames over a velocity limit: a share for a robot, empty for a creature (its file
+    // gives no velocity limits).
+    let over = header.iter().position(|h| *h == "over_velocity").expect("an over_velocity column");
+    let robot = character == "stretch";
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), systems.len(), "{csv}");
     for (row, system) in rows.iter().zip(systems) {
         assert!(row.starts_with(&format!("{character},{system},")), "{csv}");
         let cells: Vec<&str> = row.split(',').collect();
+        assert_eq!(cells.len(), header.len(), "{csv}");
         for (column, c) in columns.iter().zip(&cells[3..10]) {
             let humanless = c.is_empty() && *system == "Dataset" && ["l_fea", "following", "heading_error_deg", "pace"].contains(column);
             assert!(humanless || c.parse::<f64>().is_ok_and(f64::is_finite), "{column} in {row}");
         }
+        let share = cells[over].parse::<f64>();
+        assert!(if robot { share.is_ok_and(|v| (0.0..=1.0).contains(&v)) } else { cells[over].is_empty() }, "over_velocity in {row}");
     }
 }
 

@@ -114,7 +114,9 @@ impl DatasetConfig {
     /// read as the behaviour the record was made with, not as today's defaults, so that a recorded
     /// dataset regenerates byte for byte: a record without `controller.legs.cadence_limit` predates
     /// the cadence limit and reads as `None`, and one without `controller.legs.walks_by_body_speed`
-    /// judged the walks by the feet's speed and reads as `false`.
+    /// judged the walks by the feet's speed and reads as `false`; one without
+    /// `controller.scaling.wheel_limits` drove wheeled bases past their wheels' limits and reads as
+    /// `false`.
     pub fn from_record(mut record: serde_json::Value) -> Result<Self, serde_json::Error> {
         if let Some(legs) = record
             .get_mut("controller")
@@ -123,6 +125,13 @@ impl DatasetConfig {
         {
             legs.entry("cadence_limit").or_insert(serde_json::Value::Null);
             legs.entry("walks_by_body_speed").or_insert(serde_json::Value::Bool(false));
+        }
+        if let Some(scaling) = record
+            .get_mut("controller")
+            .and_then(|c| c.get_mut("scaling"))
+            .and_then(|l| l.as_object_mut())
+        {
+            scaling.entry("wheel_limits").or_insert(serde_json::Value::Bool(false));
         }
         serde_json::from_value(record)
     }

@@ -208,6 +208,10 @@ impl CommandGenerator {
             }
             return c;
         }
+        // Turning alone may not exceed the top speed either (a wheeled base turning on the spot).
+        if c.wz.abs() * self.turn_radius > self.max_speed {
+            c.wz = c.wz.signum() * self.max_speed / self.turn_radius;
+        }
         let s = c.speed();
         let allowed = (self.max_speed - c.wz.abs() * self.turn_radius).max(0.0);
         if s > allowed {
@@ -223,6 +227,17 @@ impl CommandGenerator {
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    #[test]
+    fn turning_alone_is_held_within_the_top_speed() {
+        // Top speed 0.6 m/s at 0.3 m from the axis (a wheeled base's farthest wheel).
+        let g = CommandGenerator::new(CommandConfig::default(), 1.0, 0.6, 0.3);
+        let c = g.limit(Command { vx: 0.0, vy: 0.0, wz: -3.0 });
+        assert!((c.wz + 2.0).abs() < 1e-6, "{c:?}");
+        // Within it, the turn stays and the linear speed takes what is left.
+        let c = g.limit(Command { vx: 1.0, vy: 0.0, wz: 1.0 });
+        assert!((c.vx - 0.3).abs() < 1e-6 && c.wz == 1.0, "{c:?}");
+    }
 
     #[test]
     fn filter_settles_on_the_target_and_draws_stay_in_range() {

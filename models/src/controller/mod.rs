@@ -17,7 +17,8 @@
 //! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root), and, with
 //! [`LegConfig::cadence_limit`] (1.25 by default), to what they follow at that multiple of the law's
 //! stride frequency: the ellipse of [`Rig::cadence_speeds`] forward and sideways, a turn counted as a
-//! sidestep of its feet ([`CommandGenerator::with_cadence_speeds`]).
+//! sidestep of its feet ([`CommandGenerator::with_cadence_speeds`]). A wheeled base is limited the same
+//! way by its wheels' velocity limits (R = the farthest wheel's distance; [`ScalingConfig::wheel_limits`]).
 //! [`ScalingConfig::speed_scale`] overrides the scale.
 //!
 //! # Gait timing
@@ -102,6 +103,11 @@ pub struct ScalingConfig {
     pub human_height: f32,
     /// Fixed scale instead of the automatic one.
     pub speed_scale: Option<f32>,
+    /// Keep a wheeled base within its wheels' velocity limits (the URDF's `<limit velocity>`): its top
+    /// speed, turning included, is what the slowest wheel allows ([`Rig::max_speed`]). Off, the base
+    /// drives at the scaled commands whatever its wheels can do (datasets recorded before this
+    /// setting).
+    pub wheel_limits: bool,
 }
 
 impl Default for ScalingConfig {
@@ -110,6 +116,7 @@ impl Default for ScalingConfig {
             human_leg_length: 0.9,
             human_height: 1.7,
             speed_scale: None,
+            wheel_limits: true,
         }
     }
 }

@@ -182,15 +182,17 @@ pub struct Rig {
     pub hip_height: f32,
     /// Multiplies human-equivalent speeds (m/s) into character speeds.
     pub speed_scale: f32,
-    /// Largest foot speed `|v| + |ω|·foot_radius` the legs follow cleanly (m/s): the top linear speed
-    /// when not turning. Infinite without legs.
+    /// Largest foot speed `|v| + |ω|·foot_radius` the legs follow cleanly, or a wheeled base's wheels
+    /// allow within their velocity limits (m/s): the top linear speed when not turning. Infinite
+    /// without legs or limited wheels.
     pub max_speed: f32,
     /// With [`super::LegConfig::cadence_limit`]: the largest foot speed forward or back and sideways
     /// (m/s) at which the legs keep their stances inside the step regions stepping at most that multiple
     /// of the law's stride frequency (and within the shortest swing); commands are limited to the
     /// ellipse with these semi-axes ([`super::CommandGenerator`]). `None` without the limit or legs.
     pub cadence_speeds: Option<[f32; 2]>,
-    /// Mean distance of the feet from the root axis (m), for turning.
+    /// Mean distance of the feet (a wheeled base: the farthest wheel's) from the root axis (m), for
+    /// turning.
     pub foot_radius: f32,
     /// Height a swinging foot rises before it moves horizontally (m; 0 without legs): the band within
     /// which UFR counts a foot as in contact ([`crate::metrics::UfrConfig::CONTACT_HEIGHT`] × the body
@@ -394,8 +396,25 @@ impl Rig {
         if let Some(c) = &rig.crawl {
             rig.max_speed = c.max_speed;
         }
+        if rig.mode == BaseMode::Wheeled && cfg.scaling.wheel_limits {
+            rig.limit_to_wheels(tree);
+        }
         rig.spine_turn_rate = spine::full_turn_rate(rig.max_speed, rig.cadence_speeds, rig.foot_radius);
         Ok(rig)
+    }
+
+    /// A wheeled base's top speed from its wheels' velocity limits: a wheel's contact point moves at
+    /// most `|v| + |ω|·r` along its rolling direction (`r` its distance from the root axis), so
+    /// `max_speed` is the slowest wheel's limit times its radius and `foot_radius` the farthest
+    /// wheel's distance, and commands within `|v| + |ω|·foot_radius ≤ max_speed` spin no wheel past
+    /// its limit. Wheels without a limit leave the speed free.
+    fn limit_to_wheels(&mut self, tree: &KinematicTree) {
+        self.max_speed = self
+            .wheels
+            .iter()
+            .map(|w| tree.dof_joint(w.dof).limits.map_or(f32::INFINITY, |l| l.velocity) * w.radius)
+            .fold(f32::INFINITY, f32::min);
+        self.foot_radius = self.wheels.iter().map(|w| w.center.xy().norm()).fold(0.0, f32::max);
     }
 
     /// Gaits, speed scale and top speed (module docs).

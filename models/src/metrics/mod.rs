@@ -8,6 +8,8 @@
 //!   foot pops and micro-steps of legged characters;
 //! - [`mod@following`]: whether each character end effector follows its human end effector
 //!   (correlation, amplitude ratio, stillness), which L_fea's average cannot see;
+//! - [`mod@joint_limits`]: whether the joints keep within their velocity and position limits, as a
+//!   robot that executes the motion must;
 //! - L_fea is [`crate::features::mean_feature_loss`];
 //! - [`MetricsReport`] gathers them for `ace metrics` (`--json` through serde).
 //!
@@ -38,6 +40,7 @@ pub mod collision;
 pub mod distribution;
 pub mod following;
 pub mod gait;
+pub mod joint_limits;
 pub mod ufr;
 
 use std::fmt;
@@ -49,6 +52,7 @@ use serde::{Deserialize, Serialize};
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
 pub use following::{FollowingConfig, FollowingReport, FollowingSummary, PairFollowing, PairSummary, following, turned_degrees};
 pub use gait::{FootTracks, GaitConfig, GaitReport, GaitSummary, gait_of_labelled_poses, gait_of_poses, gait_quality};
+pub use joint_limits::{JointLimitUse, JointLimitsReport, joint_limits};
 pub use ufr::{
     PairCount, PoseChecks, PoseScratch, UfrConfig, UfrDetector, UfrRates, UfrReport, UfrSummary, ufr, ufr_episodes,
 };
@@ -94,6 +98,10 @@ pub struct MetricsReport {
     /// How the end effectors follow the human's ([`mod@following`]; `None` without a source human).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub following: Option<FollowingSummary>,
+    /// How the joints keep to their velocity and position limits ([`mod@joint_limits`]; `None` for a
+    /// character without limits or when not measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_limits: Option<JointLimitsReport>,
 }
 
 impl MetricsReport {
@@ -117,6 +125,7 @@ impl MetricsReport {
             ufr: ufr.summary(),
             gait: None,
             following: None,
+            joint_limits: None,
         }
     }
 }
@@ -145,6 +154,9 @@ impl fmt::Display for MetricsReport {
         }
         if let Some(fo) = &self.following {
             write!(f, "\n{fo}")?;
+        }
+        if let Some(j) = &self.joint_limits {
+            write!(f, "\n{j}")?;
         }
         Ok(())
     }
