@@ -43,6 +43,7 @@ declare -A how=(
   [models/src/features.rs]="$core -- --test metrics"
   [models/src/metrics/ufr.rs]="$core -- --test metrics --lib"
   [models/src/metrics/distribution.rs]="$core -- --test metrics"
+  [models/src/metrics/joint_limits.rs]="$core -- --test joint_limits"
   [models/src/foot_lock.rs]="$core -- --lib -- foot_lock"
   [models/src/collision_guard.rs]="$core -- --lib -- collision_guard"
   [models/src/heading.rs]="$core -- --lib -- heading"
@@ -55,6 +56,7 @@ declare -A how=(
   [plugin/src/retarget.rs]="--package bevy_ace -- --test retarget"
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
+       models/src/metrics/joint_limits.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs

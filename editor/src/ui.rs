@@ -312,6 +312,7 @@ pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &m
             ("  self-collision", format!("{:.2} %", 100.0 * rates.self_collision)),
             ("  foot penetration", format!("{:.2} %", 100.0 * rates.penetration)),
             ("  foot sliding", format!("{:.2} %", 100.0 * rates.sliding)),
+            ("over a velocity limit (lower is better)", ace::eval::velocity_limits(r)),
             ("DIV", format!("{:.3}", r.div)),
             ("FID (lower is better)", opt(r.fid)),
         ]
