@@ -160,6 +160,10 @@ enum Command {
         /// Leave these cleanup steps out (comma-separated or repeated); the others run.
         #[arg(long, value_enum, value_delimiter = ',', conflicts_with = "no_cleanup")]
         without: Vec<retarget::CleanupStep>,
+        /// Also hold every joint to its velocity limit (URDF `<limit velocity>`; wheels excepted), so
+        /// that a robot can execute the trajectory as written; joints held back catch up after.
+        #[arg(long, conflicts_with = "no_cleanup")]
+        limit_velocity: bool,
         /// A joint-mapping file (TOML) for a BVH skeleton the automatic matching cannot read
         /// [default: `<clip>.mapping.toml` beside the clip, when there is one].
         #[arg(long)]
@@ -256,6 +260,7 @@ fn main() -> ExitCode {
             animation_only,
             no_cleanup,
             without,
+            limit_velocity,
             mapping,
             backend,
         } => {
@@ -266,7 +271,7 @@ fn main() -> ExitCode {
                 out,
                 with_human: !no_human,
                 rig: ace::models::export::RigClipOptions { name: None, keep_animations, animation_only },
-                cleanup: retarget::cleanup_without(no_cleanup, &without),
+                cleanup: ace::models::cleanup::Cleanup { velocity_limit: limit_velocity, ..retarget::cleanup_without(no_cleanup, &without) },
                 mapping,
                 backend,
             };

@@ -263,9 +263,10 @@ pub fn joint_limit_warning(report: &MetricsReport, trajectory: &Path) -> Option<
     }
     (!problems.is_empty()).then(|| {
         format!(
-            "{}: {}; a robot would not execute it as written",
+            "{}: {}; a robot would not execute it as written{}",
             trajectory.display(),
-            problems.join("; ")
+            problems.join("; "),
+            if j.over_velocity > 0.0 { " (--limit-velocity holds the joints to their limits)" } else { "" }
         )
     })
 }

@@ -420,6 +420,24 @@ fn retarget_warns_when_a_joint_of_the_trajectory_is_faster_than_its_limit() {
         assert!(warning.contains(glb.with_extension("json").to_str().unwrap()), "{warning}");
         assert!(warning.contains(fastest["joint"].as_str().unwrap()), "{warning}");
         assert!(stdout.contains("joint limits:"), "{stdout}");
+        assert!(warning.contains("--limit-velocity"), "{warning}");
+    }
+
+    // `--limit-velocity` holds every joint but the wheels to its limit (a wheel's angle follows the
+    // base's travel).
+    let held = dir.join("wave-held.glb");
+    let out = ace(&["retarget", "assets/motions/wave.bvh", "--character", "stretch", "--limit-velocity", "--out", held.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(held.with_extension("metrics.json")).unwrap()).unwrap();
+    for j in m["joint_limits"]["joints"].as_array().unwrap() {
+        if !j["joint"].as_str().unwrap().contains("wheel") {
+            assert_eq!(j["frames_over"], 0, "{j}");
+            assert!(j["peak_velocity"].as_f64().unwrap() <= j["velocity_limit"].as_f64().unwrap() * 1.01, "{j}");
+        }
+    }
+    let peak = |limits: &Value| limits["joints"].as_array().unwrap().iter().find(|j| j["joint"] == "joint_lift").unwrap()["peak_velocity"].as_f64().unwrap();
+    if lift["frames_over"].as_u64().unwrap() > 0 {
+        assert!(peak(&m["joint_limits"]) < peak(limits), "the lift was held back");
     }
 }
 

@@ -2,9 +2,11 @@
 //! frame's state before its root is integrated and its pose read ([`CleanupPass::adjust_state`]), and
 //! follow the person: heading steering ([`crate::heading`]), the standing hold ([`crate::standing`])
 //! and the end-effector hold ([`crate::effector_hold`]).
-//! Two act on the pose ([`CleanupPass::apply`]): foot locking ([`crate::foot_lock`]), then the
+//! Three act on the pose ([`CleanupPass::apply`]): foot locking ([`crate::foot_lock`]), the velocity
+//! limit ([`crate::velocity_limit`]), which moves no joint faster than its file's limit, then the
 //! collision guard ([`crate::collision_guard`]), which has the last word so that no output pose
-//! collides with itself or the ground. All are causal, so the offline retargeter and a live stream
+//! collides with itself or the ground (it only moves joints back towards the previous output, so
+//! they stay within their velocity limits). All are causal, so the offline retargeter and a live stream
 //! give the same poses; all can be switched off to see the networks' raw output.
 
 use nalgebra::Isometry3;
@@ -19,8 +21,9 @@ use crate::heading::{HeadingSteering, SteeringState};
 use crate::kinematics::{CharacterPose, KinematicTree};
 use crate::morphology::Morphology;
 use crate::standing::{HoldState, StandingHold};
+use crate::velocity_limit::{VelocityLimit, VelocityLimitState};
 
-/// Which cleanups run (all by default).
+/// Which cleanups run (all but the velocity limit by default).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Cleanup {
@@ -35,6 +38,9 @@ pub struct Cleanup {
     /// Holding the character's arms and head while the person's matching end effector rests (`None`:
     /// off).
     pub effector_hold: Option<EffectorHold>,
+    /// Moving no joint faster than its velocity limit (off by default: it costs the shipped
+    /// Stretch half its following, [`crate::velocity_limit`]).
+    pub velocity_limit: bool,
 }
 
 impl Default for Cleanup {
@@ -45,6 +51,7 @@ impl Default for Cleanup {
             heading: Some(HeadingSteering::default()),
             standing: Some(StandingHold::default()),
             effector_hold: Some(EffectorHold::default()),
+            velocity_limit: false,
         }
     }
 }
@@ -57,6 +64,7 @@ impl Cleanup {
         heading: None,
         standing: None,
         effector_hold: None,
+        velocity_limit: false,
     };
 }
 
@@ -69,6 +77,7 @@ pub struct CleanupPass {
     effector_hold: Option<(EffectorHold, HeldChains)>,
     guard: Option<CollisionGuard>,
     lock: Option<FootLock>,
+    velocity: Option<VelocityLimit>,
 }
 
 /// The memory of a cleanup pass for one character being driven.
@@ -80,12 +89,18 @@ pub struct CleanupState {
     guard: GuardState,
     lock: Option<FootLockState>,
     scratch: FootLockScratch,
+    velocity: VelocityLimitState,
 }
 
 impl CleanupState {
     /// Frames the collision guard has changed so far.
     pub fn guarded_frames(&self) -> usize {
         self.guard.corrected
+    }
+
+    /// Frames in which the velocity limit has held some joint back so far.
+    pub fn velocity_limited_frames(&self) -> usize {
+        self.velocity.limited
     }
 }
 
@@ -103,6 +118,7 @@ impl CleanupPass {
                 .filter(|(_, chains)| !chains.is_empty()),
             guard: cleanup.collision_guard.then(|| CollisionGuard::new(tree, morph)),
             lock: cleanup.foot_lock.map(|c| FootLock::new(tree, morph, fps, c)),
+            velocity: cleanup.velocity_limit.then(|| VelocityLimit::new(tree, morph, fps)).flatten(),
         }
     }
 
@@ -110,7 +126,7 @@ impl CleanupPass {
     /// or the end-effector hold. Only then is the root height clamped into the dataset's range, and
     /// are the state's end effectors recomputed from the cleaned-up joints.
     pub fn changes_poses(&self) -> bool {
-        self.guard.is_some() || self.lock.is_some() || self.effector_hold.is_some()
+        self.guard.is_some() || self.lock.is_some() || self.effector_hold.is_some() || self.velocity.is_some()
     }
 
     /// A fresh state for a stream starting from the root `start` (nothing planted, no previous pose,
@@ -123,6 +139,7 @@ impl CleanupPass {
             guard: GuardState::default(),
             lock: self.lock.as_ref().map(FootLock::start),
             scratch: FootLockScratch::default(),
+            velocity: VelocityLimitState::default(),
         }
     }
 
@@ -150,8 +167,14 @@ impl CleanupPass {
         if let (Some(l), Some(s)) = (&self.lock, &mut state.lock) {
             l.apply(tree, s, pose, &mut state.scratch);
         }
+        if let Some(v) = &self.velocity {
+            v.apply(&mut state.velocity, pose);
+        }
         if let Some(g) = &self.guard {
             g.apply(tree, &mut state.guard, pose);
+        }
+        if let Some(v) = &self.velocity {
+            v.observe(&mut state.velocity, pose);
         }
     }
 

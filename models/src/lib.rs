@@ -43,3 +43,4 @@ pub mod temporary;
 #[cfg(test)]
 mod test_data;
 pub mod urdf;
+pub mod velocity_limit;
