@@ -4,7 +4,7 @@
 //! A robot sent a joint faster than its limit slows it or faults, and what it executes is no longer the
 //! motion retargeted. The networks can ask for it: the prior learned from datasets within the limits,
 //! but a generator chasing a fast hand pushes it past them (the shipped Stretch moves its lift at up to
-//! 5.6 times its 0.3 m/s on the bundled `wave`; [`crate::metrics::joint_limits`] measures it). Each
+//! 5.6 times its 0.3 m/s on the bundled `wave`; [`mod@crate::metrics::joint_limits`] measures it). Each
 //! limited joint moves from the previous frame's output towards the pose asked for by at most its limit
 //! times the frame's duration; a joint held back catches up on the frames that follow, as a robot's
 //! joint controller at its speed limit would. Wheels are left out (their angles follow the base's

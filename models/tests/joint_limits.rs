@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use ace_models::dataset::{DatasetConfig, generate};
 use ace_models::kinematics::{CharacterPose, KinematicTree};
 use ace_models::metrics::joint_limits;
+use ace_models::metrics::joint_limits::{POSITION_TOLERANCE, VELOCITY_TOLERANCE};
 use ace_models::morphology::{Morphology, load_character};
 use ace_models::nalgebra::Isometry3;
 
@@ -44,9 +45,14 @@ fn a_joint_faster_than_its_limit_is_caught_frame_by_frame() {
     let u = r.joints.iter().find(|u| u.joint == "joint_lift").unwrap();
     assert!((u.peak_velocity - 0.9 * limit).abs() < 1e-4, "{u:?}");
     assert!(r.over().is_empty());
-    // Exactly at the limit is not over (float rounding of a motion at its limit).
+    // Exactly at the limit is not over (float rounding of a motion at its limit), nor at the tolerance.
     let at = stretch_poses(&tree, 60, |k, q| q[lift] = 0.1 + limit * k as f32 / FPS);
     assert_eq!(joint_limits(&tree, &at, FPS, &all(60)).unwrap().over_velocity, 0.0);
+    let edge = limit * (1.0 + VELOCITY_TOLERANCE);
+    let at_tolerance = stretch_poses(&tree, 2, |k, q| q[lift] = [0.0, edge][k]);
+    assert_eq!(joint_limits(&tree, &at_tolerance, 1.0, &all(2)).unwrap().over_velocity, 0.0);
+    let past = stretch_poses(&tree, 2, |k, q| q[lift] = [0.0, 1.001 * edge][k]);
+    assert_eq!(joint_limits(&tree, &past, 1.0, &all(2)).unwrap().over_velocity, 0.5);
 
     // Twice its limit for frames 20..30 (ten steps into frames 21..=30), else still.
     let fast = stretch_poses(&tree, 60, |k, q| {
@@ -61,6 +67,13 @@ fn a_joint_faster_than_its_limit_is_caught_frame_by_frame() {
     assert_eq!(r.over()[0].joint, "joint_lift");
     assert!((r.worst_ratio() - 2.0).abs() < 1e-3);
     assert_eq!(r.outside_position, 0.0);
+    assert!(r.has_velocity_limits());
+    // What `ace metrics` and `ace retarget` print: the share and the joint over its limit.
+    let text = r.to_string();
+    assert!(
+        text.contains("16.7 % of frames over a velocity limit") && text.contains("joint_lift: 0.600 at most, 2.00 times its limit of 0.300, over it in 10 frames"),
+        "{text}"
+    );
 
     // The same jump between two episodes is not a velocity.
     let jump = stretch_poses(&tree, 60, |k, q| q[lift] = if k < 30 { 0.1 } else { 0.8 });
@@ -108,6 +121,14 @@ fn a_joint_outside_its_bounds_is_caught_and_a_character_without_limits_has_none(
     let u = r.joints.iter().find(|u| u.joint == "joint_lift").unwrap();
     assert_eq!(u.frames_outside, 2, "{u:?} (within the tolerance is not outside)");
     assert!((r.outside_position - 0.2).abs() < 1e-6);
+    // A bound away from zero (the wrist's −1.75 rad): exactly at the tolerance is not outside, past it is.
+    let wrist = tree.dof_index("joint_wrist_yaw").unwrap();
+    let w = tree.dof_joint(wrist).limits.unwrap();
+    let poses = stretch_poses(&tree, 4, |k, q| {
+        q[wrist] = [w.lower - POSITION_TOLERANCE, w.lower - 2.0 * POSITION_TOLERANCE, w.upper + POSITION_TOLERANCE, w.upper + 0.1][k]
+    });
+    let r = joint_limits(&tree, &poses, 1.0, &[0..4]).unwrap();
+    assert_eq!(r.joints.iter().find(|u| u.joint == "joint_wrist_yaw").unwrap().frames_outside, 2, "{r}");
 
     // A creature's bones carry no velocity limits, but its position limits count: the hound's.
     let hound = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
@@ -115,6 +136,20 @@ fn a_joint_outside_its_bounds_is_caught_and_a_character_without_limits_has_none(
     let r = joint_limits(&tree, &[tree.neutral_pose(Isometry3::identity()), tree.neutral_pose(Isometry3::identity())], FPS, &[0..2]).unwrap();
     assert!(r.joints.iter().all(|u| u.velocity_limit.is_none()) && !r.has_velocity_limits());
     assert_eq!((r.over_velocity, r.outside_position), (0.0, 0.0));
+    assert!(r.to_string().starts_with("joint limits: no velocity limits given, 0.0 % outside"), "{r}");
+}
+
+#[test]
+fn a_zero_velocity_limit_means_none() {
+    // URDF writes velocity="0" for "no limit"; a tree built otherwise may carry the 0 itself.
+    let (mut tree, _) = character("stretch");
+    let lift = tree.dof_index("joint_lift").unwrap();
+    let link = tree.links.iter().position(|l| l.joint.as_ref().is_some_and(|j| j.name == "joint_lift")).unwrap();
+    tree.links[link].joint.as_mut().unwrap().limits.as_mut().unwrap().velocity = 0.0;
+    let moving = stretch_poses(&tree, 10, |k, q| q[lift] = 0.1 + 0.05 * k as f32);
+    let r = joint_limits(&tree, &moving, FPS, &[0..10]).unwrap();
+    let u = r.joints.iter().find(|u| u.joint == "joint_lift").unwrap();
+    assert_eq!((u.velocity_limit, u.frames_over), (None, 0), "{u:?}");
 }
 
 /// Share of a bundled character's dataset frames (default configuration, 6,000 frames) over a
