@@ -49,6 +49,7 @@ declare -A how=(
   [models/src/heading.rs]="$core -- --lib -- heading"
   [models/src/standing.rs]="$core -- --lib -- standing"
   [models/src/effector_hold.rs]="$core -- --lib -- effector_hold"
+  [models/src/velocity_limit.rs]="$core -- --lib -- velocity_limit"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
@@ -58,7 +59,8 @@ declare -A how=(
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/metrics/joint_limits.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
-       models/src/standing.rs models/src/effector_hold.rs models/src/runtime/nets.rs
+       models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
+       models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
 files=("$@")
