@@ -51,6 +51,13 @@ pub struct Limits {
     pub effort: f32,
 }
 
+impl Limits {
+    /// The velocity bound when there is one: finite and positive (URDF's 0 means none, as does +∞).
+    pub fn velocity_bound(&self) -> Option<f32> {
+        (self.velocity.is_finite() && self.velocity > 0.0).then_some(self.velocity)
+    }
+}
+
 /// A mimic joint's rule: position = `multiplier · q[dof] + offset`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Mimic {

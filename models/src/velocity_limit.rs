@@ -8,7 +8,8 @@
 //! limited joint moves from the previous frame's output towards the pose asked for by at most its limit
 //! times the frame's duration; a joint held back catches up on the frames that follow, as a robot's
 //! joint controller at its speed limit would. Wheels are left out (their angles follow the base's
-//! travel), and so are joints without a limit (every bone of a rigged creature). Causal: a live stream
+//! travel), and so are other continuous joints (their angles wrap at ±π, where a clamp would turn
+//! them the long way round) and joints without a limit (every bone of a rigged creature). Causal: a live stream
 //! and an offline clip agree frame for frame.
 //!
 //! Off by default ([`crate::cleanup::Cleanup::velocity_limit`], `ace retarget --limit-velocity`): the
@@ -47,8 +48,8 @@ impl VelocityLimit {
             .filter(|d| !wheels.contains(d))
             .filter_map(|d| {
                 let j = tree.dof_joint(d);
-                let v = j.limits?.velocity;
-                (j.kind != JointKind::Continuous && v.is_finite() && v > 0.0).then_some((d, v / fps))
+                let v = j.limits?.velocity_bound()?;
+                (j.kind != JointKind::Continuous).then_some((d, v / fps))
             })
             .collect();
         (!steps.is_empty()).then_some(VelocityLimit { steps })

@@ -412,7 +412,7 @@ impl Rig {
         self.max_speed = self
             .wheels
             .iter()
-            .map(|w| tree.dof_joint(w.dof).limits.map_or(f32::INFINITY, |l| l.velocity) * w.radius)
+            .map(|w| tree.dof_joint(w.dof).limits.and_then(|l| l.velocity_bound()).unwrap_or(f32::INFINITY) * w.radius)
             .fold(f32::INFINITY, f32::min);
         self.foot_radius = self.wheels.iter().map(|w| w.center.xy().norm()).fold(0.0, f32::max);
     }

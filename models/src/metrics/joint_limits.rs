@@ -129,7 +129,7 @@ pub fn joint_limits(
             let j = tree.dof_joint(d);
             let l = j.limits?;
             let continuous = j.kind == JointKind::Continuous;
-            let velocity = (l.velocity.is_finite() && l.velocity > 0.0).then_some(l.velocity);
+            let velocity = l.velocity_bound();
             // A continuous joint's bounds are infinite.
             let bounds = (l.lower.is_finite() && l.upper.is_finite()).then_some((l.lower, l.upper));
             (velocity.is_some() || bounds.is_some()).then_some(Checked {
