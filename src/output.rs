@@ -35,20 +35,26 @@ static WATCHED: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
 /// [`watch_dir`] folders) and exits with status 130. Call once, at start-up.
 pub fn install_signal_cleanup() {
     let _ = ctrlc::set_handler(|| {
-        remove_live_temporaries();
+        // LIVE stays locked until the process is gone: no output is staged or committed after the
+        // sweep.
+        let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+        remove_live_temporaries(&live);
         let watched = WATCHED.lock().unwrap_or_else(|e| e.into_inner());
         for dir in watched.iter() {
             remove_own_temporaries(dir);
         }
         eprintln!("interrupted: temporary outputs removed, previous outputs left as they were");
-        std::process::exit(130);
+        // `_exit`, not `exit`: the main thread is still running (generating a dataset, inside
+        // libtorch), and `exit` would run atexit handlers and libtorch's static destructors under it,
+        // which crashed the process now and then (killed by a signal instead of exiting with 130).
+        // SAFETY: `_exit` ends the process at once; nothing runs after it.
+        unsafe { libc::_exit(130) }
     });
 }
 
 /// Removes the live temporaries and, beside them, those of the writers underneath (named with this
 /// process' id, see [`remove_stale_temporaries`]).
-fn remove_live_temporaries() {
-    let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+fn remove_live_temporaries(live: &BTreeSet<PathBuf>) {
     for p in live.iter() {
         let _ = if p.is_dir() {
             fs::remove_dir_all(p)

@@ -928,7 +928,7 @@ fn training_removes_temporaries_of_killed_runs_and_its_own_on_sigterm() {
     assert!(seen, "no temporary seen");
     assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
     let o = child.wait_with_output().unwrap();
-    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(130), "{} (a process killed by a signal has no code): {}", o.status, stderr(&o));
     let left: Vec<String> = names(&ck).into_iter().filter(|n| n.contains("tmp")).collect();
     assert!(left.is_empty(), "SIGTERM left {left:?}");
 }
