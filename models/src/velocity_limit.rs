@@ -15,8 +15,9 @@
 //! Off by default ([`crate::cleanup::Cleanup::velocity_limit`], `ace retarget --limit-velocity`): the
 //! shipped Stretch's generator asks its lift for up to 11.7 times its speed on held-out clips, and held
 //! to it the gripper follows the hand far less (held out: vertical correlation 0.82 → 0.46, following
-//! 0.252 → 0.124); Spot's following moves 0.390 → 0.388. A generator trained to keep within the limits
-//! would not pay that; none is yet.
+//! 0.252 → 0.124); Spot's following moves 0.390 → 0.388. A generator trained with a penalty on joint
+//! speed past the limits did worse: its lift lagged the hand more than this clamp's and still
+//! exceeded its limit (docs/metrics.md, "Joint limits").
 
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree};
 use crate::morphology::Morphology;
