@@ -92,18 +92,6 @@ pub struct CleanupState {
     velocity: VelocityLimitState,
 }
 
-impl CleanupState {
-    /// Frames the collision guard has changed so far.
-    pub fn guarded_frames(&self) -> usize {
-        self.guard.corrected
-    }
-
-    /// Frames in which the velocity limit has held some joint back so far.
-    pub fn velocity_limited_frames(&self) -> usize {
-        self.velocity.limited
-    }
-}
-
 impl CleanupPass {
     /// The cleanups of `cleanup` for a character at `fps` frames per second whose end effectors follow
     /// the human's as `mapping` says (the checkpoint's correspondence).
