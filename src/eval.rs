@@ -4,7 +4,8 @@
 //! - **Dataset**: a fresh character dataset from the prior's generator configuration with another seed
 //!   than training's, as many frames as the held-out clips: the realism and diversity reference (its
 //!   FID is the floor sampling noise gives);
-//! - **ACE**: the generator choosing latents for the prior from each held-out clip;
+//! - **ACE**: the generator choosing latents for the prior from each held-out clip, with the default
+//!   cleanup, and with `--limit-velocity` also the velocity limit (as `ace retarget --limit-velocity`);
 //! - **ACE without cleanup**: the same without any cleanup step ([`ace::models::cleanup`]): the
 //!   networks' raw output;
 //! - **Prior with random z**: the same prior driven by latents drawn from N(0, I) for as many frames, with
@@ -70,6 +71,9 @@ pub struct EvalArgs {
     /// CI setting: baselines of [`baselines::QUICK_STEPS`] steps, at most [`QUICK_CLIPS`] clips
     /// (unless `max_clips` says), rollouts of at most [`QUICK_SECONDS`].
     pub quick: bool,
+    /// ACE and the baselines retarget with the velocity limit in their cleanup
+    /// ([`Cleanup::velocity_limit`]).
+    pub limit_velocity: bool,
 }
 
 /// Held-out clips under `--quick` (unless `--max-clips` says).
@@ -112,6 +116,8 @@ pub struct Evaluation {
     pub held_out_clips: Vec<String>,
     pub frames: usize,
     pub seed: u64,
+    /// ACE and the baselines were held to their joints' velocity limits (`--limit-velocity`).
+    pub limit_velocity: bool,
     pub rows: Vec<Row>,
     /// The FID of the held-out clips' own Ψ (the human's, centred as L_fea compares it): what a
     /// system that matched the human's features exactly (L_fea = 0) would score.
@@ -202,7 +208,8 @@ pub fn evaluate(
     // ACE and the random-latent prior on the same clips (the random rollouts as long as each clip).
     let mut systems: Vec<(&str, Vec<RetargetedMotion>)> =
         vec![("ACE", Vec::new()), (ACE_RAW, Vec::new()), ("Prior with random z", Vec::new())];
-    let cleanup = retargeter.cleanup();
+    let cleanup = Cleanup { velocity_limit: args.limit_velocity, ..retargeter.cleanup() };
+    retargeter.set_cleanup(cleanup);
     for (k, clip) in clips.iter().enumerate() {
         systems[0].1.push(retargeter.retarget_states(tree, morph, &clip.states)?);
         retargeter.set_cleanup(Cleanup::NONE);
@@ -254,6 +261,7 @@ pub fn evaluate(
         held_out_clips: clips.iter().map(|c| c.relative.clone()).collect(),
         frames,
         seed: args.seed,
+        limit_velocity: args.limit_velocity,
         rows,
         source_fid: scorer.fid_split(&human_psi),
         stability,
@@ -439,10 +447,11 @@ pub fn markdown(e: &Evaluation) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "## {} — {} held-out clips, {} frames\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | pace → 1 | UFR ↓ | self-collision | penetration | sliding | over a velocity limit ↓ |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "## {} — {} held-out clips, {} frames{}\n\n| system | DIV → | FID ↓ | L_fea ↓ | following ↑ | heading error ↓ | pace → 1 | UFR ↓ | self-collision | penetration | sliding | over a velocity limit ↓ |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         e.character,
         e.held_out_clips.len(),
-        e.frames
+        e.frames,
+        if e.limit_velocity { ", joints held to their velocity limits (`--limit-velocity`)" } else { "" }
     );
     for r in &e.rows {
         let m = &r.metrics;

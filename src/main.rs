@@ -208,6 +208,10 @@ enum Command {
         /// CI setting: baselines of 20 steps, at most 2 held-out clips, rollouts of at most 4 s.
         #[arg(long)]
         quick: bool,
+        /// Score ACE and the baselines with the velocity limit in their cleanup, as `ace retarget
+        /// --limit-velocity` writes them: what a robot executing the trajectories would do.
+        #[arg(long)]
+        limit_velocity: bool,
     },
     /// Print the motion-quality metrics (UFR and its detectors, DIV, FID) of a motion file.
     Metrics {
@@ -283,7 +287,7 @@ fn main() -> ExitCode {
                 retarget::run(&one)
             }
         }
-        Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick } => eval::run(&eval::EvalArgs {
+        Command::Eval { character, checkpoint, humans, out, seed, seconds, max_clips, baselines, runs, quick, limit_velocity } => eval::run(&eval::EvalArgs {
             character,
             checkpoint,
             humans,
@@ -294,6 +298,7 @@ fn main() -> ExitCode {
             baselines,
             runs,
             quick,
+            limit_velocity,
         }),
         Command::Metrics { file, character, reference, json } => {
             metrics::run(&file, character.as_deref(), reference.as_deref(), json)

@@ -589,6 +589,27 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     assert!(e["source_fid"]["total"].as_f64().is_some_and(|v| v.is_finite() && v > 0.0), "{}", e["source_fid"]);
     let md = std::fs::read_to_string(eval_dir.join("eval.md")).unwrap();
     assert!(md.contains("FID by feature block") && md.contains("| Human clips (L_fea = 0) |"), "{md}");
+    assert_eq!(e["limit_velocity"], false);
+    assert!(!md.contains("--limit-velocity"), "{md}");
+
+    // With `--limit-velocity` ACE keeps every joint but the wheels within its limit; the networks'
+    // raw output is scored as before.
+    let held_dir = dir.join("eval-held");
+    run(&["--threads", "1", "eval", "--character", "stretch", "--checkpoint", &s(&ck), "--humans", "assets/motions", "--seconds", "4", "--limit-velocity", "--out", &s(&held_dir)]);
+    let held: Value = serde_json::from_str(&std::fs::read_to_string(held_dir.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(held["limit_velocity"], true);
+    let row = |e: &Value, name: &str| e["rows"].as_array().unwrap().iter().find(|r| r["system"] == name).unwrap().clone();
+    let joints = |r: &Value| r["metrics"]["joint_limits"]["joints"].as_array().unwrap().clone();
+    for j in joints(&row(&held, "ACE")) {
+        if !j["joint"].as_str().unwrap().contains("wheel") {
+            assert_eq!(j["frames_over"], 0, "{j}");
+        }
+    }
+    let over = |e: &Value| joints(&row(e, "ACE")).iter().filter(|j| !j["joint"].as_str().unwrap().contains("wheel")).map(|j| j["frames_over"].as_u64().unwrap()).sum::<u64>();
+    assert!(over(&e) > 0, "the tiny networks move some arm joint past its limit: nothing to hold back");
+    assert_eq!(row(&held, "ACE without cleanup")["metrics"], row(&e, "ACE without cleanup")["metrics"]);
+    let md = std::fs::read_to_string(held_dir.join("eval.md")).unwrap();
+    assert!(md.lines().next().unwrap().contains("velocity limits (`--limit-velocity`)"), "{md}");
     // The checkpoint records the centring of L_fea that the scores used: one offset per Ψ entry.
     let record: Value = serde_json::from_str(&std::fs::read_to_string(ck.join("ace.json")).unwrap()).unwrap();
     let offset = record["feature_offset"].as_array().unwrap();
