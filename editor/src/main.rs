@@ -70,6 +70,9 @@ pub struct Session {
     pub scene_placement: Option<Transform>,
     pub checkpoint: Option<PathBuf>,
     pub clip: PathBuf,
+    /// The preview holds every joint but the wheels to its velocity limit, as `ace retarget
+    /// --limit-velocity` does: what a robot executing the motion would do.
+    pub limit_velocity: bool,
 }
 
 /// The scene's two actors.
@@ -94,6 +97,7 @@ fn main() -> AppExit {
         clip: absolute(&args.clip),
         character: opened.path,
         scene_placement: opened.scene_placement,
+        limit_velocity: false,
     };
     let mut app = App::new();
     app.add_plugins(
@@ -178,6 +182,7 @@ fn apply_session(
             character: session.character.clone(),
             checkpoint: checkpoint.clone(),
             clip: session.clip.clone(),
+            limit_velocity: session.limit_velocity,
         }),
         None => preview.result = None,
     }

@@ -23,7 +23,7 @@ fn spot_walk() -> &'static PreviewResult {
     static RESULT: OnceLock<PreviewResult> = OnceLock::new();
     RESULT.get_or_init(|| {
         let checkpoint = repo().join("assets/checkpoints/spot");
-        preview::compute(&PreviewInputs { character: repo().join("assets/characters/spot.urdf"), checkpoint, clip: walk() })
+        preview::compute(&PreviewInputs { character: repo().join("assets/characters/spot.urdf"), checkpoint, clip: walk(), limit_velocity: false })
             .unwrap()
     })
 }
@@ -175,6 +175,7 @@ fn the_loss_plot_carries_the_retrains_logged_losses() {
         scene_placement: None,
         checkpoint: Some(repo().join("assets/checkpoints/crab")),
         clip: walk(),
+        limit_velocity: false,
     });
     let start = Instant::now();
     while world.resource::<Retrain>().running() {
@@ -227,7 +228,7 @@ fn the_timeline_marks_ufr_frames_and_popping_swings() {
     let checkpoint = repo().join("assets/checkpoints/spot");
     let character = repo().join("assets/characters/spot.urdf");
     let mut preview = Preview::default();
-    let mut result = preview::compute(&PreviewInputs { character: character.clone(), checkpoint: checkpoint.clone(), clip: walk() }).unwrap();
+    let mut result = preview::compute(&PreviewInputs { character: character.clone(), checkpoint: checkpoint.clone(), clip: walk(), limit_velocity: false }).unwrap();
     let (tree, morph) = load_character(&character).unwrap();
     let mut networks = Networks::load(&checkpoint, Backend::Rust).unwrap();
     networks.set_cleanup(Cleanup::NONE);

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use ace::models::cleanup::Cleanup;
 use ace::models::features::human_body_length;
 use ace::models::human::{HumanClip, ImportOptions};
 use ace::models::human_set::PROJECT_FPS;
@@ -26,6 +27,8 @@ pub struct PreviewInputs {
     pub character: PathBuf,
     pub checkpoint: PathBuf,
     pub clip: PathBuf,
+    /// The cleanup's velocity limit is on ([`Session::limit_velocity`]).
+    pub limit_velocity: bool,
 }
 
 /// A computed preview.
@@ -69,7 +72,8 @@ impl Preview {
 pub fn compute(inputs: &PreviewInputs) -> Result<PreviewResult> {
     let start = std::time::Instant::now();
     let (tree, morph) = load_character(&inputs.character)?;
-    let retargeter = Networks::load(&inputs.checkpoint, Backend::Rust)?;
+    let mut retargeter = Networks::load(&inputs.checkpoint, Backend::Rust)?;
+    retargeter.set_cleanup(Cleanup { velocity_limit: inputs.limit_velocity, ..Cleanup::default() });
     let scorer = Scorer::new(retargeter.record(), retargeter.character(), &inputs.checkpoint)?;
     let clip = HumanClip::from_bvh_file(&inputs.clip, &ImportOptions { fps: Some(PROJECT_FPS), mapping: None })
         .with_context(|| format!("opening {}", inputs.clip.display()))?;

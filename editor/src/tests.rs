@@ -41,7 +41,7 @@ fn hound_walk() -> &'static PreviewResult {
     static RESULT: OnceLock<PreviewResult> = OnceLock::new();
     RESULT.get_or_init(|| {
         let opened = open_character("hound").unwrap();
-        preview::compute(&PreviewInputs { character: opened.path, checkpoint: opened.checkpoint.unwrap(), clip: walk() }).unwrap()
+        preview::compute(&PreviewInputs { character: opened.path, checkpoint: opened.checkpoint.unwrap(), clip: walk(), limit_velocity: false }).unwrap()
     })
 }
 
@@ -131,6 +131,43 @@ fn headless_app() -> App {
     app
 }
 
+/// "Hold joints to their velocity limits": the session's setting reaches the preview, whose Stretch
+/// then moves no joint but the wheels faster than its limit on the bundled `wave` (the shipped
+/// networks move the lift past its 0.3 m/s), and the Metrics panel's measure says so.
+#[test]
+fn the_velocity_limit_setting_holds_the_previews_joints() {
+    let opened = open_character("stretch").unwrap();
+    let wave = repo().join("assets/motions/wave.bvh");
+    let mut app = headless_app();
+    app.insert_resource(Session {
+        character: opened.path.clone(),
+        scene_placement: None,
+        checkpoint: opened.checkpoint.clone(),
+        clip: wave.clone(),
+        limit_velocity: true,
+    });
+    for _ in 0..3000 {
+        app.update();
+        if app.world().resource::<preview::Preview>().result.is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let preview = app.world().resource::<preview::Preview>();
+    let held = preview.result.as_ref().expect("no preview after 3000 frames");
+    assert!(held.inputs.limit_velocity);
+    let over = |r: &PreviewResult, joint: &str| {
+        let limits = r.retargeted.report.joint_limits.as_ref().expect("Stretch has velocity limits");
+        limits.joints.iter().find(|j| j.joint == joint).unwrap().frames_over
+    };
+    let free = preview::compute(&PreviewInputs { limit_velocity: false, ..held.inputs.clone() }).unwrap();
+    assert!(over(&free, "joint_lift") > 0, "the shipped networks move the lift past its limit on wave");
+    let limits = held.retargeted.report.joint_limits.as_ref().unwrap();
+    for j in limits.joints.iter().filter(|j| !j.joint.contains("wheel")) {
+        assert_eq!(j.frames_over, 0, "{} held", j.joint);
+    }
+}
+
 /// Opening the hound shows its own glTF scene, posed by the preview through the plugin's creature
 /// path: every driven bone stands where the character's pose puts its link, in the editor's y-up
 /// world (where a robot's link would stand), and the panel's line reports the hound's DoF and feet.
@@ -143,6 +180,7 @@ fn a_creature_preview_poses_its_gltf_scene_where_the_character_stands() {
         scene_placement: opened.scene_placement,
         checkpoint: opened.checkpoint.clone(),
         clip: walk(),
+        limit_velocity: false,
     });
     let ready = |w: &mut World| {
         let Some(scene) = w.get_resource::<crate::Scene>() else { return false };

@@ -147,6 +147,10 @@ fn files(ui: &mut egui::Ui, session: &mut Session, state: &mut UiState, preview:
     {
         retrain.train_new(session.character.clone());
     }
+    ui.checkbox(&mut session.limit_velocity, "Hold joints to their velocity limits").on_hover_text(
+        "As `ace retarget --limit-velocity`: no joint but the wheels moves faster than its URDF's velocity limit, \
+         which a robot executing the motion needs; the Metrics panel scores the motion as held",
+    );
     if let Some(m) = &state.message {
         ui.colored_label(egui::Color32::LIGHT_RED, m);
     }
