@@ -71,8 +71,8 @@ pub struct EvalArgs {
     /// CI setting: baselines of [`baselines::QUICK_STEPS`] steps, at most [`QUICK_CLIPS`] clips
     /// (unless `max_clips` says), rollouts of at most [`QUICK_SECONDS`].
     pub quick: bool,
-    /// ACE and the baselines retarget with the velocity limit in their cleanup
-    /// ([`Cleanup::velocity_limit`]).
+    /// Every cleaned-up system (ACE, the prior with random latents, the baselines) has the velocity
+    /// limit in its cleanup ([`Cleanup::velocity_limit`]).
     pub limit_velocity: bool,
 }
 
@@ -116,7 +116,7 @@ pub struct Evaluation {
     pub held_out_clips: Vec<String>,
     pub frames: usize,
     pub seed: u64,
-    /// ACE and the baselines were held to their joints' velocity limits (`--limit-velocity`).
+    /// The cleaned-up systems were held to their joints' velocity limits (`--limit-velocity`).
     pub limit_velocity: bool,
     pub rows: Vec<Row>,
     /// The FID of the held-out clips' own Ψ (the human's, centred as L_fea compares it): what a

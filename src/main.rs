@@ -208,8 +208,9 @@ enum Command {
         /// CI setting: baselines of 20 steps, at most 2 held-out clips, rollouts of at most 4 s.
         #[arg(long)]
         quick: bool,
-        /// Score ACE and the baselines with the velocity limit in their cleanup, as `ace retarget
-        /// --limit-velocity` writes them: what a robot executing the trajectories would do.
+        /// Score every system that is cleaned up (ACE, the prior with random latents, the baselines)
+        /// with the velocity limit in its cleanup, as `ace retarget --limit-velocity` writes them: what
+        /// a robot executing the trajectories would do.
         #[arg(long)]
         limit_velocity: bool,
     },
