@@ -55,7 +55,7 @@ impl CollisionGuard {
         let config = UfrConfig::for_character(tree, morph);
         let checks = PoseChecks::new(tree, morph, &config);
         let dof_of = |l: usize| tree.links[l].joint.as_ref().and_then(|j| j.dof);
-        let wheels: Vec<usize> = morph.wheels.iter().filter_map(|&l| dof_of(l)).collect();
+        let wheels = morph.wheel_dofs(tree);
         // Every DoF on a foot's path from the root, a spine's included: moving any of them moves a
         // foot the foot lock may hold planted, so they are the last resort.
         let per_leg: Vec<(Vec<usize>, Vec<bool>)> = morph

@@ -155,6 +155,11 @@ impl Morphology {
         self.end_effectors().iter().map(|&l| tree.links[l].name.clone()).collect()
     }
 
+    /// The DoFs of the wheels' joints (a wheel whose joint is fixed has none).
+    pub fn wheel_dofs(&self, tree: &KinematicTree) -> Vec<usize> {
+        self.wheels.iter().filter_map(|&l| tree.links[l].joint.as_ref()?.dof).collect()
+    }
+
     /// Number of end effectors (feet + manipulators + head).
     pub fn n_end_effectors(&self) -> usize {
         self.feet.len() + self.manipulators.len() + usize::from(self.head.is_some())

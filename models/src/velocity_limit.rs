@@ -40,11 +40,7 @@ impl VelocityLimit {
     /// The limit of `tree`'s joints at `fps` frames per second (`None` when no joint but wheels has a
     /// velocity limit).
     pub fn new(tree: &KinematicTree, morph: &Morphology, fps: f32) -> Option<VelocityLimit> {
-        let wheels: Vec<usize> = morph
-            .wheels
-            .iter()
-            .filter_map(|&l| tree.links[l].joint.as_ref().and_then(|j| j.dof))
-            .collect();
+        let wheels = morph.wheel_dofs(tree);
         let steps: Vec<(usize, f32)> = (0..tree.dof())
             .filter(|d| !wheels.contains(d))
             .filter_map(|d| {

@@ -263,10 +263,8 @@ pub fn state_mask(tree: &KinematicTree, morph: &Morphology) -> Vec<f32> {
     let layout = CharacterLayout::new(tree, morph);
     let mut mask = vec![1.0; layout.dim()];
     let q0 = layout.joint_positions().start;
-    for &w in &morph.wheels {
-        if let Some(d) = tree.links[w].joint.as_ref().and_then(|j| j.dof) {
-            mask[q0 + d] = 0.0;
-        }
+    for d in morph.wheel_dofs(tree) {
+        mask[q0 + d] = 0.0;
     }
     mask
 }
