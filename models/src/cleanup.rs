@@ -156,7 +156,7 @@ impl CleanupPass {
             l.apply(tree, s, pose, &mut state.scratch);
         }
         if let Some(v) = &self.velocity {
-            v.apply(&mut state.velocity, pose);
+            v.apply(&state.velocity, pose);
         }
         if let Some(g) = &self.guard {
             g.apply(tree, &mut state.guard, pose);
