@@ -144,7 +144,7 @@ fn a_zero_velocity_limit_means_none() {
     // URDF writes velocity="0" for "no limit"; a tree built otherwise may carry the 0 itself.
     let (mut tree, _) = character("stretch");
     let lift = tree.dof_index("joint_lift").unwrap();
-    let link = tree.links.iter().position(|l| l.joint.as_ref().is_some_and(|j| j.name == "joint_lift")).unwrap();
+    let link = tree.dof_link(lift);
     tree.links[link].joint.as_mut().unwrap().limits.as_mut().unwrap().velocity = 0.0;
     let moving = stretch_poses(&tree, 10, |k, q| q[lift] = 0.1 + 0.05 * k as f32);
     let r = joint_limits(&tree, &moving, FPS, &[0..10]).unwrap();
