@@ -116,7 +116,7 @@ impl DatasetConfig {
     /// the cadence limit and reads as `None`, and one without `controller.legs.walks_by_body_speed`
     /// judged the walks by the feet's speed and reads as `false`; one without
     /// `controller.scaling.wheel_limits` drove wheeled bases past their wheels' limits and reads as
-    /// `false`.
+    /// `false`, as one without `controller.scaling.leg_limits` for legged robots' leg joints.
     pub fn from_record(mut record: serde_json::Value) -> Result<Self, serde_json::Error> {
         if let Some(legs) = record
             .get_mut("controller")
@@ -132,6 +132,7 @@ impl DatasetConfig {
             .and_then(|l| l.as_object_mut())
         {
             scaling.entry("wheel_limits").or_insert(serde_json::Value::Bool(false));
+            scaling.entry("leg_limits").or_insert(serde_json::Value::Bool(false));
         }
         serde_json::from_value(record)
     }

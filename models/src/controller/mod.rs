@@ -18,7 +18,9 @@
 //! [`LegConfig::cadence_limit`] (1.25 by default), to what they follow at that multiple of the law's
 //! stride frequency: the ellipse of [`Rig::cadence_speeds`] forward and sideways, a turn counted as a
 //! sidestep of its feet ([`CommandGenerator::with_cadence_speeds`]). A wheeled base is limited the same
-//! way by its wheels' velocity limits (R = the farthest wheel's distance; [`ScalingConfig::wheel_limits`]).
+//! way by its wheels' velocity limits (R = the farthest wheel's distance; [`ScalingConfig::wheel_limits`]),
+//! and a legged robot by its leg joints' ([`joint_speed`]; [`ScalingConfig::leg_limits`]): no gait is
+//! used faster than its swinging feet can move with every leg joint within its velocity limit.
 //! [`ScalingConfig::speed_scale`] overrides the scale.
 //!
 //! # Gait timing
@@ -45,6 +47,7 @@ pub mod chain;
 pub mod collide;
 pub mod commands;
 pub mod gait;
+pub mod joint_speed;
 pub mod legs;
 pub mod reach;
 pub mod rig;
@@ -108,6 +111,12 @@ pub struct ScalingConfig {
     /// drives at the scaled commands whatever its wheels can do (datasets recorded before this
     /// setting).
     pub wheel_limits: bool,
+    /// Keep a legged robot's leg joints within their velocity limits: each gait is used, and the base
+    /// driven, no faster than its swinging feet can move with every leg joint within its limit
+    /// ([`joint_speed`]; [`Rig::foot_speed_limit`]), so that a hexapod on slow servos takes to its
+    /// faster gaits early and walks more slowly. Off, the legs step at the animal timing whatever their
+    /// joints can do (datasets recorded before this setting). Joints without a limit bound nothing.
+    pub leg_limits: bool,
 }
 
 impl Default for ScalingConfig {
@@ -117,6 +126,7 @@ impl Default for ScalingConfig {
             human_height: 1.7,
             speed_scale: None,
             wheel_limits: true,
+            leg_limits: true,
         }
     }
 }

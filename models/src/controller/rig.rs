@@ -16,11 +16,12 @@
 //! stances within the step radii, and each faster gait takes over no later than where the slower one
 //! runs out of stride.
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 
 use super::chain::Chain;
 use super::collide::{Obb, Proxies};
 use super::gait::{Gait, build_gaits};
+use super::joint_speed::{swing_foot_speed_limit, swing_speed_ratio};
 use super::spine::SpineJoint;
 use super::undulation::Undulation;
 use super::{ControllerConfig, ControllerError, calibrate, reach, spine, wheels};
@@ -186,6 +187,11 @@ pub struct Rig {
     /// allow within their velocity limits (m/s): the top linear speed when not turning. Infinite
     /// without legs or limited wheels.
     pub max_speed: f32,
+    /// The largest speed (m/s, relative to the root) at which every leg's joints let its swinging foot
+    /// move in any horizontal direction within their velocity limits ([`super::joint_speed`]); it
+    /// bounds each gait's speed (and [`Rig::max_speed`]) by [`super::joint_speed::swing_speed_ratio`].
+    /// Infinite without legs, without limits or with [`super::ScalingConfig::leg_limits`] off.
+    pub foot_speed_limit: f32,
     /// With [`super::LegConfig::cadence_limit`]: the largest foot speed forward or back and sideways
     /// (m/s) at which the legs keep their stances inside the step regions stepping at most that multiple
     /// of the law's stride frequency (and within the shortest swing); commands are limited to the
@@ -385,6 +391,7 @@ impl Rig {
             hip_height: 0.0,
             speed_scale: 1.0,
             max_speed: f32::INFINITY,
+            foot_speed_limit: f32::INFINITY,
             cadence_speeds: None,
             foot_radius: 0.0,
             clearance: 0.0,
@@ -459,9 +466,23 @@ impl Rig {
         // stays at the Froude number animals gallop at (the commands' cadence limit slows the trot).
         // `duty_fr`: the Froude number the duty factor is taken at (the transition's own, as before
         // the cadence limit, so that datasets recorded without it regenerate unchanged).
+        // With leg limits, also no faster than the swinging feet can move with the leg joints within
+        // their velocity limits at the gait's duty factor ([`super::joint_speed`]), taken with the
+        // shortest horizontal share of a swing: the lowest lift the controller swings with (0.7 of the
+        // swing height, `StepParams::lift` at rest) has the longest rise and fall.
+        if cfg.scaling.leg_limits {
+            self.foot_speed_limit = self.swing_foot_speed_limit(tree);
+        }
+        let foot_speed_limit = self.foot_speed_limit;
+        let edge = self
+            .legs
+            .iter()
+            .map(|l| super::legs::edge(self.clearance, 0.7 * l.swing_height))
+            .fold(0.0, f32::max);
         let capacity = |g: &Gait, duty_fr: f32, fr: f32, walking: bool| {
             let duty = g.duty_at(duty_fr);
             let c = frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
+            let c = c.min(foot_speed_limit / swing_speed_ratio(duty, edge));
             match cfg.legs.cadence_limit.filter(|_| walking) {
                 Some(k) => {
                     let floor = g.duty[0].min(g.duty[1]);
@@ -507,6 +528,20 @@ impl Rig {
             let side = self.legs.iter().map(|l| l.r_max).fold(f32::INFINITY, f32::min);
             [self.cadence_speed(fore, k), self.cadence_speed(side, k)]
         });
+    }
+
+    /// [`Rig::foot_speed_limit`]: the slowest leg's, each at the middle of its swing
+    /// ([`super::joint_speed::swing_foot_speed_limit`]) from the nominal stance.
+    fn swing_foot_speed_limit(&self, tree: &KinematicTree) -> f32 {
+        let root = tilted_root(self.nominal_height, 0.0, 0.0);
+        let mut scratch = super::ChainScratch::default();
+        self.legs
+            .iter()
+            .map(|l| {
+                let foot = root.inverse_transform_point(&Point3::new(l.nominal.x, l.nominal.y, l.sole));
+                swing_foot_speed_limit(tree, &l.chain, &self.nominal_q, foot, l.swing_height, &mut scratch)
+            })
+            .fold(f32::INFINITY, f32::min)
     }
 
     /// The largest foot speed (m/s, at most [`Rig::max_speed`], which keeps to the shortest swing) up to
