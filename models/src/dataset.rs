@@ -116,7 +116,8 @@ impl DatasetConfig {
     /// the cadence limit and reads as `None`, and one without `controller.legs.walks_by_body_speed`
     /// judged the walks by the feet's speed and reads as `false`; one without
     /// `controller.scaling.wheel_limits` drove wheeled bases past their wheels' limits and reads as
-    /// `false`, as one without `controller.scaling.leg_limits` for legged robots' leg joints.
+    /// `false`, as one without `controller.scaling.leg_limits` for legged robots' leg joints; one
+    /// without `controller.scaling.walking_pace` scaled speeds by the body alone and reads as `None`.
     pub fn from_record(mut record: serde_json::Value) -> Result<Self, serde_json::Error> {
         if let Some(legs) = record
             .get_mut("controller")
@@ -133,6 +134,7 @@ impl DatasetConfig {
         {
             scaling.entry("wheel_limits").or_insert(serde_json::Value::Bool(false));
             scaling.entry("leg_limits").or_insert(serde_json::Value::Bool(false));
+            scaling.entry("walking_pace").or_insert(serde_json::Value::Null);
         }
         serde_json::from_value(record)
     }
@@ -539,6 +541,9 @@ fn check_controller(c: &ControllerConfig) -> Result<(), String> {
     in_range("controller.scaling.human_height", s.human_height, 0.1, 10.0, " (m)")?;
     if let Some(k) = s.speed_scale {
         in_range("controller.scaling.speed_scale", k, 0.001, 100.0, " (character m/s per human-equivalent m/s)")?;
+    }
+    if let Some(v) = s.walking_pace {
+        in_range("controller.scaling.walking_pace", v, 0.1, 10.0, " (m/s)")?;
     }
 
     let p = &c.posture;

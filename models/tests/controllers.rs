@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 
 use ace_models::character_state::CharacterLayout;
 use ace_models::controller::{
-    BaseMode, Chain, ChainScratch, Command, Controller, ControllerConfig, ReachKind, Rig, collide::Proxies,
+    BaseMode, Chain, ChainScratch, Command, Controller, ControllerConfig, ReachKind, Rig, ScalingConfig, collide::Proxies,
 };
 use ace_models::dataset::{DatasetConfig, MotionSet, generate};
 use ace_models::kinematics::{JointKind, KinematicTree};
@@ -709,4 +709,36 @@ fn an_arm_with_a_home_reach_stays_near_where_it_rests_and_still_moves() {
     assert!(held_max < 3.0 * reach, "the arm strays {held_max} arm lengths with home_reach {reach}");
     // It still moves: a hand's small gestures, not a frozen arm.
     assert!(percentile(held, 0.75) > 0.2 * reach, "the held arm hardly moves");
+}
+
+#[test]
+fn a_robot_held_to_a_slow_top_speed_walks_at_it_where_a_person_walks() {
+    let rig = |name: &str, cfg: &ControllerConfig| {
+        let (tree, morph) = bundled(name);
+        Rig::new(&tree, &morph, cfg, 30.0).unwrap()
+    };
+    let cfg = ControllerConfig::default();
+    let pace = cfg.scaling.walking_pace.unwrap();
+    let body = ControllerConfig {
+        scaling: ScalingConfig { walking_pace: None, ..cfg.scaling.clone() },
+        ..cfg.clone()
+    };
+    // The crab's leg joints and Stretch's wheels hold them below what their bodies' scales would ask of
+    // a walking person's 1.5 m/s: the scale maps that walk to their top speed.
+    for name in ["crab", "stretch"] {
+        let (capped, free) = (rig(name, &cfg), rig(name, &body));
+        assert!(free.speed_scale * pace > free.max_speed, "{name}: {} {}", free.speed_scale, free.max_speed);
+        assert!((capped.speed_scale * pace - capped.max_speed).abs() < 1e-5 * capped.max_speed, "{name}");
+        assert_eq!(capped.max_speed, free.max_speed, "{name}: the top speed does not depend on the scale");
+    }
+    // Spot is fast enough: its body's scale (leg length / 0.9 m).
+    let (capped, free) = (rig("spot", &cfg), rig("spot", &body));
+    assert_eq!(capped.speed_scale, free.speed_scale);
+    assert!((free.speed_scale - free.leg_length / cfg.scaling.human_leg_length).abs() < 1e-6);
+    // An explicit scale is used as given.
+    let fixed = ControllerConfig {
+        scaling: ScalingConfig { speed_scale: Some(0.5), ..cfg.scaling.clone() },
+        ..cfg.clone()
+    };
+    assert_eq!(rig("crab", &fixed).speed_scale, 0.5);
 }

@@ -13,7 +13,9 @@
 //! Commands are drawn in human-equivalent m/s (the paper's −1.5…5 m/s forward, ±1 m/s sideways) and
 //! multiplied by the speed scale: `leg length / 0.9 m` for legged characters (leg length = mean hip–foot
 //! distance at the nominal stance; 0.9 m is a human's), `standing height / 1.7 m` otherwise. The yaw
-//! rate (−1…1 rad/s) is not scaled. Linear speed is further limited to what the legs can follow cleanly:
+//! rate (−1…1 rad/s) is not scaled. A character whose top speed ([`Rig::max_speed`]) is below what a
+//! person walking at [`ScalingConfig::walking_pace`] asks of it gets a smaller scale, so that the
+//! person's walk maps to its top speed. Linear speed is further limited to what the legs can follow cleanly:
 //! `|v| + |ω|·R ≤` [`Rig::max_speed`] (R = mean foot distance from the root), and, with
 //! [`LegConfig::cadence_limit`] (1.25 by default), to what they follow at that multiple of the law's
 //! stride frequency: the ellipse of [`Rig::cadence_speeds`] forward and sideways, a turn counted as a
@@ -117,6 +119,13 @@ pub struct ScalingConfig {
     /// faster gaits early and walks more slowly. Off, the legs step at the animal timing whatever their
     /// joints can do (datasets recorded before this setting). Joints without a limit bound nothing.
     pub leg_limits: bool,
+    /// A person's walking pace (m/s) that the character's top speed must keep up with: the automatic
+    /// speed scale is at most [`Rig::max_speed`] / this, so that a robot held to a slow top speed by
+    /// its joints or wheels walks at its top speed where a person walks this fast, rather than its
+    /// commands and L_fea asking of it a speed it cannot reach (the bundled crab: 0.252 → 0.089, Stretch
+    /// 0.771 → 0.400; characters faster than that keep their body's scale). `None`: the body's scale
+    /// alone (records before this setting). An explicit `speed_scale` is used as given.
+    pub walking_pace: Option<f32>,
 }
 
 impl Default for ScalingConfig {
@@ -127,6 +136,7 @@ impl Default for ScalingConfig {
             speed_scale: None,
             wheel_limits: true,
             leg_limits: true,
+            walking_pace: Some(1.5),
         }
     }
 }

@@ -406,6 +406,9 @@ impl Rig {
         if rig.mode == BaseMode::Wheeled && cfg.scaling.wheel_limits {
             rig.limit_to_wheels(tree);
         }
+        if let (None, Some(pace)) = (cfg.scaling.speed_scale, cfg.scaling.walking_pace) {
+            rig.speed_scale = rig.speed_scale.min(rig.max_speed / pace);
+        }
         rig.spine_turn_rate = spine::full_turn_rate(rig.max_speed, rig.cadence_speeds, rig.foot_radius);
         Ok(rig)
     }
