@@ -226,11 +226,17 @@ fn a_dataset_recorded_before_the_wheel_limits_regenerates_as_it_was() {
 
 #[test]
 fn a_dataset_recorded_before_the_leg_limits_regenerates_as_it_was() {
+    // Recorded before the leg limits and the walking pace: neither applies.
     let mut record = serde_json::to_value(DatasetConfig::default()).unwrap();
     assert_eq!(record["controller"]["scaling"]["leg_limits"], true);
-    record["controller"]["scaling"].as_object_mut().unwrap().remove("leg_limits");
+    assert_eq!(record["controller"]["scaling"]["walking_pace"], 1.5);
+    for key in ["leg_limits", "walking_pace"] {
+        record["controller"]["scaling"].as_object_mut().unwrap().remove(key);
+    }
     let old = DatasetConfig::from_record(record).unwrap();
-    assert_eq!(old.controller, without_leg_limits().controller);
+    let mut expected = without_leg_limits().controller;
+    expected.scaling.walking_pace = None;
+    assert_eq!(old.controller, expected);
     let (tree, morph) = character("crab");
     let (over, report) = over_with(&tree, &morph, old);
     assert!(over > 0.1, "{report}");
