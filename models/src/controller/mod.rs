@@ -33,8 +33,9 @@
 //! then the frequency raised; it is capped so that swings last at least [`LegConfig::min_swing_frames`] frames
 //! ([`LegConfig::walking_min_swing_frames`] in the walks, judged by the body's speed now and over the
 //! stride: [`LegConfig::walks_by_body_speed`]). The bundled Spot-like
-//! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s. Stretch-like (1.3 m
-//! tall, scale 0.77) drives at up to 3.9 m/s, as the paper lets wheeled bases move.
+//! character (0.53 m legs) gets a speed scale of 0.585: 5 m/s becomes 2.9 m/s, held to 1.9 m/s by its
+//! leg joints. Stretch-like (1.3 m tall, scale 0.77 by its height) drives at up to 0.6 m/s, what its
+//! wheels allow, so its scale is 0.4 (the walking pace above).
 //!
 //! # Clean motion
 //! Stance feet are fixed in the world (IK to 0.01 mm), feet never go below the ground, every joint value

@@ -371,7 +371,8 @@ mod tests {
             let want = flat(&plain, &x);
             let got = flat(&moved, &x);
             assert!(worst(&got, &want) < 2e-3, "{name}: {}", worst(&got, &want));
-            assert!(want.chunks(plain.dim()).any(|r| r[plain.layout().root_angular_velocity()][2].abs() > 0.3), "{name}: the dataset turns");
+            // (At 0.15 rad/s: the crab's sprawled feet on slow joints turn it at 0.35 rad/s at most.)
+            assert!(want.chunks(plain.dim()).any(|r| r[plain.layout().root_angular_velocity()][2].abs() > 0.15), "{name}: the dataset turns");
 
             // Velocity entries that disagree with the motion: the root-motion Ψ keeps the motion's.
             let (lin, ang) = (layout.root_linear_velocity(), layout.root_angular_velocity());
