@@ -53,15 +53,14 @@ pub fn foot_speed_limit(tree: &KinematicTree, chain: &Chain, q: &[f32], scratch:
     for k in 0..DIRECTIONS {
         let a = std::f32::consts::TAU * k as f32 / DIRECTIONS as f32;
         let rates = &pinv * DMatrix::from_column_slice(3, 1, &[a.cos(), a.sin(), 0.0]);
-        // Joint rates per m/s of foot speed, over each joint's limit: the speed is 1 over the largest.
+        // Joint rates per m/s of foot speed, over each joint's limit: the speed is 1 over the largest
+        // (infinite where no joint moves).
         let load = rates
             .iter()
             .zip(&limits)
             .map(|(r, l)| r.abs() / l)
             .fold(0.0, f32::max);
-        if load > 0.0 {
-            slowest = slowest.min(1.0 / load);
-        }
+        slowest = slowest.min(1.0 / load);
     }
     slowest
 }
@@ -134,25 +133,30 @@ mod tests {
         let (tree, morph) = crate::morphology::load_character(&file).unwrap();
         let q = tree.standing_pose().q;
         let mut scratch = ChainScratch::default();
-        let foot = morph.feet[0];
-        let chain = Chain::new(&tree, &morph, foot);
-        let v = foot_speed_limit(&tree, &chain, &q, &mut scratch);
-        assert!(v.is_finite() && v > 0.0, "{v}");
-        // Moving the foot at that speed in the worst direction takes one joint exactly to its limit
-        // (6 rad/s): checked by finite differences on the real chain, not the function's own Jacobian.
+        // Moving a foot at its limit speed in its worst direction takes one joint to its limit (6 rad/s)
+        // and none past it: checked by IK on the real chain, not the function's own Jacobian, on every
+        // leg (the left and right legs' worst directions mirror each other).
+        for &foot in &morph.feet {
+            let chain = Chain::new(&tree, &morph, foot);
+            let v = foot_speed_limit(&tree, &chain, &q, &mut scratch);
+            assert!(v.is_finite() && v > 0.0, "{v}");
+            let dofs: Vec<usize> = chain.active_dofs().collect();
+            let worst = (0..DIRECTIONS)
+                .map(|k| {
+                    let a = std::f32::consts::TAU * k as f32 / DIRECTIONS as f32;
+                    let u = Vector3::new(a.cos(), a.sin(), 0.0) * v;
+                    // IK to a target 1 ms ahead at speed v: the joints' travel over 1 ms.
+                    let here = chain.tip_point(&tree, &q, &mut scratch);
+                    let mut q1 = q.clone();
+                    chain.solve(&tree, &mut q1, &(here + u * 1e-3), 1e-8, 200, &mut scratch);
+                    dofs.iter().map(|&d| (q1[d] - q[d]).abs() / 1e-3).fold(0.0, f32::max)
+                })
+                .fold(0.0, f32::max);
+            assert!((worst - 6.0).abs() < 0.1, "foot {foot}: fastest joint at the limit speed: {worst} rad/s");
+        }
+        let chain = Chain::new(&tree, &morph, morph.feet[0]);
         let dofs: Vec<usize> = chain.active_dofs().collect();
-        let worst = (0..DIRECTIONS)
-            .map(|k| {
-                let a = std::f32::consts::TAU * k as f32 / DIRECTIONS as f32;
-                let u = Vector3::new(a.cos(), a.sin(), 0.0) * v;
-                // IK to a target 1 ms ahead at speed v: the joints' travel over 1 ms.
-                let here = chain.tip_point(&tree, &q, &mut scratch);
-                let mut q1 = q.clone();
-                chain.solve(&tree, &mut q1, &(here + u * 1e-3), 1e-8, 200, &mut scratch);
-                dofs.iter().map(|&d| (q1[d] - q[d]).abs() / 1e-3).fold(0.0, f32::max)
-            })
-            .fold(0.0, f32::max);
-        assert!((worst - 6.0).abs() < 0.3, "fastest joint at the limit speed: {worst} rad/s");
+        let v = foot_speed_limit(&tree, &chain, &q, &mut scratch);
         // Twice the velocity limits, twice the speed.
         let mut fast = tree.clone();
         let set_limits = |tree: &mut KinematicTree, f: &dyn Fn(f32) -> f32| {
@@ -168,5 +172,27 @@ mod tests {
         // No velocity limits (URDF's 0): no bound.
         set_limits(&mut fast, &|_| 0.0);
         assert!(foot_speed_limit(&fast, &chain, &q, &mut scratch).is_infinite());
+    }
+
+    #[test]
+    fn a_swing_is_as_fast_as_its_slower_end_of_the_middle_allows() {
+        // The swing's limit is the smaller of the foot's on the ground and raised by the swing height.
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/crab.urdf");
+        let (tree, morph) = crate::morphology::load_character(&file).unwrap();
+        let q = tree.standing_pose().q;
+        let mut scratch = ChainScratch::default();
+        let chain = Chain::new(&tree, &morph, morph.feet[0]);
+        let foot = chain.tip_point(&tree, &q, &mut scratch);
+        let at = |dz: f32, scratch: &mut ChainScratch| {
+            let mut q1 = q.clone();
+            let r = chain.solve(&tree, &mut q1, &(foot + Vector3::z() * dz), 1e-5, 100, scratch);
+            assert!(r.error < 1e-4);
+            foot_speed_limit(&tree, &chain, &q1, scratch)
+        };
+        let height = 0.03;
+        let (ground, raised, lowered) = (at(0.0, &mut scratch), at(height, &mut scratch), at(-height, &mut scratch));
+        assert!((raised - lowered).abs() > 0.01 * raised, "raising and lowering differ: {raised} {lowered}");
+        let swing = swing_foot_speed_limit(&tree, &chain, &q, foot, height, &mut scratch);
+        assert!((swing - ground.min(raised)).abs() < 1e-3 * swing, "{swing} {ground} {raised} {lowered}");
     }
 }
