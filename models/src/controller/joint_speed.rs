@@ -115,6 +115,15 @@ pub fn swing_foot_speed_limit(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::morphology::Morphology;
+
+    /// The bundled crab (6 rad/s joints) standing, with IK scratch space.
+    fn crab() -> (KinematicTree, Morphology, Vec<f32>, ChainScratch) {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/crab.urdf");
+        let (tree, morph) = crate::morphology::load_character(&file).unwrap();
+        let q = tree.standing_pose().q;
+        (tree, morph, q, ChainScratch::default())
+    }
 
     #[test]
     fn the_swing_ratio_follows_the_duty_factor() {
@@ -129,10 +138,7 @@ mod tests {
 
     #[test]
     fn a_leg_is_as_fast_as_its_slowest_joint_allows() {
-        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/crab.urdf");
-        let (tree, morph) = crate::morphology::load_character(&file).unwrap();
-        let q = tree.standing_pose().q;
-        let mut scratch = ChainScratch::default();
+        let (tree, morph, q, mut scratch) = crab();
         // Moving a foot at its limit speed in its worst direction takes one joint to its limit (6 rad/s)
         // and none past it: checked by IK on the real chain, not the function's own Jacobian, on every
         // leg (the left and right legs' worst directions mirror each other).
@@ -177,10 +183,7 @@ mod tests {
     #[test]
     fn a_swing_is_as_fast_as_its_slower_end_of_the_middle_allows() {
         // The swing's limit is the smaller of the foot's on the ground and raised by the swing height.
-        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/crab.urdf");
-        let (tree, morph) = crate::morphology::load_character(&file).unwrap();
-        let q = tree.standing_pose().q;
-        let mut scratch = ChainScratch::default();
+        let (tree, morph, q, mut scratch) = crab();
         let chain = Chain::new(&tree, &morph, morph.feet[0]);
         let foot = chain.tip_point(&tree, &q, &mut scratch);
         let at = |dz: f32, scratch: &mut ChainScratch| {
