@@ -192,6 +192,13 @@ pub struct StrideWalk {
     pub min_swing: f32,
 }
 
+/// Swing height scale at Froude number `fr` ([`StepParams::lift`]): 0.7 of the leg's swing height at
+/// rest, rising to all of it by Fr 1. Its lowest, at rest, has the longest rise and fall
+/// ([`edge`]).
+pub fn swing_lift(fr: f32) -> f32 {
+    0.7 + 0.3 * fr.min(1.0)
+}
+
 /// Minimum-jerk profile 10s³ − 15s⁴ + 6s⁵.
 pub fn min_jerk(s: f32) -> f32 {
     let s = s.clamp(0.0, 1.0);

@@ -677,7 +677,7 @@ impl<'a> Controller<'a> {
             clock: self.clock,
             frequency: self.frequency,
             duty,
-            lift: 0.7 + 0.3 * fr.min(1.0),
+            lift: legs::swing_lift(fr),
             min_swing: rig::min_swing_frames(&self.cfg, fr_walk) as f32 * self.dt,
             stride_walk: self.cfg.legs.walks_by_body_speed.then(|| StrideWalk {
                 below: dynamic_similarity::speed_at_froude(dynamic_similarity::WALK_TROT_FROUDE, h),

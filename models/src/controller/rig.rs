@@ -462,6 +462,19 @@ impl Rig {
         // Top speeds are forward: the step regions' fore-and-aft semi-axes.
         let r_min = self.legs.iter().map(|l| l.r_fore).fold(f32::INFINITY, f32::min);
         let h = self.hip_height;
+        // With leg limits, also no faster than the swinging feet can move with the leg joints within
+        // their velocity limits at the gait's duty factor ([`super::joint_speed`]), taken with the
+        // shortest horizontal share of a swing: the lowest lift the controller swings with
+        // ([`super::legs::swing_lift`] at rest) has the longest rise and fall.
+        if cfg.scaling.leg_limits {
+            self.foot_speed_limit = self.slowest_swing_foot_speed(tree);
+        }
+        let foot_speed_limit = self.foot_speed_limit;
+        let edge = self
+            .legs
+            .iter()
+            .map(|l| super::legs::edge(self.clearance, super::legs::swing_lift(0.0) * l.swing_height))
+            .fold(0.0, f32::max);
         // With a cadence limit `k` and `walking`, also no faster than where the law's stride, stepped k
         // times as often, fits the stance at the gait's smallest duty factor
         // (`λ(v) ≤ 2·STANCE_USE·r·k / duty`), so that a walk too short in the leg for the law's strides
@@ -469,19 +482,6 @@ impl Rig {
         // stays at the Froude number animals gallop at (the commands' cadence limit slows the trot).
         // `duty_fr`: the Froude number the duty factor is taken at (the transition's own, as before
         // the cadence limit, so that datasets recorded without it regenerate unchanged).
-        // With leg limits, also no faster than the swinging feet can move with the leg joints within
-        // their velocity limits at the gait's duty factor ([`super::joint_speed`]), taken with the
-        // shortest horizontal share of a swing: the lowest lift the controller swings with (0.7 of the
-        // swing height, `StepParams::lift` at rest) has the longest rise and fall.
-        if cfg.scaling.leg_limits {
-            self.foot_speed_limit = self.swing_foot_speed_limit(tree);
-        }
-        let foot_speed_limit = self.foot_speed_limit;
-        let edge = self
-            .legs
-            .iter()
-            .map(|l| super::legs::edge(self.clearance, 0.7 * l.swing_height))
-            .fold(0.0, f32::max);
         let capacity = |g: &Gait, duty_fr: f32, fr: f32, walking: bool| {
             let duty = g.duty_at(duty_fr);
             let c = frequency_cap(cfg, duty, fr, fps) * 2.0 * super::legs::STANCE_USE * r_min / duty;
@@ -535,7 +535,7 @@ impl Rig {
 
     /// [`Rig::foot_speed_limit`]: the slowest leg's, each at the middle of its swing
     /// ([`super::joint_speed::swing_foot_speed_limit`]) from the nominal stance.
-    fn swing_foot_speed_limit(&self, tree: &KinematicTree) -> f32 {
+    fn slowest_swing_foot_speed(&self, tree: &KinematicTree) -> f32 {
         let root = tilted_root(self.nominal_height, 0.0, 0.0);
         let mut scratch = super::ChainScratch::default();
         self.legs
