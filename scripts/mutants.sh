@@ -45,6 +45,8 @@ declare -A how=(
   [models/src/metrics/distribution.rs]="$core -- --test metrics"
   [models/src/metrics/joint_limits.rs]="$core -- --test joint_limits"
   [models/src/controller/joint_speed.rs]="$core -- --test joint_limits --lib -- joint_speed leg_limits legs_within hexapods_legs"
+  [models/src/metrics/gait.rs]="$core -- --test gait --lib"
+  [models/src/dynamic_similarity.rs]="$core -- --test gait --test controllers --lib"
   [models/src/foot_lock.rs]="$core -- --lib -- foot_lock"
   [models/src/collision_guard.rs]="$core -- --lib -- collision_guard"
   [models/src/heading.rs]="$core -- --lib -- heading"
@@ -59,6 +61,7 @@ declare -A how=(
 )
 order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distribution.rs
        models/src/metrics/joint_limits.rs models/src/controller/joint_speed.rs
+       models/src/metrics/gait.rs models/src/dynamic_similarity.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
        models/src/runtime/nets.rs
