@@ -223,3 +223,48 @@ fn the_shared_creatures_step_at_the_rate_of_animals_their_size() {
         check(label, &dir.join(file));
     }
 }
+
+/// The gait of motion without stance labels (a retarget, a baseline's output) reads contacts from the
+/// UFR's contact band. On a dataset, whose feet stand on the ground in stance and leave the band in
+/// swing, it finds the steps its labels hold: as many swings give or take the few a low swing keeps in
+/// the band, each no longer than its labelled swing (the band also holds a foot that is lifting off or
+/// coming down).
+#[test]
+fn the_gait_of_poses_finds_the_steps_the_dataset_labels() {
+    use ace_models::metrics::gait_of_poses;
+    let (tree, morph) = load_character(&bundled("spot")).unwrap();
+    let cfg = DatasetConfig {
+        frames: 3_000,
+        seed: 5,
+        ..DatasetConfig::default()
+    };
+    let set = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+    let poses: Vec<_> = (0..set.len()).map(|i| set.pose(i)).collect();
+    let labelled = gait_of_labelled_poses(&tree, &morph, &poses, &set.contacts, &set.episodes, set.fps).unwrap();
+    let band = gait_of_poses(&tree, &morph, &poses, &set.episodes, set.fps, None).expect("Spot has feet");
+    let (n, m) = (labelled.summary.swings, band.summary.swings);
+    println!("labelled: {}\ncontact band: {}", labelled.summary, band.summary);
+    assert!(n > 100, "{n} labelled swings");
+    assert!(m.abs_diff(n) * 20 <= n, "{m} swings in the band against {n} labelled");
+    assert!(band.summary.median_swing_frames <= labelled.summary.median_swing_frames);
+    assert!(band.summary.median_swing_frames >= labelled.summary.median_swing_frames - 2.0);
+    assert_eq!(band.summary.config.fps, set.fps);
+}
+
+/// A foot is in contact strictly below the contact band's top, as the UFR's sliding check has it: a
+/// foot exactly at the top is in the air.
+#[test]
+fn a_foot_at_the_top_of_the_contact_band_is_in_the_air() {
+    use ace_models::metrics::gait::FootTracks;
+    let (tree, morph) = load_character(&bundled("spot")).unwrap();
+    let pose = tree.standing_pose();
+    let links = tree.forward_kinematics(&pose);
+    let heights: Vec<f32> = morph.feet.iter().map(|&f| morph.ee_point(f, &links).z).collect();
+    let top = heights.iter().copied().fold(f32::MIN, f32::max);
+    let tracks = FootTracks::from_poses(&tree, &morph, std::slice::from_ref(&pose), top);
+    let expected: Vec<bool> = heights.iter().map(|&z| z < top).collect();
+    assert_eq!(tracks.contact, expected);
+    assert!(tracks.contact.iter().any(|&c| !c));
+    let above = FootTracks::from_poses(&tree, &morph, std::slice::from_ref(&pose), top + 1e-3);
+    assert!(above.contact.iter().all(|&c| c));
+}

@@ -592,6 +592,7 @@ mod tests {
         assert!(r.pop_frames[4] && r.pop_frames[9] && r.pop_frames[10] && !r.pop_frames[15]);
         // 0.02, 0.04 and 0.06 m are under 0.1 body lengths; 0.16 m is not.
         assert_eq!(s.micro_steps, 3);
+        assert!((s.one_or_two_frame_rate() - 0.5).abs() < 1e-6 && (s.micro_step_rate() - 0.75).abs() < 1e-6);
         // Strides end with the 2-, 3- and 8-frame swings; all slow (≤ 0.16 m per 12 frames = 0.4 m/s,
         // Fr 0.03): the 2- and 3-frame ones are short walking swings.
         assert_eq!(s.strides, 3);
