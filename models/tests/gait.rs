@@ -4,6 +4,9 @@
 //! `../shared/data/robots` and the Wolf of `../shared/data/creatures` (set `ACE_ALLOW_MISSING_DATA=1`
 //! to skip those when absent).
 //!
+//! The last tests check the measure itself where it has no labels (a retarget's poses): its contacts
+//! from the UFR's contact band find a dataset's labelled steps.
+//!
 //! Targets (issue "Natural stepping"):
 //! - in every speed bin with at least [`MIN_STRIDES`] strides, the median stride frequency is within
 //!   [`RATIO`] of the law's (robots often step somewhat faster than animals, hence the wider upper
