@@ -601,6 +601,18 @@ mod tests {
         let r = gait_quality(&tr, &[0..p.len()], &config(Some(16.0)));
         assert_eq!(r.summary.pops, 3);
         assert!((r.summary.pop_rate() - 0.75).abs() < 1e-6);
+        // Exactly a quarter of a 12-frame median is not shorter than it: the 3-frame swing stands.
+        assert_eq!(gait_quality(&tr, &[0..p.len()], &config(Some(12.0))).summary.pops, 2);
+    }
+
+    #[test]
+    fn a_swing_is_as_long_as_the_foot_moves_in_any_direction() {
+        // A foot 0.5 m to the side stepping sideways, 0.05 m a frame for 4 frames.
+        let mut tr = track("....^^^^....", 0.05);
+        tr.xy.iter_mut().for_each(|p| *p = [0.0, 0.5 + p[0]]);
+        let r = gait_quality(&tr, &[0..12], &config(None));
+        assert_eq!(r.swings.len(), 1);
+        assert!((r.swings[0].distance - 0.2).abs() < 1e-6, "{}", r.swings[0].distance);
     }
 
     #[test]
