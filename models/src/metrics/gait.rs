@@ -616,6 +616,18 @@ mod tests {
     }
 
     #[test]
+    fn micro_steps_are_shorter_than_a_tenth_of_the_body_length() {
+        // Swings of 0.25, 0.5 and 0.75 m.
+        let tr = track("....^....^^....^^^....", 0.25);
+        let micro = |body_length: f32| {
+            let c = GaitConfig { body_length, ..config(None) };
+            gait_quality(&tr, &[0..22], &c).summary.micro_steps
+        };
+        // A 5 m body: only the 0.25 m swing is under 0.5 m. A 2.5 m body: none is under 0.25 m.
+        assert_eq!((micro(5.0), micro(2.5)), (1, 0));
+    }
+
+    #[test]
     fn episodes_cut_swings_and_strides() {
         let p = "....^^^^....^^^^....";
         let tr = track(p, 0.05);
