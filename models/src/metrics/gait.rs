@@ -578,6 +578,37 @@ mod tests {
     }
 
     #[test]
+    fn a_stride_that_has_ended_does_not_set_anothers_speed() {
+        // Foot A strides from frame 8 to 18 (0.2 m: 0.6 m/s, midpoint 13); foot B from 4 to 10 (0.04 m:
+        // 0.2 m/s), over before A's midpoint and begun before any of A's.
+        let (a, b) = (track("....^^^^......^^^^......", 0.05), track("..^^..^^^^..............", 0.01));
+        let mut tr = FootTracks { feet: 2, ..FootTracks::default() };
+        for t in 0..24 {
+            tr.contact.extend([a.contact[t], b.contact[t]]);
+            tr.xy.extend([a.xy[t], b.xy[t]]);
+        }
+        let r = gait_quality(&tr, &[0..24], &config(None));
+        let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
+        assert_eq!(r.strides.len(), 2);
+        assert!((speed(0) - 0.6).abs() < 1e-5 && (speed(1) - 0.2).abs() < 1e-5, "{} {}", speed(0), speed(1));
+    }
+
+    #[test]
+    fn the_median_ratio_leaves_out_strides_outside_the_speed_bins() {
+        // 10 frames per second: a stride of 10 frames covering 5 m is at 5 m/s, the bins' upper edge
+        // (not in them); one covering 0.04 m is at 0.04 m/s, below their lower edge.
+        let p = "....^^^^......^^^^....";
+        let c = GaitConfig { fps: 10.0, ..config(None) };
+        for step in [1.25, 0.01] {
+            let r = gait_quality(&track(p, step), &[0..p.len()], &c);
+            assert_eq!(r.summary.strides, 1);
+            assert_eq!((r.summary.median_ratio, r.summary.bins.len()), (None, 0), "{}", r.strides[0].speed);
+        }
+        let r = gait_quality(&track(p, 0.25), &[0..p.len()], &c);
+        assert!(r.summary.median_ratio.is_some() && r.summary.bins.len() == 1);
+    }
+
+    #[test]
     fn pops_micro_steps_and_short_walking_swings() {
         // Swings of 1, 2, 3 and 8 frames, each moving the foot 0.02 m a frame.
         let p = "....^....^^....^^^....^^^^^^^^....";
