@@ -591,6 +591,18 @@ mod tests {
         let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
         assert_eq!(r.strides.len(), 2);
         assert!((speed(0) - 0.6).abs() < 1e-5 && (speed(1) - 0.2).abs() < 1e-5, "{} {}", speed(0), speed(1));
+        // B's stride now ends at A's midpoint (frame 13): no longer under way there. A's stride is under
+        // way at B's midpoint (frame 8), where it begins: B's speed is the mean of the two.
+        let b = track("..^^..^^^^^^^...........", 0.01);
+        for t in 0..24 {
+            tr.contact[2 * t + 1] = b.contact[t];
+            tr.xy[2 * t + 1] = b.xy[t];
+        }
+        let r = gait_quality(&tr, &[0..24], &config(None));
+        let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
+        let own_b = 0.07 * 30.0 / 9.0;
+        assert!((speed(0) - 0.6).abs() < 1e-5, "{}", speed(0));
+        assert!((speed(1) - (0.6 + own_b) / 2.0).abs() < 1e-5, "{}", speed(1));
     }
 
     #[test]
@@ -606,6 +618,12 @@ mod tests {
         }
         let r = gait_quality(&track(p, 0.25), &[0..p.len()], &c);
         assert!(r.summary.median_ratio.is_some() && r.summary.bins.len() == 1);
+        // The report prints the counts, the ratio and the bin.
+        let text = r.summary.to_string();
+        let ratio = format!("median {:.2}×", r.summary.median_ratio.unwrap());
+        for want in ["2 swings", "1 strides (median duty 0.60)", &ratio, "1.00–1.50 m/s:     1 strides"] {
+            assert!(text.contains(want), "{want:?} not in {text}");
+        }
     }
 
     #[test]
