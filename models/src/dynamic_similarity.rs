@@ -166,6 +166,8 @@ mod tests {
         assert!((duty_factor(0.399) - 0.6).abs() < 1e-3);
         assert_eq!(duty_factor(WALK_TROT_FROUDE), 0.5);
         assert_eq!(duty_factor(TROT_GALLOP_FROUDE), 0.4);
+        // Halfway through the trot, halfway from 0.5 to 0.4.
+        assert!((duty_factor(0.5 * (WALK_TROT_FROUDE + TROT_GALLOP_FROUDE)) - 0.45).abs() < 1e-6);
         assert_eq!(duty_factor(100.0), 0.25);
         // Swing time at rest for a 0.5 m hip: 0.25 of a ~1.5 s stride.
         let t = swing_time(0.0, 0.5);
