@@ -519,6 +519,16 @@ mod tests {
         out
     }
 
+    /// Two feet's single-foot tracks of equal length as one two-foot track.
+    fn two_feet(a: &FootTracks, b: &FootTracks) -> FootTracks {
+        let mut tr = FootTracks { feet: 2, ..FootTracks::default() };
+        for t in 0..a.frames() {
+            tr.contact.extend([a.contact[t], b.contact[t]]);
+            tr.xy.extend([a.xy[t], b.xy[t]]);
+        }
+        tr
+    }
+
     fn config(reference_swing: Option<f32>) -> GaitConfig {
         GaitConfig {
             fps: 30.0,
@@ -559,12 +569,7 @@ mod tests {
         // Two feet on one clock, as in a turn: the outer one strides 0.2 m per 10 frames (0.6 m/s),
         // the inner one 0.05 m (0.15 m/s). Both strides are measured at the gait's 0.375 m/s.
         let p = "^^......^^^^......^^^^......^^";
-        let (outer, inner) = (track(p, 0.05), track(p, 0.0125));
-        let mut tr = FootTracks { feet: 2, ..FootTracks::default() };
-        for t in 0..p.len() {
-            tr.contact.extend([outer.contact[t], inner.contact[t]]);
-            tr.xy.extend([outer.xy[t], inner.xy[t]]);
-        }
+        let tr = two_feet(&track(p, 0.05), &track(p, 0.0125));
         let r = gait_quality(&tr, &[0..p.len()], &config(None));
         assert_eq!(r.strides.len(), 2);
         let mut own: Vec<f32> = r.strides.iter().map(|s| s.foot_speed).collect();
@@ -581,28 +586,22 @@ mod tests {
     fn a_stride_that_has_ended_does_not_set_anothers_speed() {
         // Foot A strides from frame 8 to 18 (0.2 m: 0.6 m/s, midpoint 13); foot B from 4 to 10 (0.04 m:
         // 0.2 m/s), over before A's midpoint and begun before any of A's.
-        let (a, b) = (track("....^^^^......^^^^......", 0.05), track("..^^..^^^^..............", 0.01));
-        let mut tr = FootTracks { feet: 2, ..FootTracks::default() };
-        for t in 0..24 {
-            tr.contact.extend([a.contact[t], b.contact[t]]);
-            tr.xy.extend([a.xy[t], b.xy[t]]);
-        }
-        let r = gait_quality(&tr, &[0..24], &config(None));
-        let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
-        assert_eq!(r.strides.len(), 2);
-        assert!((speed(0) - 0.6).abs() < 1e-5 && (speed(1) - 0.2).abs() < 1e-5, "{} {}", speed(0), speed(1));
+        let a = track("....^^^^......^^^^......", 0.05);
+        // Each foot's stride speed, with B stepping as `b`.
+        let speeds = |b: &str| {
+            let r = gait_quality(&two_feet(&a, &track(b, 0.01)), &[0..24], &config(None));
+            assert_eq!(r.strides.len(), 2);
+            let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
+            (speed(0), speed(1))
+        };
+        let (sa, sb) = speeds("..^^..^^^^..............");
+        assert!((sa - 0.6).abs() < 1e-5 && (sb - 0.2).abs() < 1e-5, "{sa} {sb}");
         // B's stride now ends at A's midpoint (frame 13): no longer under way there. A's stride is under
         // way at B's midpoint (frame 8), where it begins: B's speed is the mean of the two.
-        let b = track("..^^..^^^^^^^...........", 0.01);
-        for t in 0..24 {
-            tr.contact[2 * t + 1] = b.contact[t];
-            tr.xy[2 * t + 1] = b.xy[t];
-        }
-        let r = gait_quality(&tr, &[0..24], &config(None));
-        let speed = |foot: usize| r.strides.iter().find(|s| s.foot == foot).unwrap().speed;
+        let (sa, sb) = speeds("..^^..^^^^^^^...........");
         let own_b = 0.07 * 30.0 / 9.0;
-        assert!((speed(0) - 0.6).abs() < 1e-5, "{}", speed(0));
-        assert!((speed(1) - (0.6 + own_b) / 2.0).abs() < 1e-5, "{}", speed(1));
+        assert!((sa - 0.6).abs() < 1e-5, "{sa}");
+        assert!((sb - (0.6 + own_b) / 2.0).abs() < 1e-5, "{sb}");
     }
 
     #[test]
