@@ -168,6 +168,8 @@ mod tests {
         assert_eq!(duty_factor(TROT_GALLOP_FROUDE), 0.4);
         // Halfway through the trot, halfway from 0.5 to 0.4.
         assert!((duty_factor(0.5 * (WALK_TROT_FROUDE + TROT_GALLOP_FROUDE)) - 0.45).abs() < 1e-6);
+        // Halfway through the gallop's fall (1.5 times its Froude number), halfway from 0.4 to 0.25.
+        assert!((duty_factor(1.5 * TROT_GALLOP_FROUDE) - 0.325).abs() < 1e-6);
         assert_eq!(duty_factor(100.0), 0.25);
         // Swing time at rest for a 0.5 m hip: 0.25 of a ~1.5 s stride.
         let t = swing_time(0.0, 0.5);
