@@ -498,6 +498,58 @@ mod tests {
     }
 
     #[test]
+    fn two_points_have_a_covariance_one_or_none_have_none() {
+        let mut m = PositionMoments::default();
+        assert_eq!(m.covariance(), Matrix3::zeros());
+        m.push([1.0, -1.0, 0.5]);
+        assert_eq!(m.covariance(), Matrix3::zeros());
+        m.push([3.0, 3.0, -0.5]);
+        // Two points d apart: the population covariance is d·dᵀ / 4.
+        let d = Vector3::new(2.0, 4.0, -1.0);
+        assert!((m.covariance() - d * d.transpose() / 4.0).norm() < 1e-12, "{}", m.covariance());
+    }
+
+    /// Positions are compared under a blur of [`POSITION_RESOLUTION`] body lengths: two end effectors
+    /// that never move, that far apart, are half a nat apart.
+    #[test]
+    fn still_end_effectors_a_resolution_apart_are_half_a_nat_apart() {
+        let still = |x: f32| {
+            let mut m = PositionMoments::default();
+            (0..10).for_each(|_| m.push([x, 0.0, 0.0]));
+            m.gaussian(COVARIANCE_FLOOR).unwrap()
+        };
+        let kl = still(0.0).kl_divergence(&still(POSITION_RESOLUTION as f32));
+        assert!((kl - 0.5).abs() < 1e-6, "{kl}");
+        assert!((POSITION_RESOLUTION - 0.15).abs() < 1e-12);
+    }
+
+    /// Both sides' positions are divided by their body lengths, on every axis: a body twice as long
+    /// halves every mean and quarters every variance.
+    #[test]
+    fn positions_are_read_in_body_lengths() {
+        let halves = |a: &EndEffectorStats, b: &EndEffectorStats| {
+            for (x, y) in a.moments.iter().zip(&b.moments) {
+                assert!((x.mean() - 2.0 * y.mean()).norm() < 1e-5 * x.mean().norm().max(1.0), "{} vs {}", x.mean(), y.mean());
+                assert!((x.covariance() - 4.0 * y.covariance()).norm() < 1e-5 * x.covariance().norm().max(1e-3));
+            }
+            // Some end effector sits off the origin on every axis, so every axis is checked.
+            assert!((0..3).all(|k| a.moments.iter().any(|m| m.mean()[k].abs() > 0.01)));
+        };
+        let path = assets().join("motions/walk.bvh");
+        let clip = HumanClip::from_bvh_file(&path, &ImportOptions::default()).unwrap();
+        let states = clip.states();
+        let rows = || states.iter().map(|s| s.as_slice());
+        let body = human_body_length(&clip);
+        halves(&EndEffectorStats::from_human_states(rows(), body), &EndEffectorStats::from_human_states(rows(), 2.0 * body));
+
+        let (tree, morph) = load_character(&assets().join("characters/spot.urdf")).unwrap();
+        let cfg = DatasetConfig { frames: 300, seed: 5, ..DatasetConfig::default() };
+        let set = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+        let body = character_body_length(&tree, &morph);
+        halves(&EndEffectorStats::from_motion_set(&set, body), &EndEffectorStats::from_motion_set(&set, 2.0 * body));
+    }
+
+    #[test]
     fn kl_is_zero_for_itself_grows_with_a_shift_and_matches_the_per_axis_formula() {
         let cov = diag([0.04, 0.01, 0.09]);
         let g = Gaussian::new(Vector3::new(0.1, -0.2, 0.3), cov);
@@ -619,6 +671,13 @@ mod tests {
         assert_eq!(cells.iter().filter(|c| c.starts_with('*')).count(), 1);
         assert!(line("camera").ends_with("unmapped"));
         assert!(!line("camera").contains('*'));
+        // A link left at its automatic choice says nothing more.
+        assert!(!line("lf").contains("manual"), "{}", line("lf"));
+        // Each cell is the score: three decimals below 100, one below 10,000, then exponential.
+        assert_eq!(cells[3], format!("*{:.3}", manual.scores[arm][2]));
+        assert!(manual.scores[arm][2] < 100.0);
+        let shown = [f64::INFINITY, 99.9996, 100.0, 1234.56, 10_000.0, 23456.0].map(score);
+        assert_eq!(shown, ["inf", "100.000", "100.0", "1234.6", "1.000e4", "2.346e4"].map(String::from));
 
         let json = serde_json::to_string(&manual).unwrap();
         let back: Correspondence = serde_json::from_str(&json).unwrap();
