@@ -415,10 +415,10 @@ impl fmt::Display for Correspondence {
     }
 }
 
-/// A score with three significant digits after the point for small values, fewer for large ones.
+/// A score with three significant digits after the point for small values, fewer for large ones
+/// (an infinite one prints as `inf`).
 fn score(s: f64) -> String {
     match s {
-        s if !s.is_finite() => "inf".into(),
         s if s < 100.0 => format!("{s:.3}"),
         s if s < 10_000.0 => format!("{s:.1}"),
         s => format!("{s:.3e}"),
