@@ -358,8 +358,8 @@ pub fn plot_losses(csv: &Path, title: &str, columns: &[&str]) -> Result<()> {
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.trim().parse().unwrap_or(f64::NAN)).collect()).collect();
     // The chart sits beside its CSV: the file's name says which it is (a path would show the machine
     // it was trained on in every shipped checkpoint's chart).
-    let name = csv.file_name().map_or_else(|| csv.display().to_string(), |n| n.to_string_lossy().into_owned());
-    let mut chart = LineChart::new(format!("{title} losses ({name})"), "step", "loss").log_y(true);
+    let file = csv.file_name().map_or_else(|| csv.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let mut chart = LineChart::new(format!("{title} losses ({file})"), "step", "loss").log_y(true);
     for (k, name) in columns.iter().enumerate() {
         let Some(c) = header.iter().position(|h| h == name) else { continue };
         let points = rows.iter().filter_map(|r| Some((*r.first()?, *r.get(c)?))).collect();
