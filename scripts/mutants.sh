@@ -54,6 +54,7 @@ declare -A how=(
   [models/src/effector_hold.rs]="$core -- --lib -- effector_hold"
   [models/src/velocity_limit.rs]="$core -- --lib -- velocity_limit"
   [models/src/correspondence.rs]="$core -- --lib -- correspondence"
+  [models/src/metrics/following.rs]="$core -- --test following"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
@@ -65,7 +66,7 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/metrics/gait.rs models/src/dynamic_similarity.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
-       models/src/correspondence.rs
+       models/src/correspondence.rs models/src/metrics/following.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
