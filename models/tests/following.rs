@@ -31,17 +31,28 @@ struct Fixture {
     character_body: f32,
     /// The measure's thresholds (the project's at 30 fps unless a test changes them).
     config: FollowingConfig,
+    /// The mapped pairs, in the character's end-effector order.
+    pairs: Vec<(String, EndEffector)>,
 }
 
 fn fixture() -> Fixture {
-    let (tree, morph) = load_character(&repo("assets/characters/stretch.urdf")).unwrap();
+    let f = fixture_for("stretch", vec![EndEffector::RightHand]);
+    // Stretch has one end effector, its gripper: it follows the right hand.
+    assert_eq!(f.pairs, [("grasp_center".to_string(), EndEffector::RightHand)]);
+    f
+}
+
+/// The bundled `character` against the bundled `reach` clip, its end effectors following `humans`.
+fn fixture_for(character: &str, humans: Vec<EndEffector>) -> Fixture {
+    let (tree, morph) = load_character(&repo(&format!("assets/characters/{character}.urdf"))).unwrap();
     let text = std::fs::read_to_string(repo("assets/motions/reach.bvh")).unwrap();
     let clip = HumanClip::from_bvh_str(&text, "reach.bvh", &ImportOptions::default()).unwrap().resampled(FPS);
     let human: Vec<Vec<f32>> = clip.states().into_iter().map(|s| s.0.to_vec()).collect();
-    // Stretch has one end effector, its gripper: it follows the right hand.
-    assert_eq!(morph.end_effector_links(&tree), ["grasp_center"]);
+    let pairs: Vec<(String, EndEffector)> = morph.end_effector_links(&tree).into_iter().zip(humans.iter().copied()).collect();
+    assert_eq!(pairs.len(), humans.len(), "one human end effector per character end effector");
     Fixture {
-        mapping: EndEffectorMapping::new(vec![Some(EndEffector::RightHand)]),
+        mapping: EndEffectorMapping::new(humans.into_iter().map(Some).collect()),
+        pairs,
         human_body: human_body_length(&clip),
         character_body: character_body_length(&tree, &morph),
         config: FollowingConfig::new(FPS),
@@ -96,8 +107,7 @@ impl Fixture {
                 psi
             })
             .collect();
-        let pairs = [("grasp_center".to_string(), EndEffector::RightHand)];
-        following(&features, &pairs, &psi, &human_psi, self.human_body, told, &self.config)
+        following(&features, &self.pairs, &psi, &human_psi, self.human_body, told, &self.config)
     }
 
     /// The human of the bundled walk instead (it walks at about 1.2 m/s and turns 20° to the left
@@ -146,6 +156,17 @@ fn a_gripper_that_moves_with_the_hand_follows_it() {
     // Amplitude: the character's vertical range against the human's whole extent.
     let h_extent = (p.human_range.forward.powi(2) + p.human_range.lateral.powi(2) + p.human_range.vertical.powi(2)).sqrt();
     assert!((p.amplitude_ratio.unwrap() - p.character_range.vertical / h_extent).abs() < 1e-3, "{p:?}");
+    // Combined: the correlations scored, weighted by the human's range on their axes.
+    let scored: Vec<(f32, f32)> = [
+        (p.correlation.forward, p.human_range.forward),
+        (p.correlation.lateral, p.human_range.lateral),
+        (p.correlation.vertical, p.human_range.vertical),
+    ]
+    .into_iter()
+    .filter_map(|(c, w)| c.map(|c| (c, w)))
+    .collect();
+    let weighted = scored.iter().map(|(c, w)| c * w).sum::<f32>() / scored.iter().map(|(_, w)| w).sum::<f32>();
+    assert!((p.combined.unwrap() - weighted).abs() < 1e-6, "{p:?}: {weighted}");
     assert_eq!(r.score, p.combined);
 }
 
@@ -171,10 +192,103 @@ fn a_gripper_moving_while_the_hand_is_still_is_caught_by_stillness() {
     let p = &r.pairs[0];
     assert_eq!(p.correlation.vertical, None, "nothing to follow");
     assert_eq!(p.amplitude_ratio, None);
+    assert_eq!((p.combined, r.score), (None, None), "no axis to score");
     let expected = 2.0 * amplitude / f.character_body;
     assert!((p.stillness.unwrap() - expected).abs() < 0.02 * expected, "{p:?} against {expected}");
     let still = f.score(|_| 0.4);
     assert_eq!(still.pairs[0].stillness, Some(0.0));
+}
+
+/// Still is within 5 cm in metres: a hand trembling 4 cm up and down is still, one moving 6 cm is not
+/// (and at 0.035 body lengths it is motion to follow, where 2 cm is not).
+#[test]
+fn a_hand_is_still_within_five_centimetres() {
+    let mut f = fixture();
+    let first = f.human[0].clone();
+    let z = hl::ee_position(EndEffector::RightHand).start + 2;
+    let trembling = |f: &mut Fixture, amplitude: f32| {
+        f.human = (0..120)
+            .map(|t| {
+                let mut x = first.clone();
+                x[z] += 0.5 * amplitude * (std::f32::consts::TAU * t as f32 / FPS).sin();
+                x
+            })
+            .collect();
+        f.score(|_| 0.4).pairs.remove(0)
+    };
+    let p = trembling(&mut f, 0.04);
+    assert_eq!(p.stillness, Some(0.0), "{p:?}");
+    let p = trembling(&mut f, 0.06);
+    assert_eq!(p.stillness, None, "{p:?}");
+    assert_eq!(p.correlation.vertical, Some(0.0), "{p:?}");
+    let p = trembling(&mut f, 0.02);
+    assert_eq!(p.correlation.vertical, None, "{p:?}");
+}
+
+/// Stillness is the character's extent within each window of the human's stillness: a gripper rising
+/// steadily covers 29 frames' travel in a window of 1 s at 30 fps, and 59 in one of 2 s.
+#[test]
+fn stillness_is_measured_over_windows_of_the_configured_length() {
+    let mut f = fixture();
+    f.human = vec![f.human[0].clone(); 120];
+    let v = 0.1; // m/s
+    for (seconds, frames) in [(1.0, 30.0), (2.0, 60.0)] {
+        f.config.window_s = seconds;
+        let p = f.score(|t| 0.2 + v * t as f32 / FPS).pairs.remove(0);
+        let expected = v * (frames - 1.0) / FPS / f.character_body;
+        assert!((p.stillness.unwrap() - expected).abs() < 1e-3 * expected, "{seconds} s: {p:?} against {expected}");
+    }
+}
+
+/// On a character with several end effectors (Spot: four feet and a gripper), each pair is scored from
+/// its own end effector's entries, and the clip's score is the mean of the pairs' combined scores.
+#[test]
+fn each_pair_is_scored_from_its_own_end_effector_and_the_score_is_their_mean() {
+    use EndEffector::*;
+    let f = fixture_for("spot", vec![LeftFoot, RightFoot, RightFoot, LeftFoot, RightHand]);
+    let names: Vec<&str> = f.pairs.iter().map(|p| p.0.as_str()).collect();
+    assert_eq!(names, ["fl_foot", "fr_foot", "rl_foot", "rr_foot", "gripper_tip"]);
+    // The shoulder's pitch lifts the gripper as the hand rises; the body and legs stay still.
+    let (sh1, h) = (f.tree.dof_index("arm_sh1").unwrap(), f.hand_height());
+    let poses: Vec<CharacterPose> = (0..h.len())
+        .map(|t| {
+            let mut p = f.tree.neutral_pose(Isometry3::identity());
+            p.q[sh1] = -(h[t] - h[0]);
+            p
+        })
+        .collect();
+    let r = f.score_poses(&poses, 1.0);
+    assert_eq!(r.pairs.len(), 5);
+    for p in &r.pairs[..4] {
+        assert_eq!(p.character_range, Default::default(), "{p:?}");
+    }
+    let gripper = &r.pairs[4];
+    assert!(gripper.correlation.vertical.unwrap() > 0.9, "{gripper:?}");
+    let combined: Vec<f32> = r.pairs.iter().filter_map(|p| p.combined).collect();
+    assert!(combined.len() >= 2, "the person's feet move too: {r:?}");
+    let mean = combined.iter().sum::<f32>() / combined.len() as f32;
+    assert!((r.score.unwrap() - mean).abs() < 1e-6, "{r:?}");
+}
+
+/// The printed summary: one clip's axes per pair, or over many clips the medians with the clips they
+/// are taken over.
+#[test]
+fn the_summary_prints_one_clips_axes_or_many_clips_medians() {
+    let f = fixture();
+    let with = f.score(f.mirroring(1.0));
+    let one = FollowingSummary::new(vec![(with.clone(), f.human_body)]);
+    let text = one.to_string();
+    assert!(text.starts_with(&format!("following {:.2} ", with.score.unwrap())), "{text}");
+    let p = &with.pairs[0];
+    let line = format!("grasp_center ~ {}: vertical 1.00, forward {}", EndEffector::RightHand.name(), p.correlation.forward.map_or("n/a".into(), |c| format!("{c:.2}")));
+    assert!(text.contains(&line), "{text}\nlacks {line}");
+    assert!(!text.contains("clips"), "{text}");
+    let many = FollowingSummary::new(vec![(with, f.human_body); 3]);
+    let text = many.to_string();
+    assert!(text.contains(&format!("vertical 1.00 ({} clips moving ≥ 0.3 m)", 3)), "{text}");
+    assert!(text.contains("(median over the clips)"), "{text}");
+    assert!(text.contains(&format!("°/s ({} clips)", many.standing_clips)), "{text}");
+    assert!(text.contains(&format!("speed scale ({} clips)", many.walking_clips)), "{text}");
 }
 
 #[test]

@@ -488,3 +488,63 @@ impl std::fmt::Display for FollowingSummary {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn correlation_is_pearsons_r_and_zero_for_a_still_series() {
+        let a = [1.0, 2.0, 3.0, 4.0, 5.0];
+        let b = [2.0, 1.0, 4.0, 3.0, 6.0];
+        // Centred: a − 3 = (−2, −1, 0, 1, 2), b − 3.2 = (−1.2, −2.2, 0.8, −0.2, 2.8); the sums of
+        // products are 10 (a·b), 10 (a·a) and 14.8 (b·b).
+        let r = 10.0 / (10.0f32 * 14.8).sqrt();
+        assert!((correlation(&a, &b) - r).abs() < 1e-6, "{} against {r}", correlation(&a, &b));
+        // Unchanged by the series' offsets and scales, negated by a sign.
+        let b_scaled: Vec<f32> = b.iter().map(|x| 3.0 * x + 7.0).collect();
+        assert!((correlation(&a, &b_scaled) - r).abs() < 1e-6);
+        let b_negated: Vec<f32> = b.iter().map(|x| -x).collect();
+        assert!((correlation(&a, &b_negated) + r).abs() < 1e-6);
+        assert!((correlation(&a, &a) - 1.0).abs() < 1e-6);
+        // A still series, or one that moves by less than a micrometre, follows nothing.
+        assert_eq!(correlation(&a, &[0.4; 5]), 0.0);
+        let jitter: Vec<f32> = (0..100).map(|i| 0.4 + if i % 2 == 0 { 1e-7 } else { -1e-7 }).collect();
+        let ramp: Vec<f32> = (0..100).map(|i| i as f32).collect();
+        assert_eq!(correlation(&ramp, &jitter), 0.0);
+        assert_eq!(correlation(&jitter, &ramp), 0.0);
+        // A millimetre is motion.
+        let steps: Vec<f32> = (0..100).map(|i| 0.4 + 1e-3 * (i / 50) as f32).collect();
+        assert!(correlation(&ramp, &steps) > 0.8);
+    }
+
+    #[test]
+    fn windows_overlap_by_half_and_a_short_clip_is_one_window() {
+        let all = |n: usize, len: usize| windows(n, len).collect::<Vec<std::ops::Range<usize>>>();
+        assert_eq!(all(100, 30), [0..30, 15..45, 30..60, 45..75, 60..90]);
+        assert_eq!(all(31, 30), [0..30]);
+        assert_eq!(all(30, 30), [0..30]);
+        assert_eq!(all(20, 30), [0..20]);
+        assert!(all(0, 30).is_empty());
+        assert_eq!(all(3, 2), [0..2, 1..3]);
+    }
+
+    #[test]
+    fn ranges_and_extents() {
+        assert_eq!(range(&[0.5, -1.0, 2.0, 0.0]), 3.0);
+        assert_eq!(range(&[]), 0.0);
+        assert_eq!(norm([3.0, 4.0, 12.0]), 13.0);
+        assert_eq!(norm([-3.0, 0.0, 4.0]), 5.0);
+    }
+
+    #[test]
+    fn turning_sums_the_rates_after_the_first_frame() {
+        // At 2 frames per second, a frame's rate turns the body by half of it; the first frame's rate
+        // brought the body to where the clip starts.
+        let turned = turned_degrees([9.0, 1.0, 2.0, -0.5], 2.0);
+        let expected = [0.0f32, 0.5, 1.5, 1.25].map(f32::to_degrees);
+        for (t, e) in turned.iter().zip(expected) {
+            assert!((t - e).abs() < 1e-4, "{turned:?} against {expected:?}");
+        }
+    }
+}
