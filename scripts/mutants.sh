@@ -36,7 +36,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # checked by the end-to-end runs). The plugin's `retarget.rs` runs its crate's own Retargeter tests
 # (`plugin/tests/retarget.rs`, no libtorch); the rigged creatures' scene tests stay in the `ace` crate,
 # which trains their small checkpoints with the `ace` binary. The pure-Rust networks (`runtime/nets.rs`)
-# are checked against libtorch's by the runtime's equivalence tests, so they need `learn` too.
+# are checked against libtorch's by the runtime's equivalence tests, so they need `learn` too. The BVH
+# reader runs its import tests and unit tests; the hostile-input tests (`reliability`, `mutated_inputs`)
+# also read checkpoints and need `learn`, so they are run by hand on its survivors.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -55,6 +57,7 @@ declare -A how=(
   [models/src/velocity_limit.rs]="$core -- --lib -- velocity_limit"
   [models/src/correspondence.rs]="$core -- --lib -- correspondence"
   [models/src/metrics/following.rs]="$core -- --test following --lib"
+  [models/src/human/bvh.rs]="$core -- --test human_import --lib"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
@@ -66,7 +69,7 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/metrics/gait.rs models/src/dynamic_similarity.rs
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
-       models/src/correspondence.rs models/src/metrics/following.rs
+       models/src/correspondence.rs models/src/metrics/following.rs models/src/human/bvh.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
