@@ -84,15 +84,6 @@ impl Bvh {
         &self.values[i * self.channel_count..(i + 1) * self.channel_count]
     }
 
-    /// Children of joint `j`.
-    pub fn children(&self, j: usize) -> impl Iterator<Item = usize> + '_ {
-        self.joints
-            .iter()
-            .enumerate()
-            .filter(move |(_, b)| b.parent == Some(j))
-            .map(|(i, _)| i)
-    }
-
     /// Parse BVH text; `file` names the source in error messages.
     pub fn parse(text: &str, file: &str) -> Result<Bvh, HumanImportError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
@@ -691,5 +682,65 @@ mod tests {
         assert!(e.contains("line 8") && e.contains("Wrotation"), "{e}");
         let e = parse_err("");
         assert!(e.contains("missing HIERARCHY"), "{e}");
+    }
+
+    /// End sites some exporters name (`End Site Toe_End {`), and the hierarchy's errors inside a joint,
+    /// word for word with their lines.
+    #[test]
+    fn named_end_sites_are_read_and_joint_errors_name_their_line() {
+        let named = SMALL.replace("  End Site\n  {", "  End Site Left_Toe_End {");
+        let b = Bvh::parse(&named, "named.bvh").unwrap();
+        assert_eq!(b.joints[1].end_sites, [Vector3::new(0.0, -0.4, 0.0)]);
+        let spaced = SMALL.replace("  End Site\n  {", "  End Site Left Toe\n  {");
+        assert_eq!(Bvh::parse(&spaced, "named.bvh").unwrap().joints[1].end_sites.len(), 1);
+        let cases: Vec<(String, &str)> = vec![
+            (SMALL.replace("OFFSET 0 -0.4 0", "OFFSET 0 inf 0"), "line 11: expected an OFFSET coordinate, found `inf`"),
+            (SMALL.replace("OFFSET 0.1 -0.5 0", "OFFSET 0.1 NaN 0"), "line 7: expected an OFFSET coordinate, found `NaN`"),
+            (SMALL.replace("  End Site\n", "  {\n  End Site\n"), "line 9: unbalanced braces: unexpected `{` in joint `Left Leg`"),
+            (SMALL.replace("  End Site\n", "  Limits 0 1\n  End Site\n"), "line 9: unexpected `Limits` in joint `Left Leg`"),
+            (SMALL.replace("  End Site\n", "  End Point\n"), "line 9: expected `End Site`, found `End Point`"),
+        ];
+        for (text, message) in cases {
+            assert_eq!(parse_err(&text), format!("bad.bvh, {message}"));
+        }
+    }
+
+    /// Every error of the MOTION section, word for word, with the line it names (SMALL's MOTION is
+    /// line 15, `Frames:` 16, `Frame Time:` 17, its frames 18 and 20 with a blank line between).
+    #[test]
+    fn motion_section_errors_name_their_line_exactly() {
+        let (head, _) = SMALL.split_once("Frames:").unwrap();
+        let cases: Vec<(String, &str)> = vec![
+            (head.to_string(), "line 15: MOTION section has no `Frames:` line"),
+            (SMALL.replace("Frames:\t2", "Frame: 2"), "line 16: expected `Frames: <count>` after MOTION, found `Frame: 2`"),
+            (SMALL.replace("Frames:\t2", "Frames: two"), "line 16: `Frames:` count `two` is not a non-negative integer"),
+            (format!("{head}Frames:\t2\n"), "line 16: MOTION section has no `Frame Time:` line"),
+            (SMALL.replace("Frames:\t2", "Frames: 0"), "line 16: `Frames: 0`: the clip has no motion"),
+            (SMALL.replace("Frame Time: 0.5", "Frame Tme: 0.5"), "line 17: expected `Frame Time: <seconds>`, found `Frame Tme: 0.5`"),
+            (SMALL.replace("Frame Time: 0.5", "Frame Time: 0"), "line 17: `Frame Time:` `0` is not a positive number"),
+            (SMALL.replace("Frame Time: 0.5", "Frame Time: -0.5"), "line 17: `Frame Time:` `-0.5` is not a positive number"),
+            (SMALL.replace("Frame Time: 0.5", "Frame Time: inf"), "line 17: `Frame Time:` `inf` is not a positive number"),
+            (SMALL.replace("Frame Time: 0.5", "Frame Time: NaN"), "line 17: `Frame Time:` `NaN` is not a positive number"),
+            (
+                SMALL.replace("Frame Time: 0.5", "Frame Time: 20"),
+                "line 17: `Frame Time: 20` is 0.0500 frames per second; expected 0.001 to 10 seconds per frame (1000 down to 0.1 frames per second)",
+            ),
+            (SMALL.replace("Frames:\t2", "Frames: 1"), "line 20: more motion lines than `Frames: 1` declares (line 20 is frame 2); correct the `Frames:` count"),
+            (SMALL.replace("1 2 3\n\n", "1 2 3 4\n\n"), "line 18: expected 9 values, found 10"),
+            (SMALL.replace("1 2 3e-1", "1 2 3e39"), "line 20: value 9 `3e39` is not finite"),
+            (SMALL.replace("1 2 3e-1", "1 x 3"), "line 20: value 8 `x` is not a number"),
+            (SMALL.replace("Frames:\t2", "Frames: 3"), "line 20: truncated: `Frames: 3` declared but only 2 motion lines present"),
+            (format!("{head}Frames: 2\nFrame Time: 0.5\n"), "line 17: truncated: `Frames: 2` declared but only 0 motion lines present"),
+        ];
+        for (text, message) in cases {
+            assert_eq!(parse_err(&text), format!("bad.bvh, {message}"));
+        }
+        // Two hours of motion are read, not a frame more.
+        let long = |frames: usize| format!("{head}Frames: {frames}\nFrame Time: 10\n{}", "0 1 0 0 0 0 1 2 3\n".repeat(frames));
+        assert_eq!(Bvh::parse(&long(720), "long.bvh").unwrap().frame_count, 720);
+        assert_eq!(
+            parse_err(&long(721)),
+            "bad.bvh, line 17: `Frames: 721` at `Frame Time: 10` is 7210 s of motion; clips of at most 7200 s (2 hours) are read: split the clip"
+        );
     }
 }
