@@ -38,7 +38,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # which trains their small checkpoints with the `ace` binary. The pure-Rust networks (`runtime/nets.rs`)
 # are checked against libtorch's by the runtime's equivalence tests, so they need `learn` too. The BVH
 # reader runs its import tests and unit tests; the hostile-input tests (`reliability`, `mutated_inputs`)
-# also read checkpoints and need `learn`, so they are run by hand on its survivors.
+# also read checkpoints and need `learn`, so they are run by hand on its survivors. Forward kinematics
+# and the self-collision geometry (UFR's, the collision guard's) run every test binary of the core that
+# poses characters without training (a few seconds).
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -58,6 +60,8 @@ declare -A how=(
   [models/src/correspondence.rs]="$core -- --lib -- correspondence"
   [models/src/metrics/following.rs]="$core -- --test following --lib"
   [models/src/human/bvh.rs]="$core -- --test human_import --lib"
+  [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
+  [models/src/metrics/collision.rs]="$core -- --test metrics --test controllers --test creatures --lib"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
@@ -70,6 +74,7 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
        models/src/correspondence.rs models/src/metrics/following.rs models/src/human/bvh.rs
+       models/src/kinematics.rs models/src/metrics/collision.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
