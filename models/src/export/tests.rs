@@ -420,6 +420,35 @@ fn animation_holds_one_key_per_frame_per_channel() {
     );
 }
 
+#[test]
+fn each_link_is_animated_on_the_properties_its_joint_moves() {
+    // The root moves and turns; a revolute or continuous joint's link only turns, a prismatic one's
+    // (Stretch's lift and arm stages) only moves, a fixed one's is not animated. Link i is node i.
+    for name in ["spot", "crab", "stretch"] {
+        let (tree, _) = load_character(&project().join(format!("assets/characters/{name}.urdf"))).unwrap();
+        let glb = character_glb(&tree, &varied_poses(&tree, 5), FPS, &GltfOptions::default()).unwrap();
+        let (channels, _) = Readback::new(&glb.bytes).channels();
+        let mut expected = Vec::new();
+        for (i, link) in tree.links.iter().enumerate() {
+            match link.joint.as_ref().map(|j| (j.kind, j.dof.is_some() || j.mimic.is_some())) {
+                None => expected.extend([(i, Prop::Translation), (i, Prop::Rotation)]),
+                Some((JointKind::Prismatic, true)) => expected.push((i, Prop::Translation)),
+                Some((JointKind::Revolute | JointKind::Continuous, true)) => expected.push((i, Prop::Rotation)),
+                Some(_) => {}
+            }
+        }
+        let mut animated: Vec<(usize, Prop)> = channels.into_keys().collect();
+        animated.sort_by_key(|&(n, p)| (n, p as u8));
+        assert_eq!(animated, expected, "{name}");
+        if name == "stretch" {
+            let prismatic = expected.iter().filter(|(i, _)| {
+                tree.links[*i].joint.as_ref().is_some_and(|j| j.kind == JointKind::Prismatic)
+            });
+            assert!(prismatic.count() >= 5, "Stretch's lift and four arm stages slide");
+        }
+    }
+}
+
 /// The real robot URDFs with their mesh files.
 const REAL_ROBOTS: [&str; 3] = [
     "spot_arm/spot_with_arm.urdf",

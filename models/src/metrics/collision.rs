@@ -518,3 +518,482 @@ fn pair_depth(posed: &PosedBodies, i: usize, j: usize, margin: f32) -> f32 {
     }
     best
 }
+
+#[cfg(test)]
+mod tests {
+    //! The narrow phase against references computed another way (in f64, from first principles), the
+    //! primitives against the shapes they stand for, and the pair checks on the bundled characters
+    //! against a brute force over every primitive pair.
+    use std::path::PathBuf;
+
+    use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3 as V3};
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    use super::*;
+    use crate::geometry::Aabb;
+    use crate::kinematics::CharacterPose;
+    use crate::morphology::load_character;
+
+    type P64 = nalgebra::Point3<f64>;
+    type V64 = nalgebra::Vector3<f64>;
+
+    fn p64(p: &Point3<f32>) -> P64 {
+        p.cast()
+    }
+
+    fn random_rotation(rng: &mut Pcg64) -> UnitQuaternion<f32> {
+        let mut c = || rng.random_range(-1.0f32..1.0);
+        UnitQuaternion::from_quaternion(Quaternion::new(c(), c(), c(), c()))
+    }
+
+    fn random_point(rng: &mut Pcg64, r: f32) -> Point3<f32> {
+        Point3::new(rng.random_range(-r..r), rng.random_range(-r..r), rng.random_range(-r..r))
+    }
+
+    fn random_box(rng: &mut Pcg64) -> Primitive {
+        let centre = random_point(rng, 0.8);
+        let half = V3::new(rng.random_range(0.05f32..0.6), rng.random_range(0.05f32..0.6), rng.random_range(0.05f32..0.6));
+        Primitive::Obb {
+            center: centre,
+            axes: *random_rotation(rng).to_rotation_matrix().matrix(),
+            half,
+        }
+    }
+
+    /// A random segment: one in ten is a point, one in ten is parallel to `along` when given.
+    fn random_segment(rng: &mut Pcg64, along: Option<V3<f32>>) -> (Point3<f32>, Point3<f32>) {
+        let a = random_point(rng, 1.0);
+        let kind = rng.random_range(0..10);
+        let b = match (kind, along) {
+            (0, _) => a,
+            (1, Some(d)) => a + d * rng.random_range(-1.5f32..1.5),
+            _ => random_point(rng, 1.0),
+        };
+        (a, b)
+    }
+
+    fn point_segment_distance(p: &P64, a: &P64, b: &P64) -> f64 {
+        let d = b - a;
+        let t = if d.norm_squared() > 0.0 { ((p - a).dot(&d) / d.norm_squared()).clamp(0.0, 1.0) } else { 0.0 };
+        (a + d * t - p).norm()
+    }
+
+    /// The squared distance |r + s·d1 − t·d2|² over the unit square is a convex quadratic: its least
+    /// value is at its stationary point when that lies inside, else on an edge of the square, where
+    /// it is an endpoint's distance to the other segment.
+    fn reference_segment_distance(p1: &Point3<f32>, q1: &Point3<f32>, p2: &Point3<f32>, q2: &Point3<f32>) -> f64 {
+        let (p1, q1, p2, q2) = (p64(p1), p64(q1), p64(p2), p64(q2));
+        let mut best = point_segment_distance(&p1, &p2, &q2)
+            .min(point_segment_distance(&q1, &p2, &q2))
+            .min(point_segment_distance(&p2, &p1, &q1))
+            .min(point_segment_distance(&q2, &p1, &q1));
+        let (d1, d2, r) = (q1 - p1, q2 - p2, p1 - p2);
+        let (a, b, e) = (d1.dot(&d1), d1.dot(&d2), d2.dot(&d2));
+        let det = b * b - a * e;
+        if det.abs() > 1e-9 * (a * e).max(1e-30) {
+            // a·s − b·t = −d1·r and b·s − e·t = −d2·r.
+            let (u, v) = (-d1.dot(&r), -d2.dot(&r));
+            let s = (-e * u + b * v) / det;
+            let t = (-b * u + a * v) / det;
+            if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) {
+                best = best.min((r + d1 * s - d2 * t).norm());
+            }
+        }
+        best
+    }
+
+    /// World corners of a box.
+    fn corners(center: &Point3<f32>, axes: &Matrix3<f32>, half: &V3<f32>) -> Vec<P64> {
+        (0..8)
+            .map(|k| {
+                let s = V64::new(
+                    if k & 1 == 0 { -1.0 } else { 1.0 },
+                    if k & 2 == 0 { -1.0 } else { 1.0 },
+                    if k & 4 == 0 { -1.0 } else { 1.0 },
+                );
+                p64(center) + axes.cast::<f64>() * s.component_mul(&half.cast())
+            })
+            .collect()
+    }
+
+    /// Distance from `p` to a box: to its closest point, the point clamped onto the box along each axis.
+    fn point_box_distance(p: &P64, center: &Point3<f32>, axes: &Matrix3<f32>, half: &V3<f32>) -> f64 {
+        let (c, m, h) = (p64(center), axes.cast::<f64>(), half.cast::<f64>());
+        let mut closest = c;
+        for i in 0..3 {
+            let axis = m.column(i).into_owned();
+            closest += axis * (p - c).dot(&axis).clamp(-h[i], h[i]);
+        }
+        (p - closest).norm()
+    }
+
+    /// The distance along a segment is convex: a ternary search finds its least value.
+    fn reference_segment_box_distance(a: &Point3<f32>, b: &Point3<f32>, center: &Point3<f32>, axes: &Matrix3<f32>, half: &V3<f32>) -> f64 {
+        let (a, b) = (p64(a), p64(b));
+        let f = |t: f64| point_box_distance(&(a + (b - a) * t), center, axes, half);
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for _ in 0..200 {
+            let (m1, m2) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+            if f(m1) <= f(m2) { hi = m2 } else { lo = m1 }
+        }
+        f(0.5 * (lo + hi)).min(f(0.0)).min(f(1.0))
+    }
+
+    /// How far the projections of two corner sets onto `l` overlap: the least shift along `l` that
+    /// parts them (negative: the gap between them).
+    fn interval_overlap(x: &[P64], y: &[P64], l: &V64) -> f64 {
+        let span = |c: &[P64]| c.iter().map(|p| p.coords.dot(l)).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        let ((lx, hx), (ly, hy)) = (span(x), span(y));
+        // The shorter of the two pushes that part them along `l`.
+        (hx - ly).min(hy - lx)
+    }
+
+    /// Two boxes' penetration depth from their corners: the least overlap of their projections over
+    /// the face normals and the edge pairs' cross products, the edges read from the corners.
+    fn reference_box_box(x: &[P64], y: &[P64]) -> f64 {
+        let edges = |c: &[P64]| [c[1] - c[0], c[2] - c[0], c[4] - c[0]];
+        let (ex, ey) = (edges(x), edges(y));
+        let mut axes: Vec<V64> = ex.iter().chain(&ey).copied().collect();
+        for u in &ex {
+            for v in &ey {
+                axes.push(u.cross(v));
+            }
+        }
+        axes.iter()
+            .filter(|l| l.norm() > 1e-6 * ex[0].norm().max(ey[0].norm()).powi(2))
+            .map(|l| interval_overlap(x, y, &l.normalize()))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn segment_distance_is_the_least_distance_between_the_segments() {
+        let mut rng = Pcg64::seed_from_u64(7);
+        for k in 0..2000 {
+            let (p1, q1) = random_segment(&mut rng, None);
+            let along = Some(q1 - p1).filter(|d| d.norm() > 0.0);
+            let (p2, q2) = random_segment(&mut rng, along);
+            let got = segment_distance(&p1, &q1, &p2, &q2) as f64;
+            let want = reference_segment_distance(&p1, &q1, &p2, &q2);
+            assert!((got - want).abs() < 2e-5, "case {k}: {got} against {want} ({p1} {q1} / {p2} {q2})");
+            // The order of the segments and of their ends does not matter.
+            let swapped = segment_distance(&q2, &p2, &q1, &p1) as f64;
+            assert!((swapped - want).abs() < 2e-5, "case {k} swapped: {swapped} against {want}");
+        }
+    }
+
+    #[test]
+    fn segment_box_distance_is_the_least_distance_from_the_segment_to_the_box() {
+        let mut rng = Pcg64::seed_from_u64(8);
+        let mut inside = 0;
+        for k in 0..1000 {
+            let Primitive::Obb { center, axes, half } = random_box(&mut rng) else { unreachable!() };
+            let axis = axes.column(rng.random_range(0..3)).into_owned();
+            let (a, b) = random_segment(&mut rng, Some(axis));
+            let got = segment_box_distance(&a, &b, &center, &axes, &half) as f64;
+            let want = reference_segment_box_distance(&a, &b, &center, &axes, &half);
+            assert!((got - want).abs() < 2e-5, "case {k}: {got} against {want}");
+            inside += usize::from(want < 1e-6);
+        }
+        assert!(inside > 100 && inside < 900, "both sides are tried: {inside} of 1000 segments touch their box");
+    }
+
+    #[test]
+    fn penetration_depth_is_the_overlap_of_the_shapes_in_either_order() {
+        let mut rng = Pcg64::seed_from_u64(9);
+        let mut overlapping = [0usize; 3];
+        for k in 0..1500 {
+            let capsule = |rng: &mut Pcg64| {
+                let (a, b) = random_segment(rng, None);
+                Primitive::Capsule { a, b, radius: rng.random_range(0.02f32..0.3) }
+            };
+            let (p, q) = match k % 3 {
+                0 => (capsule(&mut rng), capsule(&mut rng)),
+                1 => (capsule(&mut rng), random_box(&mut rng)),
+                _ => (random_box(&mut rng), random_box(&mut rng)),
+            };
+            let want = match (&p, &q) {
+                (Primitive::Capsule { a, b, radius: r }, Primitive::Capsule { a: c, b: d, radius: s }) => {
+                    (r + s) as f64 - reference_segment_distance(a, b, c, d)
+                }
+                (Primitive::Capsule { a, b, radius }, Primitive::Obb { center, axes, half }) => {
+                    *radius as f64 - reference_segment_box_distance(a, b, center, axes, half)
+                }
+                (Primitive::Obb { center, axes, half }, Primitive::Obb { center: c2, axes: a2, half: h2 }) => {
+                    reference_box_box(&corners(center, axes, half), &corners(c2, a2, h2))
+                }
+                _ => unreachable!(),
+            };
+            for (x, y) in [(&p, &q), (&q, &p)] {
+                let got = penetration_depth(x, y) as f64;
+                assert!((got - want).abs() < 1e-4, "case {k}: {got} against {want} ({x:?} / {y:?})");
+            }
+            overlapping[k % 3] += usize::from(want > 0.0);
+        }
+        for (kind, n) in ["capsules", "capsule and box", "boxes"].iter().zip(overlapping) {
+            assert!(n > 50 && n < 450, "{kind}: {n} of 500 overlap; both sides are tried");
+        }
+    }
+
+    #[test]
+    fn box_penetration_is_no_deeper_than_along_any_direction() {
+        // The separating-axis theorem: no direction parts two overlapping boxes with a shorter push
+        // than the best of the 15 axes.
+        let mut rng = Pcg64::seed_from_u64(10);
+        let n = 4000;
+        let dirs: Vec<V64> = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let phi = i as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+                let r = (1.0 - z * z).sqrt();
+                V64::new(r * phi.cos(), r * phi.sin(), z)
+            })
+            .collect();
+        let mut overlapping = 0;
+        for k in 0..100 {
+            let (Primitive::Obb { center, axes, half }, Primitive::Obb { center: c2, axes: a2, half: h2 }) =
+                (random_box(&mut rng), random_box(&mut rng))
+            else {
+                unreachable!()
+            };
+            let (x, y) = (corners(&center, &axes, &half), corners(&c2, &a2, &h2));
+            let sat = box_box_overlap(&center, &axes, &half, &c2, &a2, &h2) as f64;
+            let sampled = dirs.iter().map(|l| interval_overlap(&x, &y, l)).fold(f64::INFINITY, f64::min);
+            // Apart, some axis parts them as some direction does (the depth is then no distance).
+            assert_eq!(sat > 0.0, sampled > 0.0, "case {k}: {sat} against {sampled}");
+            if sampled > 0.0 {
+                assert!(sat <= sampled + 1e-5, "case {k}: {sat} > {sampled}");
+                assert!(sat >= sampled - 0.05, "case {k}: {sat} far below {sampled}");
+                overlapping += 1;
+            }
+        }
+        assert!(overlapping > 10 && overlapping < 90, "{overlapping} of 100 pairs overlap");
+    }
+
+    /// The world box of a primitive.
+    fn primitive_aabb(p: &Primitive) -> Aabb {
+        let mut out = Aabb::empty();
+        match p {
+            Primitive::Capsule { a, b, radius } => {
+                for e in [a, b] {
+                    out.include(&(e - V3::repeat(*radius)));
+                    out.include(&(e + V3::repeat(*radius)));
+                }
+            }
+            Primitive::Obb { center, axes, half } => {
+                for c in corners(center, axes, half) {
+                    out.include(&c.cast());
+                }
+            }
+        }
+        out
+    }
+
+    fn assert_boxes_match(a: &Aabb, b: &Aabb, what: &str) {
+        assert!((a.min - b.min).norm() < 1e-5 && (a.max - b.max).norm() < 1e-5, "{what}: {a:?} against {b:?}");
+    }
+
+    #[test]
+    fn primitives_stand_for_their_shapes() {
+        let shapes = [
+            Shape::Sphere { radius: 0.1 },
+            Shape::Capsule { radius: 0.05, length: 0.3 },
+            Shape::Cylinder { radius: 0.04, length: 0.5 },
+            Shape::Cylinder { radius: 0.2, length: 0.1 },
+            Shape::Box { size: V3::new(0.1, 0.2, 0.3) },
+            Shape::Mesh {
+                filename: "m.stl".into(),
+                scale: V3::new(2.0, -1.0, 0.5),
+                bounds: Some(Aabb { min: Point3::new(-0.1, 0.0, 0.2), max: Point3::new(0.3, 0.1, 0.4) }),
+            },
+        ];
+        let shifted = Isometry3::from_parts(Translation3::new(0.3, -0.2, 0.7), UnitQuaternion::identity());
+        let turned = Isometry3::from_parts(
+            Translation3::new(-0.1, 0.4, 0.2),
+            UnitQuaternion::from_euler_angles(0.3, -0.7, 1.1),
+        );
+        for shape in shapes {
+            let at = |origin: Isometry3<f32>| Geometry { origin, shape: shape.clone() };
+            // Placed without a turn, every primitive spans its shape's box exactly (a long cylinder's
+            // capsule ends at its end faces).
+            let p = Primitive::from_geometry(&at(shifted)).unwrap();
+            assert_boxes_match(&primitive_aabb(&p), &at(shifted).aabb(&Isometry3::identity()).unwrap(), &format!("{shape:?}"));
+            assert!((p.lowest_z() - at(shifted).aabb(&Isometry3::identity()).unwrap().min.z).abs() < 1e-6);
+            // Turned, it is the shape's primitive at its own origin carried by the turn.
+            let turned_p = Primitive::from_geometry(&at(turned)).unwrap();
+            let carried = Primitive::from_geometry(&at(Isometry3::identity())).unwrap().transformed(&turned);
+            assert_boxes_match(&primitive_aabb(&turned_p), &primitive_aabb(&carried), &format!("{shape:?} turned"));
+            assert!((penetration_depth(&turned_p, &carried) - penetration_depth(&carried, &carried)).abs() < 1e-5);
+        }
+        let long = Primitive::from_geometry(&Geometry { origin: Isometry3::identity(), shape: Shape::Cylinder { radius: 0.04, length: 0.5 } });
+        assert!(matches!(long, Some(Primitive::Capsule { radius, .. }) if radius == 0.04), "a long cylinder is a capsule");
+        let disc = Primitive::from_geometry(&Geometry { origin: Isometry3::identity(), shape: Shape::Cylinder { radius: 0.2, length: 0.1 } });
+        assert!(matches!(disc, Some(Primitive::Obb { .. })), "a disc is a box");
+        let unread = Geometry {
+            origin: Isometry3::identity(),
+            shape: Shape::Mesh { filename: "m.stl".into(), scale: V3::repeat(1.0), bounds: None },
+        };
+        assert_eq!(Primitive::from_geometry(&unread), None);
+    }
+
+    #[test]
+    fn lowest_points_and_bounding_spheres_are_exact() {
+        let mut rng = Pcg64::seed_from_u64(11);
+        for _ in 0..200 {
+            let b = random_box(&mut rng);
+            let Primitive::Obb { center, axes, half } = b else { unreachable!() };
+            let cs = corners(&center, &axes, &half);
+            let lowest = cs.iter().map(|c| c.z).fold(f64::INFINITY, f64::min);
+            assert!((b.lowest_z() as f64 - lowest).abs() < 1e-5);
+            let (c, r) = b.bounding_sphere();
+            let far = cs.iter().map(|x| (x - p64(&c)).norm()).fold(0.0, f64::max);
+            assert!((far - r as f64).abs() < 1e-5, "the farthest corner lies on the sphere");
+
+            let (a, e) = random_segment(&mut rng, None);
+            let radius = rng.random_range(0.02f32..0.3);
+            let cap = Primitive::Capsule { a, b: e, radius };
+            assert!((cap.lowest_z() - (a.z.min(e.z) - radius)).abs() < 1e-6);
+            let (c, r) = cap.bounding_sphere();
+            let dir = (e - a).try_normalize(1e-9).unwrap_or(V3::x());
+            for tip in [a - dir * radius, e + dir * radius] {
+                assert!(((tip - c).norm() - r).abs() < 1e-5, "the capsule's tips lie on its sphere");
+            }
+        }
+    }
+
+    fn character(name: &str) -> KinematicTree {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
+        load_character(&path).unwrap().0
+    }
+
+    /// A pose with every joint somewhere random within its limits (±π for continuous joints).
+    fn random_pose(tree: &KinematicTree, rng: &mut Pcg64) -> CharacterPose {
+        let q = (0..tree.dof())
+            .map(|d| match tree.limits(d) {
+                Some(l) if l.lower.is_finite() && l.upper > l.lower => rng.random_range(l.lower..l.upper),
+                _ => rng.random_range(-3.0f32..3.0),
+            })
+            .collect();
+        CharacterPose { root: Isometry3::from_parts(Translation3::new(0.2, -0.1, 0.5), random_rotation(rng)), q }
+    }
+
+    #[test]
+    fn bodies_carry_their_links_shapes_and_enclose_them_tightly() {
+        let mut rng = Pcg64::seed_from_u64(12);
+        for name in ["spot", "crab", "stretch"] {
+            let tree = character(name);
+            let (bodies, body_of) = rigid_bodies(&tree);
+            for (i, link) in tree.links.iter().enumerate() {
+                let fixed = link.joint.as_ref().is_some_and(|j| !j.kind.is_movable());
+                match link.parent {
+                    Some(p) if fixed => assert_eq!(body_of[i], body_of[p], "{name}: {} is fixed to its parent", link.name),
+                    _ => assert_eq!(bodies[body_of[i]].link, i, "{name}: {} starts a body", link.name),
+                }
+                assert!(bodies[body_of[i]].links.contains(&i));
+            }
+            // Each body's nearest ancestor with geometry.
+            for b in &bodies {
+                let mut up = tree.links[b.link].parent;
+                while let Some(l) = up.filter(|&l| !bodies[body_of[l]].has_geometry()) {
+                    up = tree.links[l].parent;
+                }
+                assert_eq!(b.neighbour, up.map(|l| body_of[l]), "{name}: {}", tree.links[b.link].name);
+            }
+            let pose = random_pose(&tree, &mut rng);
+            let links = tree.forward_kinematics(&pose);
+            let mut posed = PosedBodies::default();
+            posed.update(&bodies, &links);
+            for (i, link) in tree.links.iter().enumerate() {
+                for g in link.extent_geometry() {
+                    let Some(p) = Primitive::from_geometry(g) else { continue };
+                    let want = primitive_aabb(&p.transformed(&links[i]));
+                    let found = posed.primitives[body_of[i]].iter().any(|q| {
+                        let got = primitive_aabb(q);
+                        (got.min - want.min).norm() < 1e-4 && (got.max - want.max).norm() < 1e-4
+                    });
+                    assert!(found, "{name}: {}'s shape is where forward kinematics puts it", link.name);
+                }
+            }
+            for (k, b) in bodies.iter().enumerate().filter(|(_, b)| b.has_geometry()) {
+                let (c, r) = posed.spheres[k];
+                let spheres: Vec<_> = posed.primitives[k].iter().map(Primitive::bounding_sphere).collect();
+                for (pc, pr) in &spheres {
+                    assert!((pc - c).norm() + pr <= r + 1e-4, "{name}: body {} encloses its shapes", b.link);
+                }
+                // Tight: centred in the box of its shapes' spheres in the body frame, so no farther
+                // out than that box's half diagonal.
+                let mut bx = Aabb::empty();
+                for (pc, pr) in b.primitives.iter().map(Primitive::bounding_sphere) {
+                    bx.include(&(pc - V3::repeat(pr)));
+                    bx.include(&(pc + V3::repeat(pr)));
+                }
+                let (c, r) = b.sphere;
+                assert!((c - bx.center()).norm() < 1e-4 && r <= bx.half_extents().norm() + 1e-4, "{name}: body {}", b.link);
+            }
+        }
+    }
+
+    /// The deepest overlap of two bodies over all their primitive pairs, without the broad phase.
+    fn brute_depth(posed: &PosedBodies, i: usize, j: usize) -> f32 {
+        let mut best = f32::NEG_INFINITY;
+        for p in &posed.primitives[i] {
+            for q in &posed.primitives[j] {
+                best = best.max(penetration_depth(p, q));
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn checked_pairs_and_collisions_match_a_brute_force_over_every_shape_pair() {
+        let mut rng = Pcg64::seed_from_u64(13);
+        for name in ["spot", "crab", "stretch"] {
+            let tree = character(name);
+            let tolerance = 0.006;
+            let check = SelfCollision::new(&tree, tolerance);
+            let bodies = check.bodies();
+            let rest = tree.forward_kinematics(&tree.neutral_pose(Isometry3::identity()));
+            let mut posed = PosedBodies::default();
+            posed.update(bodies, &rest);
+            let mut want = Vec::new();
+            for i in 0..bodies.len() {
+                for j in i + 1..bodies.len() {
+                    let (a, b) = (&bodies[i], &bodies[j]);
+                    let neighbours = a.neighbour == Some(j) || b.neighbour == Some(i);
+                    if a.has_geometry() && b.has_geometry() && !neighbours && brute_depth(&posed, i, j) <= -tolerance {
+                        want.push((i, j));
+                    }
+                }
+            }
+            assert_eq!(check.pairs(), &want[..], "{name}: the pairs apart at rest, neighbours left out");
+            assert!(want.len() > 5, "{name}: {} pairs", want.len());
+            assert_eq!(check.tolerance(), tolerance);
+            let links: Vec<(usize, usize)> = want.iter().map(|&(i, j)| (bodies[i].link, bodies[j].link)).collect();
+            assert_eq!(check.link_pairs(), links);
+
+            let mut hits = 0;
+            for _ in 0..300 {
+                let links = tree.forward_kinematics(&random_pose(&tree, &mut rng));
+                posed.update(bodies, &links);
+                let mut reported = Vec::new();
+                let n = check.for_each_collision(&posed, |k| reported.push(k));
+                let brute: Vec<usize> = (0..want.len())
+                    .filter(|&k| brute_depth(&posed, want[k].0, want[k].1) > tolerance)
+                    .collect();
+                assert_eq!(reported, brute, "{name}");
+                assert_eq!(n, brute.len());
+                let pairs: Vec<(usize, usize)> = brute.iter().map(|&k| (bodies[want[k].0].link, bodies[want[k].1].link)).collect();
+                assert_eq!(check.colliding_pairs(&links), pairs);
+                for &(a, b) in &pairs {
+                    assert_eq!((check.body_of(a), check.body_of(b)).0, bodies.iter().position(|x| x.link == a).unwrap());
+                }
+                hits += brute.len();
+            }
+            if name != "stretch" {
+                // Stretch's few checked pairs (its base against the arm's stages) do not meet in
+                // random poses; the other two's legs do.
+                assert!(hits > 0, "{name}: random poses collide somewhere");
+            }
+        }
+    }
+}
