@@ -422,22 +422,24 @@ mod tests {
     #[test]
     fn ground_travel_is_the_roots_place_and_heading_away_from_its_rest() {
         // A root whose rest is not upright (a rigged creature's armature turned −90° about x and 0.6 rad
-        // about z), turned 0.8 rad about the vertical, pitched a little and lifted: the travel is the
+        // about z), turned about the vertical, pitched a little and lifted: the travel is the
         // turn about z and the horizontal place, and taking it away leaves the root at rest over the
-        // origin.
+        // origin; a quarter turn too, where the heading's x is zero.
         let rest = UnitQuaternion::from_euler_angles(-std::f32::consts::FRAC_PI_2, 0.0, 0.6);
-        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.8);
         let pitch = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.1);
-        let pose = CharacterPose {
-            root: Isometry3::from_parts(Translation3::new(1.5, -2.0, 0.4), yaw * pitch * rest),
-            q: Vec::new(),
-        };
-        let m = pose.ground_travel(&rest);
-        assert!((m.translation.vector - Vector3::new(1.5, -2.0, 0.0)).norm() < 1e-6);
-        assert!((m.rotation.angle_to(&yaw)) < 1e-5, "heading {} rad", m.rotation.scaled_axis().z);
-        let back = m.inverse() * pose.root;
-        assert!(back.translation.vector.xy().norm() < 1e-6);
-        assert!(back.rotation.angle_to(&(pitch * rest)) < 1e-5);
+        for heading in [0.8, std::f32::consts::FRAC_PI_2, -2.5] {
+            let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), heading);
+            let pose = CharacterPose {
+                root: Isometry3::from_parts(Translation3::new(1.5, -2.0, 0.4), yaw * pitch * rest),
+                q: Vec::new(),
+            };
+            let m = pose.ground_travel(&rest);
+            assert!((m.translation.vector - Vector3::new(1.5, -2.0, 0.0)).norm() < 1e-6);
+            assert!(m.rotation.angle_to(&yaw) < 1e-5, "heading {heading}: {} rad", m.rotation.scaled_axis().z);
+            let back = m.inverse() * pose.root;
+            assert!(back.translation.vector.xy().norm() < 1e-6);
+            assert!(back.rotation.angle_to(&(pitch * rest)) < 1e-5);
+        }
         // Facing straight up or down there is no heading.
         let up = CharacterPose {
             root: Isometry3::from_parts(Translation3::new(0.3, 0.0, 1.0), UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f32::consts::FRAC_PI_2) * rest),
