@@ -39,8 +39,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # are checked against libtorch's by the runtime's equivalence tests, so they need `learn` too. The BVH
 # reader runs its import tests and unit tests; the hostile-input tests (`reliability`, `mutated_inputs`)
 # also read checkpoints and need `learn`, so they are run by hand on its survivors. Forward kinematics
-# and the self-collision geometry (UFR's, the collision guard's) run every test binary of the core that
-# poses characters without training (a few seconds).
+# runs every test binary of the core that poses characters without training (a few seconds); the
+# self-collision geometry (UFR's, the collision guard's) its own unit tests, which hold its narrow
+# phase to references computed another way, and the metrics' tests.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -61,7 +62,7 @@ declare -A how=(
   [models/src/metrics/following.rs]="$core -- --test following --lib"
   [models/src/human/bvh.rs]="$core -- --test human_import --lib"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
-  [models/src/metrics/collision.rs]="$core -- --test metrics --test controllers --test creatures --lib"
+  [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
