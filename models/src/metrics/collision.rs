@@ -984,8 +984,8 @@ mod tests {
                 assert_eq!(n, brute.len());
                 let pairs: Vec<(usize, usize)> = brute.iter().map(|&k| (bodies[want[k].0].link, bodies[want[k].1].link)).collect();
                 assert_eq!(check.colliding_pairs(&links), pairs);
-                for &(a, b) in &pairs {
-                    assert_eq!((check.body_of(a), check.body_of(b)).0, bodies.iter().position(|x| x.link == a).unwrap());
+                for (&k, &(a, b)) in brute.iter().zip(&pairs) {
+                    assert_eq!((check.body_of(a), check.body_of(b)), want[k], "{name}: a body's first link is in it");
                 }
                 hits += brute.len();
             }
