@@ -933,6 +933,41 @@ mod tests {
         }
     }
 
+    #[test]
+    fn neighbours_and_pairs_within_the_tolerance_at_rest_are_not_checked() {
+        // Spheres around a base sphere of radius 0.1 (tolerance 6 mm): `upper` hangs off the base 15 cm
+        // from it (a neighbour, apart at rest), `lower` hangs off `upper` 3 mm from the base (within
+        // the tolerance: touching by design), `tip` hangs off `lower` 10 cm from the base and far from
+        // `upper`. The bounding spheres of the base and `lower` are 3 mm apart, so only a broad phase
+        // widened by the tolerance sees that they touch.
+        let sphere = |name: &str, xyz: &str, r: f32| {
+            format!(r#"<link name="{name}"><collision><origin xyz="{xyz}"/><geometry><sphere radius="{r}"/></geometry></collision></link>"#)
+        };
+        let joint = |name: &str, parent: &str, child: &str| {
+            format!(
+                r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#
+            )
+        };
+        let urdf = format!(
+            r#"<robot name="apart">{}{}{}{}{}{}{}</robot>"#,
+            sphere("base", "0 0 0", 0.1),
+            sphere("upper", "0.3 0 0", 0.05),
+            sphere("lower", "0 0.153 0", 0.05),
+            sphere("tip", "0 0.25 0", 0.05),
+            joint("j1", "base", "upper"),
+            joint("j2", "upper", "lower"),
+            joint("j3", "lower", "tip"),
+        );
+        let tree = KinematicTree::from_urdf_str(&urdf).unwrap();
+        let check = SelfCollision::new(&tree, 0.006);
+        let names: Vec<(&str, &str)> = check
+            .link_pairs()
+            .into_iter()
+            .map(|(a, b)| (tree.links[a].name.as_str(), tree.links[b].name.as_str()))
+            .collect();
+        assert_eq!(names, [("base", "tip"), ("upper", "tip")]);
+    }
+
     /// The deepest overlap of two bodies over all their primitive pairs, without the broad phase.
     fn brute_depth(posed: &PosedBodies, i: usize, j: usize) -> f32 {
         let mut best = f32::NEG_INFINITY;
