@@ -41,7 +41,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # also read checkpoints and need `learn`, so they are run by hand on its survivors. Forward kinematics
 # runs every test binary of the core that poses characters without training (a few seconds); the
 # self-collision geometry (UFR's, the collision guard's) its own unit tests, which hold its narrow
-# phase to references computed another way, and the metrics' tests.
+# phase to references computed another way, and the metrics' tests. The URDF reader runs the import
+# tests (its errors word for word); the hostile-input tests are run by hand on its survivors, as for
+# the BVH reader.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -63,6 +65,7 @@ declare -A how=(
   [models/src/human/bvh.rs]="$core -- --test human_import --lib"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
+  [models/src/urdf.rs]="$core -- --test character_import --test metrics --lib"
   [models/src/runtime/nets.rs]="$learn -- --lib -- runtime"
   [models/src/learn/ace.rs]="$learn -- --lib"
   [models/src/learn/train_ace.rs]="$learn --re start_or_resume|start_fine_tune|place_prior -- --lib"
@@ -75,7 +78,7 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/foot_lock.rs models/src/collision_guard.rs models/src/heading.rs
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
        models/src/correspondence.rs models/src/metrics/following.rs models/src/human/bvh.rs
-       models/src/kinematics.rs models/src/metrics/collision.rs
+       models/src/kinematics.rs models/src/metrics/collision.rs models/src/urdf.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
