@@ -808,4 +808,143 @@ mod tests {
         assert_eq!(b.max, nalgebra::Point3::new(1.0, 2.0, 3.0));
         let _ = std::fs::remove_dir_all(&dir);
     }
+
+    #[test]
+    fn unbalanced_tags_are_placed_by_line_and_column() {
+        let cases = [
+            (
+                "<robot>\n  <link name=\"a\">\n  </joint>\n</robot>",
+                Some("`</joint>` at line 3, column 3 does not close `<link>` opened at line 2, column 3"),
+            ),
+            ("<robot/>\n</robot>", Some("`</robot>` at line 2, column 1 closes no element")),
+            (
+                "<robot>\n  <!-- a comment that never ends\n</robot>",
+                Some("the file ends inside the construct opened at line 2, column 3"),
+            ),
+            ("<robot>\n  <link name=\"a\"", Some("the file ends inside the tag opened at line 2, column 3")),
+            (
+                "<robot>\n<link>",
+                Some("the file ends at line 2, column 7 with `<link>` (line 2, column 1) still open: is it truncated?"),
+            ),
+            // Declarations, comments and character data hold no tags.
+            ("<?xml version=\"1.0\"?>\n<robot>\n  <!-- </a> -->\n  <![CDATA[ </b> ]]>\n  <link/>\n</robot>\n", None),
+        ];
+        for (xml, want) in cases {
+            assert_eq!(unbalanced_tag(xml).as_deref(), want, "{xml}");
+        }
+    }
+
+    #[test]
+    fn attributes_are_read_by_their_whole_name_in_either_quotes() {
+        let tag = r#"joint subtype="x" name = 'hip'  type= "revolute""#;
+        assert_eq!(attribute(tag, "type").as_deref(), Some("revolute"));
+        assert_eq!(attribute(tag, "name").as_deref(), Some("hip"));
+        assert_eq!(attribute(tag, "subtype").as_deref(), Some("x"));
+        assert_eq!(attribute(r#"type="a""#, "type").as_deref(), Some("a"), "at the start of the tag");
+        assert_eq!(attribute(r#"type="""#, "type").as_deref(), Some(""));
+        assert_eq!(attribute("type=revolute", "type"), None, "unquoted");
+        assert_eq!(attribute(r#"type="revolute"#, "type"), None, "unterminated");
+        assert_eq!(attribute(r#"typed="a" type"#, "type"), None, "no value");
+        assert_eq!(attribute(r#"name="a""#, "type"), None);
+    }
+
+    fn problem(xml: &str) -> UrdfProblem {
+        parse_urdf(xml, STRING_SOURCE, None).map(|_| ()).unwrap_err().problem
+    }
+
+    #[test]
+    fn links_are_ordered_depth_first_and_mimics_follow_a_joint_with_its_own_dof() {
+        let limit = r#"<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>"#;
+        let joint = |name: &str, kind: &str, parent: &str, child: &str, extra: &str| {
+            format!(r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>{limit}{extra}</joint>"#)
+        };
+        let links: String = ["base", "c", "b", "a", "m", "n"].iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect();
+        let xml = format!(
+            r#"<robot name="r">{links}{}{}{}{}{}</robot>"#,
+            joint("ja", "revolute", "base", "a", ""),
+            joint("jb", "prismatic", "base", "b", ""),
+            joint("jc", "revolute", "b", "c", ""),
+            joint("jm", "revolute", "a", "m", r#"<mimic joint="jc"/>"#),
+            joint("jn", "fixed", "a", "n", r#"<mimic joint="ja"/>"#),
+        );
+        let tree = parse_urdf(&xml, STRING_SOURCE, None).unwrap();
+        let names: Vec<&str> = tree.links.iter().map(|l| l.name.as_str()).collect();
+        assert_eq!(names, ["base", "a", "m", "n", "b", "c"], "children in the order of their joints");
+        assert_eq!(tree.dof_names(), ["ja", "jb", "jc"]);
+        let jm = tree.links[2].joint.as_ref().unwrap();
+        assert_eq!((jm.dof, jm.mimic), (None, Some(Mimic { dof: 2, multiplier: 1.0, offset: 0.0 })));
+        let jn = tree.links[3].joint.as_ref().unwrap();
+        assert_eq!((jn.dof, jn.mimic), (None, None), "a fixed joint's <mimic> is ignored");
+        assert_eq!(tree.links[5].parent, Some(4));
+        // A mimic of a fixed joint, of itself (a mimic) or of no joint at all.
+        for target in ["jn", "jm", "nowhere"] {
+            let bad = xml.replace(r#"<mimic joint="jc"/>"#, &format!(r#"<mimic joint="{target}"/>"#));
+            let want = UrdfProblem::BadMimic { joint: "jm".into(), target: target.into() };
+            assert_eq!(problem(&bad), want);
+        }
+    }
+
+    #[test]
+    fn topology_errors_name_the_links_and_joints() {
+        let links = |names: &[&str]| -> String { names.iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect() };
+        let fixed = |name: &str, parent: &str, child: &str| {
+            format!(r#"<joint name="{name}" type="fixed"><parent link="{parent}"/><child link="{child}"/></joint>"#)
+        };
+        // A cycle beside the root is listed parent to child from the link the file defines first.
+        let cycle = format!(
+            r#"<robot name="r">{}{}{}{}</robot>"#,
+            links(&["root", "c", "a", "b"]),
+            fixed("j1", "a", "b"),
+            fixed("j2", "b", "c"),
+            fixed("j3", "c", "a"),
+        );
+        assert_eq!(problem(&cycle), UrdfProblem::Cycle { links: ["c", "a", "b", "c"].map(String::from).to_vec() });
+        let two_parents = format!(r#"<robot name="r">{}{}{}</robot>"#, links(&["a", "b", "c"]), fixed("j1", "a", "c"), fixed("j2", "b", "c"));
+        assert_eq!(
+            problem(&two_parents).to_string(),
+            "link `c` is the child of several joints: j1, j2"
+        );
+        let same_name = format!(r#"<robot name="r">{}{}{}</robot>"#, links(&["a", "b", "c"]), fixed("j", "a", "b"), fixed("j", "a", "c"));
+        assert_eq!(problem(&same_name), UrdfProblem::DuplicateJoint("j".into()));
+        let no_parent = format!(r#"<robot name="r">{}{}</robot>"#, links(&["a"]), fixed("j", "x", "a"));
+        assert_eq!(problem(&no_parent), UrdfProblem::MissingParent { joint: "j".into(), link: "x".into() });
+    }
+
+    #[test]
+    fn a_urdfs_mesh_files_are_listed_once_with_their_materials() {
+        let dir = std::env::temp_dir().join(format!("ace_urdf_meshes_{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("meshes")).unwrap();
+        std::fs::write(dir.join("meshes/body.obj"), "mtllib body.mtl extra.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        std::fs::write(dir.join("meshes/body.mtl"), "newmtl grey\nKd 0.5 0.5 0.5\n").unwrap();
+        std::fs::write(
+            dir.join("meshes/leg.stl"),
+            "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 2 3\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n",
+        )
+        .unwrap();
+        let mesh = |f: &str| format!(r#"<visual><geometry><mesh filename="{f}"/></geometry></visual><collision><geometry><mesh filename="{f}"/></geometry></collision>"#);
+        let urdf = format!(
+            r#"<robot name="r"><link name="body">{}</link><link name="leg">{}{}</link>
+               <joint name="j" type="fixed"><parent link="body"/><child link="leg"/></joint></robot>"#,
+            mesh("meshes/body.obj"),
+            mesh("meshes/leg.stl"),
+            mesh("meshes/gone.stl"),
+        );
+        let path = dir.join("r.urdf");
+        std::fs::write(&path, &urdf).unwrap();
+        // The OBJ's second material file does not exist: not listed. The missing mesh neither.
+        assert_eq!(
+            mesh_files(&path),
+            [dir.join("meshes/body.obj"), dir.join("meshes/body.mtl"), dir.join("meshes/leg.stl")]
+        );
+        let tree = read_urdf_file(&path).unwrap();
+        assert_eq!(
+            tree.warnings,
+            ["1 mesh file(s) not found or not readable as STL, OBJ or Collada (they have no extent): meshes/gone.stl"]
+        );
+        let Shape::Mesh { bounds, .. } = &tree.links[1].collisions[0].shape else { panic!("a mesh") };
+        assert_eq!(bounds.unwrap().max, nalgebra::Point3::new(1.0, 2.0, 3.0));
+        std::fs::write(&path, "<robot").unwrap();
+        assert!(mesh_files(&path).is_empty(), "an unreadable URDF names no files");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
