@@ -224,8 +224,7 @@ pub fn segment_box_distance(
     }
     const INV_PHI: f32 = 0.618_034;
     let (mut lo, mut hi) = (0.0f32, 1.0f32);
-    let mut x1 = hi - INV_PHI * (hi - lo);
-    let mut x2 = lo + INV_PHI * (hi - lo);
+    let (mut x1, mut x2) = (1.0 - INV_PHI, INV_PHI);
     let (mut f1, mut f2) = (f(x1), f(x2));
     for _ in 0..30 {
         if f1 == 0.0 || f2 == 0.0 {
@@ -696,6 +695,27 @@ mod tests {
             inside += usize::from(want < 1e-6);
         }
         assert!(inside > 100 && inside < 900, "both sides are tried: {inside} of 1000 segments touch their box");
+    }
+
+    #[test]
+    fn a_segment_pointing_away_from_a_box_is_as_far_as_its_nearer_end() {
+        // Along the segment's line, beyond either end, lies the box: only points of the segment
+        // itself may be searched (the line's points past an end are inside the box).
+        let axes = *UnitQuaternion::from_euler_angles(0.4, -0.2, 0.9).to_rotation_matrix().matrix();
+        let (center, half) = (Point3::new(0.2, -0.1, 0.3), V3::new(1.0, 0.7, 0.5));
+        for (axis, extent) in [(0, 1.0f32), (1, 0.7), (2, 0.5)] {
+            let dir = axes.column(axis).into_owned();
+            for gap in [0.05f32, 0.3, 0.5] {
+                for length in [0.5f32, 1.0, 2.0] {
+                    let near = center + dir * (extent + gap);
+                    let far = near + dir * length;
+                    for (a, b) in [(near, far), (far, near)] {
+                        let d = segment_box_distance(&a, &b, &center, &axes, &half);
+                        assert!((d - gap).abs() < 1e-4, "axis {axis}, gap {gap}, length {length}: {d}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
