@@ -914,7 +914,7 @@ mod tests {
             // Each body's nearest ancestor with geometry.
             for b in &bodies {
                 let mut up = tree.links[b.link].parent;
-                while let Some(l) = up.filter(|&l| !bodies[body_of[l]].has_geometry()) {
+                while let Some(l) = up.filter(|&l| bodies[body_of[l]].primitives.is_empty()) {
                     up = tree.links[l].parent;
                 }
                 assert_eq!(b.neighbour, up.map(|l| body_of[l]), "{name}: {}", tree.links[b.link].name);
@@ -934,7 +934,7 @@ mod tests {
                     assert!(found, "{name}: {}'s shape is where forward kinematics puts it", link.name);
                 }
             }
-            for (k, b) in bodies.iter().enumerate().filter(|(_, b)| b.has_geometry()) {
+            for (k, b) in bodies.iter().enumerate().filter(|(_, b)| !b.primitives.is_empty()) {
                 let (c, r) = posed.spheres[k];
                 let spheres: Vec<_> = posed.primitives[k].iter().map(Primitive::bounding_sphere).collect();
                 for (pc, pr) in &spheres {
@@ -956,7 +956,8 @@ mod tests {
     #[test]
     fn neighbours_and_pairs_within_the_tolerance_at_rest_are_not_checked() {
         // Spheres around a base sphere of radius 0.1 (tolerance 6 mm): `upper` hangs off the base 15 cm
-        // from it (a neighbour, apart at rest), `lower` hangs off `upper` 3 mm from the base (within
+        // from it through `turn`, a link without geometry (a neighbour all the same, as the second
+        // axis of a two-axis joint is, apart at rest), `lower` hangs off `upper` 3 mm from the base (within
         // the tolerance: touching by design), `tip` hangs off `lower` 10 cm from the base and far from
         // `upper`. The bounding spheres of the base and `lower` are 3 mm apart, so only a broad phase
         // widened by the tolerance sees that they touch.
@@ -969,12 +970,13 @@ mod tests {
             )
         };
         let urdf = format!(
-            r#"<robot name="apart">{}{}{}{}{}{}{}</robot>"#,
+            r#"<robot name="apart"><link name="turn"/>{}{}{}{}{}{}{}{}</robot>"#,
             sphere("base", "0 0 0", 0.1),
             sphere("upper", "0.3 0 0", 0.05),
             sphere("lower", "0 0.153 0", 0.05),
             sphere("tip", "0 0.25 0", 0.05),
-            joint("j1", "base", "upper"),
+            joint("j0", "base", "turn"),
+            joint("j1", "turn", "upper"),
             joint("j2", "upper", "lower"),
             joint("j3", "lower", "tip"),
         );
@@ -1015,7 +1017,8 @@ mod tests {
                 for j in i + 1..bodies.len() {
                     let (a, b) = (&bodies[i], &bodies[j]);
                     let neighbours = a.neighbour == Some(j) || b.neighbour == Some(i);
-                    if a.has_geometry() && b.has_geometry() && !neighbours && brute_depth(&posed, i, j) <= -tolerance {
+                    let shaped = !a.primitives.is_empty() && !b.primitives.is_empty();
+                    if shaped && !neighbours && brute_depth(&posed, i, j) <= -tolerance {
                         want.push((i, j));
                     }
                 }
