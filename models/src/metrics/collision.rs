@@ -961,33 +961,43 @@ mod tests {
         // the tolerance: touching by design), `tip` hangs off `lower` 10 cm from the base and far from
         // `upper`. The bounding spheres of the base and `lower` are 3 mm apart, so only a broad phase
         // widened by the tolerance sees that they touch.
-        let sphere = |name: &str, xyz: &str, r: f32| {
-            format!(r#"<link name="{name}"><collision><origin xyz="{xyz}"/><geometry><sphere radius="{r}"/></geometry></collision></link>"#)
-        };
-        let joint = |name: &str, parent: &str, child: &str| {
-            format!(
-                r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#
-            )
-        };
-        let urdf = format!(
-            r#"<robot name="apart"><link name="turn"/>{}{}{}{}{}{}{}{}</robot>"#,
-            sphere("base", "0 0 0", 0.1),
-            sphere("upper", "0.3 0 0", 0.05),
-            sphere("lower", "0 0.153 0", 0.05),
-            sphere("tip", "0 0.25 0", 0.05),
-            joint("j0", "base", "turn"),
-            joint("j1", "turn", "upper"),
-            joint("j2", "upper", "lower"),
-            joint("j3", "lower", "tip"),
-        );
-        let tree = KinematicTree::from_urdf_str(&urdf).unwrap();
-        let check = SelfCollision::new(&tree, 0.006);
-        let names: Vec<(&str, &str)> = check
-            .link_pairs()
-            .into_iter()
-            .map(|(a, b)| (tree.links[a].name.as_str(), tree.links[b].name.as_str()))
-            .collect();
-        assert_eq!(names, [("base", "tip"), ("upper", "tip")]);
+        // The same robot a hundred times larger (25 m across, with a tolerance of 60 cm) is checked
+        // alike: the broad phase compares squared distances with squared radii at any size. Turned
+        // a quarter turn at `j3`, `tip` swings into `upper` (5 cm into it at the small size).
+        for k in [1.0f32, 100.0] {
+            let sphere = |name: &str, xyz: [f32; 3], r: f32| {
+                let [x, y, z] = xyz.map(|v| v * k);
+                let r = r * k;
+                format!(r#"<link name="{name}"><collision><origin xyz="{x} {y} {z}"/><geometry><sphere radius="{r}"/></geometry></collision></link>"#)
+            };
+            let joint = |name: &str, parent: &str, child: &str| {
+                format!(
+                    r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>"#
+                )
+            };
+            let urdf = format!(
+                r#"<robot name="apart"><link name="turn"/>{}{}{}{}{}{}{}{}</robot>"#,
+                sphere("base", [0.0, 0.0, 0.0], 0.1),
+                sphere("upper", [0.3, 0.0, 0.0], 0.05),
+                sphere("lower", [0.0, 0.153, 0.0], 0.05),
+                sphere("tip", [0.0, 0.25, 0.0], 0.05),
+                joint("j0", "base", "turn"),
+                joint("j1", "turn", "upper"),
+                joint("j2", "upper", "lower"),
+                joint("j3", "lower", "tip"),
+            );
+            let tree = KinematicTree::from_urdf_str(&urdf).unwrap();
+            let check = SelfCollision::new(&tree, 0.006 * k);
+            let named = |pairs: Vec<(usize, usize)>| -> Vec<(String, String)> {
+                pairs.into_iter().map(|(a, b)| (tree.links[a].name.clone(), tree.links[b].name.clone())).collect()
+            };
+            let pair = |a: &str, b: &str| (a.to_string(), b.to_string());
+            assert_eq!(named(check.link_pairs()), [pair("base", "tip"), pair("upper", "tip")], "×{k}");
+            let mut pose = tree.neutral_pose(Isometry3::identity());
+            assert_eq!(check.colliding_pairs(&tree.forward_kinematics(&pose)), [], "×{k}");
+            pose.q[tree.dof_index("j3").unwrap()] = -std::f32::consts::FRAC_PI_2;
+            assert_eq!(named(check.colliding_pairs(&tree.forward_kinematics(&pose))), [pair("upper", "tip")], "×{k}");
+        }
     }
 
     /// The deepest overlap of two bodies over all their primitive pairs, without the broad phase.
