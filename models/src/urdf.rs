@@ -767,7 +767,8 @@ mod tests {
 
     #[test]
     fn joint_type_scan_skips_comments_and_transmissions() {
-        let xml = r#"<robot><!-- <joint name="x" type="bogus"/> -->
+        // The second comment ends in two-byte characters right before `-->`.
+        let xml = r#"<robot><!-- <joint name="x" type="bogus"/> --><!-- genou «plié»-->
             <joint name="a" type='revolute'><parent link="p"/></joint>
             <transmission><joint name="a"><hardwareInterface/></joint></transmission>
             <joint  type="ball"   name="b"/></robot>"#;
