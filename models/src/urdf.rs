@@ -827,8 +827,11 @@ mod tests {
                 "<robot>\n<link>",
                 Some("the file ends at line 2, column 7 with `<link>` (line 2, column 1) still open: is it truncated?"),
             ),
-            // Declarations, comments and character data hold no tags.
+            // Declarations, comments and character data hold no tags, and what follows them is read
+            // from their very end.
             ("<?xml version=\"1.0\"?>\n<robot>\n  <!-- </a> -->\n  <![CDATA[ </b> ]]>\n  <link/>\n</robot>\n", None),
+            ("<robot>\n  <!-- where x<2 -->\n  <link name=\"base\">\n  </link>\n</robot>", None),
+            ("<robot>\n  <!-- base -->\n  <link name=\"base\">\n    <visual/>\n  </link>\n</robot>", None),
         ];
         for (xml, want) in cases {
             assert_eq!(unbalanced_tag(xml).as_deref(), want, "{xml}");
