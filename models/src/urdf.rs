@@ -951,4 +951,34 @@ mod tests {
         assert!(mesh_files(&path).is_empty(), "an unreadable URDF names no files");
         let _ = std::fs::remove_dir_all(&dir);
     }
+
+    #[test]
+    fn a_joint_with_equal_limits_loads_and_one_without_room_is_named() {
+        let robot = |limit: &str| {
+            format!(
+                r#"<robot name="r"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>{limit}</joint></robot>"#
+            )
+        };
+        let warnings = |limit: &str| parse_urdf(&robot(limit), STRING_SOURCE, None).unwrap().warnings;
+        let stuck = "joint `j` has lower = upper = 0 (or no <limit>); it cannot move";
+        assert_eq!(warnings(""), [stuck]);
+        assert_eq!(warnings(r#"<limit lower="0" upper="0" effort="1" velocity="1"/>"#), [stuck]);
+        assert!(warnings(r#"<limit lower="0.3" upper="0.3" effort="1" velocity="1"/>"#).is_empty(), "held at 0.3, no warning");
+        assert!(warnings(r#"<limit lower="0" upper="1" effort="1" velocity="1"/>"#).is_empty());
+        assert!(warnings(r#"<limit lower="-1" upper="0" effort="1" velocity="1"/>"#).is_empty());
+    }
+
+    #[test]
+    fn a_package_path_is_not_found_in_another_package() {
+        let dir = std::env::temp_dir().join(format!("ace_urdf_other_pkg_{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("other/meshes")).unwrap();
+        std::fs::create_dir_all(dir.join("other/urdf")).unwrap();
+        std::fs::write(dir.join("other/meshes/a.stl"), "solid a\nendsolid a\n").unwrap();
+        assert_eq!(resolve_mesh_path("package://my_pkg/meshes/a.stl", &dir.join("other/urdf")), None);
+        assert_eq!(
+            resolve_mesh_path("package://other/meshes/a.stl", &dir.join("other/urdf")),
+            Some(dir.join("other/meshes/a.stl"))
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
