@@ -23,3 +23,9 @@ pub(crate) fn require(path: PathBuf, what: &str) -> Option<PathBuf> {
     }
     panic!("{what} not found at {}: put the shared data beside the repository, or set ACE_ALLOW_MISSING_DATA=1", path.display());
 }
+
+/// A character bundled in `assets/characters` (`spot`, `crab`, `stretch`), loaded as the CLI loads it.
+pub(crate) fn bundled_character(name: &str) -> (crate::kinematics::KinematicTree, crate::morphology::Morphology) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
+    crate::morphology::load_character(&path).unwrap_or_else(|e| panic!("{e}"))
+}

@@ -781,16 +781,20 @@ mod tests {
         );
     }
 
+    /// An ASCII STL of one triangle reaching to (1, 2, 3).
+    const TRIANGLE_STL: &str = "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 2 3\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n";
+
+    /// Empty `<link>` elements named `names`.
+    fn links(names: &[&str]) -> String {
+        names.iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect()
+    }
+
     #[test]
     fn package_paths_resolve_against_ancestors() {
         let dir = std::env::temp_dir().join(format!("ace_urdf_pkg_{}", std::process::id()));
         let mesh = dir.join("my_pkg/meshes/a.stl");
         std::fs::create_dir_all(mesh.parent().unwrap()).unwrap();
-        std::fs::write(
-            &mesh,
-            "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 2 3\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n",
-        )
-        .unwrap();
+        std::fs::write(&mesh, TRIANGLE_STL).unwrap();
         let urdf_dir = dir.join("my_pkg/urdf");
         std::fs::create_dir_all(&urdf_dir).unwrap();
         assert_eq!(
@@ -862,9 +866,9 @@ mod tests {
         let joint = |name: &str, kind: &str, parent: &str, child: &str, extra: &str| {
             format!(r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>{limit}{extra}</joint>"#)
         };
-        let links: String = ["base", "c", "b", "a", "m", "n"].iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect();
         let xml = format!(
-            r#"<robot name="r">{links}{}{}{}{}{}</robot>"#,
+            r#"<robot name="r">{}{}{}{}{}{}</robot>"#,
+            links(&["base", "c", "b", "a", "m", "n"]),
             joint("ja", "revolute", "base", "a", ""),
             joint("jb", "prismatic", "base", "b", ""),
             joint("jc", "revolute", "b", "c", ""),
@@ -890,7 +894,6 @@ mod tests {
 
     #[test]
     fn topology_errors_name_the_links_and_joints() {
-        let links = |names: &[&str]| -> String { names.iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect() };
         let fixed = |name: &str, parent: &str, child: &str| {
             format!(r#"<joint name="{name}" type="fixed"><parent link="{parent}"/><child link="{child}"/></joint>"#)
         };
@@ -920,11 +923,7 @@ mod tests {
         std::fs::create_dir_all(dir.join("meshes")).unwrap();
         std::fs::write(dir.join("meshes/body.obj"), "mtllib body.mtl extra.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         std::fs::write(dir.join("meshes/body.mtl"), "newmtl grey\nKd 0.5 0.5 0.5\n").unwrap();
-        std::fs::write(
-            dir.join("meshes/leg.stl"),
-            "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 2 3\nvertex 1 0 0\nendloop\nendfacet\nendsolid a\n",
-        )
-        .unwrap();
+        std::fs::write(dir.join("meshes/leg.stl"), TRIANGLE_STL).unwrap();
         let mesh = |f: &str| format!(r#"<visual><geometry><mesh filename="{f}"/></geometry></visual><collision><geometry><mesh filename="{f}"/></geometry></collision>"#);
         let urdf = format!(
             r#"<robot name="r"><link name="body">{}</link><link name="leg">{}{}</link>

@@ -16,8 +16,7 @@ use super::gltf::z_up_to_y_up;
 use super::*;
 use crate::human::{HumanClip, ImportOptions, Joint};
 use crate::kinematics::{JointKind, KinematicTree};
-use crate::morphology::load_character;
-use crate::test_data::allow_missing;
+use crate::test_data::{allow_missing, bundled_character};
 
 const EPS: f32 = 1e-4;
 const FPS: f32 = 30.0;
@@ -303,7 +302,7 @@ fn bundled_characters_round_trip_and_validate() {
     let offset = Vector3::new(0.0, 1.2, 0.0);
     let dir = scratch("bundled");
     for name in ["spot", "crab", "stretch"] {
-        let (tree, _) = load_character(&project().join(format!("assets/characters/{name}.urdf"))).unwrap();
+        let (tree, _) = bundled_character(name);
         let poses = varied_poses(&tree, frames);
         // The raw root rotations do change sign somewhere (the yaw is wrapped), so the export must fix it.
         let raw_flips = poses
@@ -402,7 +401,7 @@ fn animation_holds_one_key_per_frame_per_channel() {
     // time accessor and of every channel (meshes are identical, all data is 4-byte aligned).
     let mut sizes = Vec::new();
     for name in ["spot", "crab", "stretch"] {
-        let (tree, _) = load_character(&project().join(format!("assets/characters/{name}.urdf"))).unwrap();
+        let (tree, _) = bundled_character(name);
         let ten = character_glb(&tree, &varied_poses(&tree, 301), FPS, &GltfOptions::default()).unwrap();
         let five = character_glb(&tree, &varied_poses(&tree, 151), FPS, &GltfOptions::default()).unwrap();
         let (a, b) = (Readback::new(&ten.bytes), Readback::new(&five.bytes));
@@ -425,7 +424,7 @@ fn each_link_is_animated_on_the_properties_its_joint_moves() {
     // The root moves and turns; a revolute or continuous joint's link only turns, a prismatic one's
     // (Stretch's lift and arm stages) only moves, a fixed one's is not animated. Link i is node i.
     for name in ["spot", "crab", "stretch"] {
-        let (tree, _) = load_character(&project().join(format!("assets/characters/{name}.urdf"))).unwrap();
+        let (tree, _) = bundled_character(name);
         let glb = character_glb(&tree, &varied_poses(&tree, 5), FPS, &GltfOptions::default()).unwrap();
         let (channels, _) = Readback::new(&glb.bytes).channels();
         let mut expected = Vec::new();
@@ -766,7 +765,7 @@ fn collada_mesh_exports_its_triangles_scaled_and_coloured() {
 
 #[test]
 fn bad_input_is_refused_with_the_file_named() {
-    let (tree, _) = load_character(&project().join("assets/characters/crab.urdf")).unwrap();
+    let (tree, _) = bundled_character("crab");
     let dir = scratch("bad");
     let path = dir.join("out.glb");
     let file = path.display().to_string();
@@ -835,9 +834,7 @@ fn atomic_write_replaces_and_leaves_nothing_behind() {
 // Command trajectories
 
 fn stretch() -> KinematicTree {
-    load_character(&project().join("assets/characters/stretch.urdf"))
-        .unwrap()
-        .0
+    bundled_character("stretch").0
 }
 
 #[test]

@@ -523,8 +523,6 @@ mod tests {
     //! The narrow phase against references computed another way (in f64, from first principles), the
     //! primitives against the shapes they stand for, and the pair checks on the bundled characters
     //! against a brute force over every primitive pair.
-    use std::path::PathBuf;
-
     use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3 as V3};
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
@@ -532,7 +530,7 @@ mod tests {
     use super::*;
     use crate::geometry::Aabb;
     use crate::kinematics::CharacterPose;
-    use crate::morphology::load_character;
+    use crate::test_data::bundled_character;
 
     type P64 = nalgebra::Point3<f64>;
     type V64 = nalgebra::Vector3<f64>;
@@ -881,11 +879,6 @@ mod tests {
         }
     }
 
-    fn character(name: &str) -> KinematicTree {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
-        load_character(&path).unwrap().0
-    }
-
     /// A pose with every joint somewhere random within its limits (±π for continuous joints).
     fn random_pose(tree: &KinematicTree, rng: &mut Pcg64) -> CharacterPose {
         let q = (0..tree.dof())
@@ -901,7 +894,7 @@ mod tests {
     fn bodies_carry_their_links_shapes_and_enclose_them_tightly() {
         let mut rng = Pcg64::seed_from_u64(12);
         for name in ["spot", "crab", "stretch"] {
-            let tree = character(name);
+            let tree = bundled_character(name).0;
             let (bodies, body_of) = rigid_bodies(&tree);
             for (i, link) in tree.links.iter().enumerate() {
                 let fixed = link.joint.as_ref().is_some_and(|j| !j.kind.is_movable());
@@ -961,6 +954,7 @@ mod tests {
         // the tolerance: touching by design), `tip` hangs off `lower` 10 cm from the base and far from
         // `upper`. The bounding spheres of the base and `lower` are 3 mm apart, so only a broad phase
         // widened by the tolerance sees that they touch.
+        //
         // The same robot a hundred times larger (25 m across, with a tolerance of 60 cm) is checked
         // alike: the broad phase compares squared distances with squared radii at any size. Turned
         // a quarter turn at `j3`, `tip` swings into `upper` (5 cm into it at the small size).
@@ -1015,7 +1009,7 @@ mod tests {
     fn checked_pairs_and_collisions_match_a_brute_force_over_every_shape_pair() {
         let mut rng = Pcg64::seed_from_u64(13);
         for name in ["spot", "crab", "stretch"] {
-            let tree = character(name);
+            let tree = bundled_character(name).0;
             let tolerance = 0.006;
             let check = SelfCollision::new(&tree, tolerance);
             let bodies = check.bodies();
@@ -1058,8 +1052,7 @@ mod tests {
                 hits += brute.len();
             }
             if name != "stretch" {
-                // Stretch's few checked pairs (its base against the arm's stages) do not meet in
-                // random poses; the other two's legs do.
+                // Stretch's checked pairs do not meet in random poses; the other two's legs do.
                 assert!(hits > 0, "{name}: random poses collide somewhere");
             }
         }
