@@ -918,6 +918,31 @@ mod tests {
     }
 
     #[test]
+    fn a_free_joint_is_frozen_only_below_a_root_link_without_geometry() {
+        let shape = "<geometry><box size=\"0.1 0.1 0.1\"/></geometry>";
+        let robot = |root: &str, kind: &str| {
+            format!(
+                r#"<robot name="r"><link name="root">{root}</link><link name="body"><collision>{shape}</collision></link>
+                   <joint name="free" type="{kind}"><parent link="root"/><child link="body"/></joint></robot>"#
+            )
+        };
+        for kind in ["floating", "planar"] {
+            let tree = parse_urdf(&robot("", kind), STRING_SOURCE, None).unwrap();
+            assert_eq!((tree.links.len(), tree.dof()), (2, 0), "a `world` anchor is frozen");
+            // A root link with a shape is part of the robot: freezing its free joint would weld two bodies.
+            for root in [format!("<visual>{shape}</visual>"), format!("<collision>{shape}</collision>")] {
+                let want = UrdfProblem::FreeJointInBody {
+                    joint: "free".into(),
+                    kind: kind.into(),
+                    parent: "root".into(),
+                    child: "body".into(),
+                };
+                assert_eq!(problem(&robot(&root, kind)), want, "{root}");
+            }
+        }
+    }
+
+    #[test]
     fn a_urdfs_mesh_files_are_listed_once_with_their_materials() {
         let dir = std::env::temp_dir().join(format!("ace_urdf_meshes_{}", std::process::id()));
         std::fs::create_dir_all(dir.join("meshes")).unwrap();
