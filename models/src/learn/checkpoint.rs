@@ -186,13 +186,8 @@ impl PriorCheckpoint {
 mod tests {
     use super::*;
     use crate::learn::prior::test_support::{scratch_dir, spot_set, trained_spot_dir};
-    use crate::morphology::load_character;
+    use crate::test_data::bundled_character as character;
     use tch::Kind;
-
-    fn character(name: &str) -> (KinematicTree, Morphology) {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
-        load_character(&path).unwrap()
-    }
 
     #[test]
     fn save_then_load_gives_identical_outputs() {

@@ -565,7 +565,7 @@ pub(crate) mod test_support {
     use super::*;
     use crate::dataset::{DatasetConfig, generate};
     use crate::kinematics::KinematicTree;
-    use crate::morphology::{Morphology, load_character};
+    use crate::morphology::Morphology;
 
     /// Asserts that `vs` holds exactly the `expected` tensors: the same names, equal values. `what` names
     /// whose weights they are (e.g. a resumed run's against those it saved).
@@ -582,8 +582,7 @@ pub(crate) mod test_support {
     pub(crate) fn spot() -> &'static (KinematicTree, Morphology, MotionSet) {
         static SPOT: OnceLock<(KinematicTree, Morphology, MotionSet)> = OnceLock::new();
         SPOT.get_or_init(|| {
-            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-            let (tree, morph) = load_character(&path).unwrap();
+            let (tree, morph) = crate::test_data::bundled_character("spot");
             let cfg = DatasetConfig {
                 frames: 4000,
                 seed: 5,
@@ -664,7 +663,7 @@ mod tests {
     use super::test_support::*;
     use super::*;
     use crate::character_state::CharacterLayout;
-    use crate::morphology::load_character;
+    use crate::test_data::bundled_character as load;
 
     fn batch(set: &MotionSet, frames: &[usize]) -> Tensor {
         let rows: Vec<&[f32]> = frames.iter().map(|&i| set.state(i)).collect();
@@ -685,12 +684,6 @@ mod tests {
 
     #[test]
     fn wheel_angles_are_masked_and_nothing_else() {
-        let load = |name: &str| {
-            load_character(
-                &Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf")),
-            )
-            .unwrap()
-        };
         let (tree, morph) = load("stretch");
         assert!(!morph.wheels.is_empty(), "the bundled Stretch has wheels");
         let mask = state_mask(&tree, &morph);
