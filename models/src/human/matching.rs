@@ -400,3 +400,110 @@ impl<'a> Matcher<'a> {
         self.bvh.joints.iter().map(|j| j.name.clone()).collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::human::fk::Translation;
+
+    /// A one-frame BVH at its rest pose of `joints` (name, parent's name, offset), listed parents first.
+    fn bvh(joints: &[(&str, Option<&str>, [f32; 3])]) -> Bvh {
+        fn write(i: usize, joints: &[(&str, Option<&str>, [f32; 3])], out: &mut String) {
+            let (name, parent, [x, y, z]) = joints[i];
+            out.push_str(&match parent {
+                None => format!("ROOT {name}\n{{\nOFFSET {x} {y} {z}\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"),
+                Some(_) => format!("JOINT {name}\n{{\nOFFSET {x} {y} {z}\nCHANNELS 3 Zrotation Xrotation Yrotation\n"),
+            });
+            let children: Vec<usize> = (0..joints.len()).filter(|&k| joints[k].1 == Some(name)).collect();
+            for &k in &children {
+                write(k, joints, out);
+            }
+            if children.is_empty() {
+                out.push_str("End Site\n{\nOFFSET 0 1 0\n}\n");
+            }
+            out.push_str("}\n");
+        }
+        let mut text = String::from("HIERARCHY\n");
+        write(0, joints, &mut text);
+        let channels = 6 + 3 * (joints.len() - 1);
+        text.push_str(&format!("MOTION\nFrames: 1\nFrame Time: 0.0333333\n{}\n", vec!["0"; channels].join(" ")));
+        Bvh::parse(&text, "t.bvh").unwrap()
+    }
+
+    /// Legs, and a torso of `torso` between the hips and the arms and head.
+    fn body(torso: &[(&'static str, Option<&'static str>, [f32; 3])]) -> Vec<(&'static str, Option<&'static str>, [f32; 3])> {
+        let mut joints = vec![("Hips", None, [0.0, 90.0, 0.0])];
+        joints.extend_from_slice(torso);
+        for (side, x) in [("Left", 8.0), ("Right", -8.0)] {
+            let name = |s: &str| -> &'static str { format!("{side}{s}").leak() };
+            joints.push((name("UpLeg"), Some("Hips"), [x, -5.0, 0.0]));
+            joints.push((name("Leg"), Some(name("UpLeg")), [0.0, -40.0, 0.0]));
+            joints.push((name("Foot"), Some(name("Leg")), [0.0, -40.0, 0.0]));
+        }
+        joints
+    }
+
+    fn source(bvh: &Bvh, map: &SkeletonMap, j: Joint) -> String {
+        map.source_names(bvh)[j.index()].clone()
+    }
+
+    fn index_of(bvh: &Bvh, name: &str) -> usize {
+        bvh.joints.iter().position(|j| j.name == name).unwrap()
+    }
+
+    #[test]
+    fn a_spine_or_neck_without_a_joint_is_the_midpoint_of_its_neighbours() {
+        // The chest hangs straight off the hips and the head off the chest.
+        let b = bvh(&body(&[
+            ("Chest", Some("Hips"), [0.0, 30.0, 0.0]),
+            ("Head", Some("Chest"), [0.0, 20.0, 4.0]),
+            ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
+            ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
+            ("LeftHand", Some("LeftForeArm"), [25.0, 0.0, 0.0]),
+            ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
+            ("RightForeArm", Some("RightArm"), [-25.0, 0.0, 0.0]),
+            ("RightHand", Some("RightForeArm"), [-25.0, 0.0, 0.0]),
+        ]));
+        let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
+        let (hips, chest, head) = (index_of(&b, "Hips"), index_of(&b, "Chest"), index_of(&b, "Head"));
+        assert_eq!(map.sources[Joint::Spine.index()], Source::Midpoint(hips, chest));
+        assert_eq!(map.sources[Joint::Neck.index()], Source::Midpoint(chest, head));
+        assert_eq!(source(&b, &map, Joint::Neck), "midpoint(Chest, Head)");
+        assert_eq!((map.indices(Joint::Spine), map.index(Joint::Spine)), (vec![hips, chest], chest));
+        let hand = index_of(&b, "LeftHand");
+        assert_eq!((map.indices(Joint::LeftHand), map.index(Joint::LeftHand)), (vec![hand], hand));
+        assert_eq!(map.index(Joint::RightFoot), index_of(&b, "RightFoot"));
+
+        let mut pose = Pose::new(&b);
+        pose.compute(&b, 0, &vec![Translation::Replace; b.joints.len()]);
+        // The root's position channels (all 0) take the place of its offset.
+        assert_eq!(map.position(&pose, Joint::Spine), Vector3::new(0.0, 15.0, 0.0));
+        assert_eq!(map.position(&pose, Joint::Neck), Vector3::new(0.0, 40.0, 2.0));
+        assert_eq!(map.position(&pose, Joint::LeftHand), Vector3::new(65.0, 30.0, 0.0));
+    }
+
+    #[test]
+    fn a_forearm_is_the_nearest_ancestor_at_a_distance_that_is_not_a_helper() {
+        // Both forearms have names that say nothing; the left hand hangs below a twist bone, the right
+        // one at the very place of a joint above it.
+        let b = bvh(&body(&[
+            ("Spine", Some("Hips"), [0.0, 15.0, 0.0]),
+            ("Chest", Some("Spine"), [0.0, 15.0, 0.0]),
+            ("Neck", Some("Chest"), [0.0, 15.0, 0.0]),
+            ("Head", Some("Neck"), [0.0, 8.0, 0.0]),
+            ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
+            ("l_lower", Some("LeftArm"), [25.0, 0.0, 0.0]),
+            ("LeftWristTwist", Some("l_lower"), [12.0, 0.0, 0.0]),
+            ("LeftHand", Some("LeftWristTwist"), [13.0, 0.0, 0.0]),
+            ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
+            ("r_lower", Some("RightArm"), [-25.0, 0.0, 0.0]),
+            ("r_pivot", Some("r_lower"), [-25.0, 0.0, 0.0]),
+            ("RightHand", Some("r_pivot"), [0.0, 0.0, 0.0]),
+        ]));
+        let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
+        let got: Vec<String> = [Joint::LeftForearm, Joint::LeftUpperArm, Joint::RightForearm, Joint::RightUpperArm, Joint::Spine, Joint::Neck]
+            .map(|j| source(&b, &map, j))
+            .to_vec();
+        assert_eq!(got, ["l_lower", "LeftArm", "r_lower", "RightArm", "Spine", "Neck"]);
+    }
+}
