@@ -137,10 +137,10 @@ impl<'a> Matcher<'a> {
             .min_by_key(|&j| self.depth[j])
     }
 
-    /// The limb joint above `child`: among the first three non-helper ancestors at a non-zero distance
-    /// (and not on the other side), the nearest whose name says `want`, else the nearest.
-    fn limb_parent(&self, child: usize, want: Part) -> Option<usize> {
-        let side = self.info[child].side;
+    /// The limb joint above `child` on the limb of `side`: among the first three non-helper ancestors at
+    /// a non-zero distance (and not on the other side), the nearest whose name says `want`, else the
+    /// nearest. The side is the limb's, not `child`'s: a forearm's name need not say it.
+    fn limb_parent(&self, child: usize, want: Part, side: Side) -> Option<usize> {
         let candidates: Vec<usize> = self
             .ancestors(child)
             .filter(|&a| !self.helper(a) && self.path_length(a, child) > self.eps)
@@ -210,19 +210,19 @@ impl<'a> Matcher<'a> {
             }
         }
         // Limb chains by hierarchy.
-        for (j, below, part) in [
-            (LeftForearm, LeftHand, Part::Forearm),
-            (LeftUpperArm, LeftForearm, Part::UpperArm),
-            (RightForearm, RightHand, Part::Forearm),
-            (RightUpperArm, RightForearm, Part::UpperArm),
-            (LeftShin, LeftFoot, Part::Shin),
-            (LeftThigh, LeftShin, Part::Thigh),
-            (RightShin, RightFoot, Part::Shin),
-            (RightThigh, RightShin, Part::Thigh),
+        for (j, below, part, side) in [
+            (LeftForearm, LeftHand, Part::Forearm, Side::Left),
+            (LeftUpperArm, LeftForearm, Part::UpperArm, Side::Left),
+            (RightForearm, RightHand, Part::Forearm, Side::Right),
+            (RightUpperArm, RightForearm, Part::UpperArm, Side::Right),
+            (LeftShin, LeftFoot, Part::Shin, Side::Left),
+            (LeftThigh, LeftShin, Part::Thigh, Side::Left),
+            (RightShin, RightFoot, Part::Shin, Side::Right),
+            (RightThigh, RightShin, Part::Thigh, Side::Right),
         ] {
             if src[j.index()].is_none() {
                 src[j.index()] = joint_of(&src, below)
-                    .and_then(|c| self.limb_parent(c, part))
+                    .and_then(|c| self.limb_parent(c, part, side))
                     .map(Source::Joint);
             }
         }
@@ -484,8 +484,8 @@ mod tests {
 
     #[test]
     fn a_forearm_is_the_nearest_ancestor_at_a_distance_that_is_not_a_helper() {
-        // Both forearms have names that say nothing; the left hand hangs below a twist bone, the right
-        // one at the very place of a joint above it.
+        // Neither forearm's name says what it is, nor the right one's side; the left hand hangs below a
+        // twist bone, the right one at the very place of a joint above it.
         let b = bvh(&body(&[
             ("Spine", Some("Hips"), [0.0, 15.0, 0.0]),
             ("Chest", Some("Spine"), [0.0, 15.0, 0.0]),
@@ -496,14 +496,14 @@ mod tests {
             ("LeftWristTwist", Some("l_lower"), [12.0, 0.0, 0.0]),
             ("LeftHand", Some("LeftWristTwist"), [13.0, 0.0, 0.0]),
             ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
-            ("r_lower", Some("RightArm"), [-25.0, 0.0, 0.0]),
-            ("r_pivot", Some("r_lower"), [-25.0, 0.0, 0.0]),
+            ("seg7", Some("RightArm"), [-25.0, 0.0, 0.0]),
+            ("r_pivot", Some("seg7"), [-25.0, 0.0, 0.0]),
             ("RightHand", Some("r_pivot"), [0.0, 0.0, 0.0]),
         ]));
         let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
         let got: Vec<String> = [Joint::LeftForearm, Joint::LeftUpperArm, Joint::RightForearm, Joint::RightUpperArm, Joint::Spine, Joint::Neck]
             .map(|j| source(&b, &map, j))
             .to_vec();
-        assert_eq!(got, ["l_lower", "LeftArm", "r_lower", "RightArm", "Spine", "Neck"]);
+        assert_eq!(got, ["l_lower", "LeftArm", "seg7", "RightArm", "Spine", "Neck"]);
     }
 }
