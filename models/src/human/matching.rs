@@ -430,17 +430,39 @@ mod tests {
         Bvh::parse(&text, "t.bvh").unwrap()
     }
 
-    /// Legs, and a torso of `torso` between the hips and the arms and head.
-    fn body(torso: &[(&'static str, Option<&'static str>, [f32; 3])]) -> Vec<(&'static str, Option<&'static str>, [f32; 3])> {
+    type Spec = (&'static str, Option<&'static str>, [f32; 3]);
+
+    /// A leg below the hips: thigh, shin and foot named `names`, the hip `x` to the side.
+    fn leg(names: [&'static str; 3], x: f32) -> Vec<Spec> {
+        vec![(names[0], Some("Hips"), [x, -5.0, 0.0]), (names[1], Some(names[0]), [0.0, -40.0, 0.0]), (names[2], Some(names[1]), [0.0, -40.0, 0.0])]
+    }
+
+    /// Hips, then `parts`.
+    fn rig(parts: &[Vec<Spec>]) -> Vec<Spec> {
         let mut joints = vec![("Hips", None, [0.0, 90.0, 0.0])];
-        joints.extend_from_slice(torso);
-        for (side, x) in [("Left", 8.0), ("Right", -8.0)] {
-            let name = |s: &str| -> &'static str { format!("{side}{s}").leak() };
-            joints.push((name("UpLeg"), Some("Hips"), [x, -5.0, 0.0]));
-            joints.push((name("Leg"), Some(name("UpLeg")), [0.0, -40.0, 0.0]));
-            joints.push((name("Foot"), Some(name("Leg")), [0.0, -40.0, 0.0]));
-        }
+        joints.extend(parts.iter().flatten().copied());
         joints
+    }
+
+    /// Both legs, and a torso of `torso` between the hips and the arms and head.
+    fn body(torso: &[Spec]) -> Vec<Spec> {
+        rig(&[torso.to_vec(), leg(["LeftUpLeg", "LeftLeg", "LeftFoot"], 8.0), leg(["RightUpLeg", "RightLeg", "RightFoot"], -8.0)])
+    }
+
+    /// A spine, a neck, a head named `head` and both arms.
+    fn torso(head: &'static str) -> Vec<Spec> {
+        vec![
+            ("Spine", Some("Hips"), [0.0, 15.0, 0.0]),
+            ("Chest", Some("Spine"), [0.0, 15.0, 0.0]),
+            ("Neck", Some("Chest"), [0.0, 15.0, 0.0]),
+            (head, Some("Neck"), [0.0, 8.0, 0.0]),
+            ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
+            ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
+            ("LeftHand", Some("LeftForeArm"), [25.0, 0.0, 0.0]),
+            ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
+            ("RightForeArm", Some("RightArm"), [-25.0, 0.0, 0.0]),
+            ("RightHand", Some("RightForeArm"), [-25.0, 0.0, 0.0]),
+        ]
     }
 
     fn source(bvh: &Bvh, map: &SkeletonMap, j: Joint) -> String {
@@ -453,9 +475,11 @@ mod tests {
 
     #[test]
     fn a_spine_or_neck_without_a_joint_is_the_midpoint_of_its_neighbours() {
-        // The chest hangs straight off the hips and the head off the chest.
+        // The chest hangs off the hips with only a joint at the hips' place between them, and the
+        // head straight off the chest.
         let b = bvh(&body(&[
-            ("Chest", Some("Hips"), [0.0, 30.0, 0.0]),
+            ("LowerBack", Some("Hips"), [0.0, 0.0, 0.0]),
+            ("Chest", Some("LowerBack"), [0.0, 30.0, 0.0]),
             ("Head", Some("Chest"), [0.0, 20.0, 4.0]),
             ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
             ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
@@ -505,5 +529,48 @@ mod tests {
             .map(|j| source(&b, &map, j))
             .to_vec();
         assert_eq!(got, ["l_lower", "LeftArm", "seg7", "RightArm", "Spine", "Neck"]);
+    }
+
+    #[test]
+    fn a_missing_leg_is_named_and_a_rig_of_other_names_is_unmapped() {
+        let err = |joints: &[Spec], user: Option<&JointMapping>| SkeletonMap::build(&bvh(joints), user, "t.bvh").unwrap_err();
+        let no_right_leg = "t.bvh: the skeleton has no right leg: no joint is named like a right thigh, shin, foot or toe";
+        let one_leg = rig(&[torso("Head"), leg(["LeftUpLeg", "LeftLeg", "LeftFoot"], 8.0)]);
+        let head_only = JointMapping::default().with(Joint::Head, "Head");
+        for user in [None, Some(&head_only)] {
+            let e = err(&one_leg, user).to_string();
+            assert!(e.starts_with(no_right_leg), "{e}");
+        }
+
+        // A right leg and a head under names that say nothing: the leg is missing until the mapping
+        // names one of its joints; then what is left unmapped is listed, and with the head the rest is found.
+        let generic = rig(&[torso("seg30"), leg(["LeftUpLeg", "LeftLeg", "LeftFoot"], 8.0), leg(["seg18", "seg19", "seg20"], -8.0)]);
+        assert!(err(&generic, None).to_string().starts_with(no_right_leg));
+        let foot = JointMapping::default().with(Joint::RightFoot, "seg20");
+        match err(&generic, Some(&foot)) {
+            HumanImportError::Unmapped { missing, .. } => assert_eq!(missing, ["pelvis", "spine", "chest", "neck", "head"]),
+            e => panic!("{e}"),
+        }
+        let b = bvh(&generic);
+        let map = SkeletonMap::build(&b, Some(&foot.with(Joint::Head, "seg30")), "t.bvh").unwrap();
+        let got = [Joint::RightThigh, Joint::RightShin, Joint::RightFoot, Joint::Pelvis, Joint::Head].map(|j| source(&b, &map, j));
+        assert_eq!(got, ["seg18", "seg19", "seg20", "Hips", "seg30"]);
+
+        // No arm is named with a side (only the eyes are): not a missing leg, an unknown rig.
+        let mut unnamed = rig(&[
+            vec![("seg1", Some("Hips"), [0.0, 30.0, 0.0]), ("seg2", Some("seg1"), [0.0, 20.0, 0.0])],
+            vec![("LeftEye", Some("seg2"), [3.0, 5.0, 5.0]), ("RightEye", Some("seg2"), [-3.0, 5.0, 5.0])],
+            leg(["seg3", "seg4", "seg5"], 8.0),
+        ]);
+        unnamed[0].0 = "seg0";
+        for j in &mut unnamed {
+            if j.1 == Some("Hips") {
+                j.1 = Some("seg0");
+            }
+        }
+        match err(&unnamed, None) {
+            HumanImportError::Unmapped { missing, .. } => assert_eq!(missing.len(), JOINT_COUNT),
+            e => panic!("{e}"),
+        }
     }
 }
