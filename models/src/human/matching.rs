@@ -573,4 +573,28 @@ mod tests {
             e => panic!("{e}"),
         }
     }
+
+    #[test]
+    fn the_spine_is_the_joint_nearest_half_way_preferring_the_lower_within_five_percent() {
+        // `spines`: the joints from the hips to the chest and their lengths along the chain.
+        let spine = |spines: &[(&'static str, f32)]| {
+            let mut joints: Vec<Spec> = Vec::new();
+            let mut parent = "Hips";
+            for &(name, length) in spines {
+                joints.push((name, Some(parent), [0.0, length, 0.0]));
+                parent = name;
+            }
+            let mut t = torso("Head");
+            t.retain(|j| !["Spine", "Chest"].contains(&j.0));
+            let mut joints = [joints, t].concat();
+            joints.push(("Chest", Some(parent), [0.0, 100.0 - spines.iter().map(|s| s.1).sum::<f32>(), 0.0]));
+            let b = bvh(&body(&joints));
+            let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
+            source(&b, &map, Joint::Spine)
+        };
+        // At 0.45, 0.52 and 0.8 of the way: the lower of the two within 0.05 of each other.
+        assert_eq!(spine(&[("Spine", 45.0), ("Spine1", 7.0), ("Spine2", 28.0)]), "Spine");
+        // At 0.2 and 0.5: the one half-way.
+        assert_eq!(spine(&[("Spine", 20.0), ("Spine1", 30.0)]), "Spine1");
+    }
 }
