@@ -227,6 +227,26 @@ mod tests {
     }
 
     #[test]
+    fn a_one_frame_clip_has_its_pose_and_no_velocities() {
+        let mut clip = HumanClip::from_bvh_file(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh"),
+            &crate::human::ImportOptions::default(),
+        )
+        .unwrap();
+        let moving = clip.states()[0].clone();
+        assert!(moving.root_linear_velocity().norm() > 0.1, "the walk's first frame moves");
+        clip.frames.truncate(1);
+        let [still] = &clip.states()[..] else { panic!("one state") };
+        for (name, r) in layout::BLOCKS {
+            let velocity = name.ends_with("velocity") || name.ends_with("velocities");
+            for i in r {
+                let want = if velocity { 0.0 } else { moving.0[i] };
+                assert_eq!(still.0[i], want, "{name}, entry {i}");
+            }
+        }
+    }
+
+    #[test]
     fn state_is_invariant_to_ground_translation_and_yaw() {
         // A pelvis walking along world y (facing +y) at 1 m/s.
         let frame = |t: f32| {
