@@ -451,11 +451,20 @@ mod tests {
 
     /// A spine, a neck, a head named `head` and both arms.
     fn torso(head: &'static str) -> Vec<Spec> {
+        [spine_to_head(head), arms()].concat()
+    }
+
+    fn spine_to_head(head: &'static str) -> Vec<Spec> {
+        [vec![("Spine", Some("Hips"), [0.0, 15.0, 0.0]), ("Chest", Some("Spine"), [0.0, 15.0, 0.0])], neck_and_head(head)].concat()
+    }
+
+    fn neck_and_head(head: &'static str) -> Vec<Spec> {
+        vec![("Neck", Some("Chest"), [0.0, 15.0, 0.0]), (head, Some("Neck"), [0.0, 8.0, 0.0])]
+    }
+
+    /// Both arms from the chest.
+    fn arms() -> Vec<Spec> {
         vec![
-            ("Spine", Some("Hips"), [0.0, 15.0, 0.0]),
-            ("Chest", Some("Spine"), [0.0, 15.0, 0.0]),
-            ("Neck", Some("Chest"), [0.0, 15.0, 0.0]),
-            (head, Some("Neck"), [0.0, 8.0, 0.0]),
             ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
             ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
             ("LeftHand", Some("LeftForeArm"), [25.0, 0.0, 0.0]),
@@ -477,17 +486,12 @@ mod tests {
     fn a_spine_or_neck_without_a_joint_is_the_midpoint_of_its_neighbours() {
         // The chest hangs off the hips with only a joint at the hips' place between them, and the
         // head straight off the chest.
-        let b = bvh(&body(&[
+        let spine = [
             ("LowerBack", Some("Hips"), [0.0, 0.0, 0.0]),
             ("Chest", Some("LowerBack"), [0.0, 30.0, 0.0]),
             ("Head", Some("Chest"), [0.0, 20.0, 4.0]),
-            ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
-            ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
-            ("LeftHand", Some("LeftForeArm"), [25.0, 0.0, 0.0]),
-            ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
-            ("RightForeArm", Some("RightArm"), [-25.0, 0.0, 0.0]),
-            ("RightHand", Some("RightForeArm"), [-25.0, 0.0, 0.0]),
-        ]));
+        ];
+        let b = bvh(&body(&[spine.to_vec(), arms()].concat()));
         let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
         let (hips, chest, head) = (index_of(&b, "Hips"), index_of(&b, "Chest"), index_of(&b, "Head"));
         assert_eq!(map.sources[Joint::Spine.index()], Source::Midpoint(hips, chest));
@@ -510,11 +514,7 @@ mod tests {
     fn a_forearm_is_the_nearest_ancestor_at_a_distance_that_is_not_a_helper() {
         // Neither forearm's name says what it is, nor the right one's side; the left hand hangs below a
         // twist bone, the right one at the very place of a joint above it.
-        let b = bvh(&body(&[
-            ("Spine", Some("Hips"), [0.0, 15.0, 0.0]),
-            ("Chest", Some("Spine"), [0.0, 15.0, 0.0]),
-            ("Neck", Some("Chest"), [0.0, 15.0, 0.0]),
-            ("Head", Some("Neck"), [0.0, 8.0, 0.0]),
+        let b = bvh(&body(&[spine_to_head("Head"), vec![
             ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
             ("l_lower", Some("LeftArm"), [25.0, 0.0, 0.0]),
             ("LeftWristTwist", Some("l_lower"), [12.0, 0.0, 0.0]),
@@ -523,7 +523,7 @@ mod tests {
             ("seg7", Some("RightArm"), [-25.0, 0.0, 0.0]),
             ("r_pivot", Some("seg7"), [-25.0, 0.0, 0.0]),
             ("RightHand", Some("r_pivot"), [0.0, 0.0, 0.0]),
-        ]));
+        ]].concat()));
         let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
         let got: Vec<String> = [Joint::LeftForearm, Joint::LeftUpperArm, Joint::RightForearm, Joint::RightUpperArm, Joint::Spine, Joint::Neck]
             .map(|j| source(&b, &map, j))
@@ -584,9 +584,7 @@ mod tests {
                 joints.push((name, Some(parent), [0.0, length, 0.0]));
                 parent = name;
             }
-            let mut t = torso("Head");
-            t.retain(|j| !["Spine", "Chest"].contains(&j.0));
-            let mut joints = [joints, t].concat();
+            let mut joints = [joints, neck_and_head("Head"), arms()].concat();
             joints.push(("Chest", Some(parent), [0.0, 100.0 - spines.iter().map(|s| s.1).sum::<f32>(), 0.0]));
             let b = bvh(&body(&joints));
             let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
