@@ -308,5 +308,40 @@ mod tests {
         assert_eq!(c("calf_r"), (Right, Shin));
         assert_eq!(c("lowerarm_l"), (Left, Forearm));
         assert_eq!(c("upperarm_twist_01_l"), (Left, Helper));
+        assert_eq!(c("Chest"), (Centre, Chest));
+        assert_eq!(c("UpperChest"), (Centre, Chest));
+        assert_eq!(c("LeftCollar"), (Left, Collar));
+        assert_eq!(c("clavicle_r"), (Right, Collar));
+        // Only a sided `hip` is a thigh.
+        assert_eq!(c("pelvis_l"), (Left, Hips));
+    }
+
+    #[test]
+    fn rig_words_are_dropped_around_a_body_word_and_kept_alone() {
+        use Part::*;
+        use Side::*;
+        // Before a body word and after one.
+        assert_eq!(c("jnt_Spine"), (Centre, Spine));
+        assert_eq!(c("Spine_jnt"), (Centre, Spine));
+        assert_eq!(c("L_Forearm_bn"), (Left, Forearm));
+        // A name that is only a rig word keeps it as its body word.
+        assert_eq!(classify("Bone").word, "bone");
+        assert_eq!(classify("L_Base").word, "base");
+        assert_eq!(classify("Spine_jnt").word, "spine");
+    }
+
+    #[test]
+    fn a_glued_side_letter_needs_the_whole_body_word_and_the_first_side_wins() {
+        use Side::*;
+        // `left`/`right` glued to a longer word that begins with a body word.
+        assert_eq!(classify("leftarmroll").side, Left);
+        assert_eq!(classify("rightfootprint").side, Right);
+        // A lone letter only before a whole body word: `lhandle` is not a left `handle`.
+        assert_eq!(c("lhand"), (Left, Part::Hand));
+        assert_eq!(classify("lhandle").side, Centre);
+        assert_eq!(classify("rings").side, Centre);
+        // A side already read is kept.
+        assert_eq!(classify("Right_lfoot").side, Right);
+        assert_eq!(classify("L_rhand").side, Left);
     }
 }
