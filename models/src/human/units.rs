@@ -139,4 +139,24 @@ mod tests {
         assert_eq!(parse_unit("Inch"), Some(0.0254));
         assert!(parse_unit("furlong").is_none());
     }
+
+    #[test]
+    fn every_unit_name_and_only_a_finite_positive_number_is_read() {
+        for (names, metres) in [
+            ("cmu CMU", CMU_UNIT_M),
+            ("cm centimeter centimetre centimeters centimetres", 0.01),
+            ("m meter metre meters Metres", 1.0),
+            ("mm millimeter millimetre millimeters millimetres", 0.001),
+            ("in inch inches", 0.0254),
+            ("ft foot feet", 0.3048),
+        ] {
+            for name in names.split(' ') {
+                assert_eq!(parse_unit(&format!(" {name} ")), Some(metres), "{name}");
+            }
+        }
+        assert_eq!(parse_unit("2.5"), Some(2.5));
+        for bad in ["0", "-0.01", "inf", "NaN", "1e39", ""] {
+            assert_eq!(parse_unit(bad), None, "{bad}");
+        }
+    }
 }
