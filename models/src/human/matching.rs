@@ -405,74 +405,7 @@ impl<'a> Matcher<'a> {
 mod tests {
     use super::*;
     use crate::human::fk::Translation;
-
-    /// A one-frame BVH at its rest pose of `joints` (name, parent's name, offset), listed parents first.
-    fn bvh(joints: &[(&str, Option<&str>, [f32; 3])]) -> Bvh {
-        fn write(i: usize, joints: &[(&str, Option<&str>, [f32; 3])], out: &mut String) {
-            let (name, parent, [x, y, z]) = joints[i];
-            out.push_str(&match parent {
-                None => format!("ROOT {name}\n{{\nOFFSET {x} {y} {z}\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"),
-                Some(_) => format!("JOINT {name}\n{{\nOFFSET {x} {y} {z}\nCHANNELS 3 Zrotation Xrotation Yrotation\n"),
-            });
-            let children: Vec<usize> = (0..joints.len()).filter(|&k| joints[k].1 == Some(name)).collect();
-            for &k in &children {
-                write(k, joints, out);
-            }
-            if children.is_empty() {
-                out.push_str("End Site\n{\nOFFSET 0 1 0\n}\n");
-            }
-            out.push_str("}\n");
-        }
-        let mut text = String::from("HIERARCHY\n");
-        write(0, joints, &mut text);
-        let channels = 6 + 3 * (joints.len() - 1);
-        text.push_str(&format!("MOTION\nFrames: 1\nFrame Time: 0.0333333\n{}\n", vec!["0"; channels].join(" ")));
-        Bvh::parse(&text, "t.bvh").unwrap()
-    }
-
-    type Spec = (&'static str, Option<&'static str>, [f32; 3]);
-
-    /// A leg below the hips: thigh, shin and foot named `names`, the hip `x` to the side.
-    fn leg(names: [&'static str; 3], x: f32) -> Vec<Spec> {
-        vec![(names[0], Some("Hips"), [x, -5.0, 0.0]), (names[1], Some(names[0]), [0.0, -40.0, 0.0]), (names[2], Some(names[1]), [0.0, -40.0, 0.0])]
-    }
-
-    /// Hips, then `parts`.
-    fn rig(parts: &[Vec<Spec>]) -> Vec<Spec> {
-        let mut joints = vec![("Hips", None, [0.0, 90.0, 0.0])];
-        joints.extend(parts.iter().flatten().copied());
-        joints
-    }
-
-    /// Both legs, and a torso of `torso` between the hips and the arms and head.
-    fn body(torso: &[Spec]) -> Vec<Spec> {
-        rig(&[torso.to_vec(), leg(["LeftUpLeg", "LeftLeg", "LeftFoot"], 8.0), leg(["RightUpLeg", "RightLeg", "RightFoot"], -8.0)])
-    }
-
-    /// A spine, a neck, a head named `head` and both arms.
-    fn torso(head: &'static str) -> Vec<Spec> {
-        [spine_to_head(head), arms()].concat()
-    }
-
-    fn spine_to_head(head: &'static str) -> Vec<Spec> {
-        [vec![("Spine", Some("Hips"), [0.0, 15.0, 0.0]), ("Chest", Some("Spine"), [0.0, 15.0, 0.0])], neck_and_head(head)].concat()
-    }
-
-    fn neck_and_head(head: &'static str) -> Vec<Spec> {
-        vec![("Neck", Some("Chest"), [0.0, 15.0, 0.0]), (head, Some("Neck"), [0.0, 8.0, 0.0])]
-    }
-
-    /// Both arms from the chest.
-    fn arms() -> Vec<Spec> {
-        vec![
-            ("LeftArm", Some("Chest"), [15.0, 0.0, 0.0]),
-            ("LeftForeArm", Some("LeftArm"), [25.0, 0.0, 0.0]),
-            ("LeftHand", Some("LeftForeArm"), [25.0, 0.0, 0.0]),
-            ("RightArm", Some("Chest"), [-15.0, 0.0, 0.0]),
-            ("RightForeArm", Some("RightArm"), [-25.0, 0.0, 0.0]),
-            ("RightHand", Some("RightForeArm"), [-25.0, 0.0, 0.0]),
-        ]
-    }
+    use crate::human::test_rig::{Spec, arms, body, bvh, leg, neck_and_head, rig, spine_to_head, torso};
 
     fn source(bvh: &Bvh, map: &SkeletonMap, j: Joint) -> String {
         map.source_names(bvh)[j.index()].clone()

@@ -22,6 +22,8 @@ pub mod matching;
 pub mod names;
 pub mod skeleton;
 pub mod state;
+#[cfg(test)]
+mod test_rig;
 mod tracks;
 pub mod units;
 
