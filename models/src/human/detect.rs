@@ -120,3 +120,64 @@ pub(super) fn snap_fps(fps: f32) -> f32 {
         fps
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::human::test_rig::{Spec, body, parse, torso};
+
+    /// Joint indices of `joints` in the order a BVH lists them (depth first, children in list order).
+    fn file_order(joints: &[Spec]) -> Vec<usize> {
+        fn visit(i: usize, joints: &[Spec], out: &mut Vec<usize>) {
+            out.push(i);
+            for k in (0..joints.len()).filter(|&k| joints[k].1 == Some(joints[i].0)) {
+                visit(k, joints, out);
+            }
+        }
+        let mut out = Vec::new();
+        visit(0, joints, &mut out);
+        out
+    }
+
+    #[test]
+    fn constant_position_channels_are_translations_at_their_offset_and_displacements_near_zero() {
+        // Every joint has position channels that hold still (as Bandai's do) while the rotations move;
+        // most repeat their OFFSET, give or take 0.1 on each axis.
+        let joints = body(&torso("Head"));
+        let written = |name: &str, offset: [f32; 3], f: f32| -> [f32; 3] {
+            match name {
+                "Hips" => [0.0, 45.0, 0.0],
+                "Spine" => [offset[0] + 0.1, offset[1] + 0.1, offset[2] + 0.1],
+                "LeftUpLeg" => [0.5, 0.5, 0.0],
+                "RightUpLeg" => [0.0; 3],
+                // Near zero and moving by less than 10⁻³ of the 40-unit bone: still displacements,
+                // although the feet would stand on the floor (file height 0) with them as translations.
+                "LeftLeg" | "RightLeg" => [0.0, 0.002 * f, 0.0],
+                // Half way between its OFFSET (0, 15, 0) and zero: a full translation.
+                "Neck" => [0.0, 7.5, 0.0],
+                _ => offset,
+            }
+        };
+        let frames: Vec<Vec<f32>> = (0..4)
+            .map(|f| {
+                file_order(&joints)
+                    .into_iter()
+                    .flat_map(|i| {
+                        let (name, _, offset) = joints[i];
+                        let [x, y, z] = written(name, offset, f as f32);
+                        [x, y, z, 3.0 * f as f32 + i as f32, 2.0 * f as f32, 0.0]
+                    })
+                    .collect()
+            })
+            .collect();
+        let b = parse(&joints, |_| true, &frames);
+        let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
+        let added: Vec<&str> = detect_translation(&b, &map)
+            .iter()
+            .zip(&b.joints)
+            .filter(|(m, _)| **m == Translation::AddToOffset)
+            .map(|(_, j)| j.name.as_str())
+            .collect();
+        assert_eq!(added, ["LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"]);
+    }
+}
