@@ -180,4 +180,28 @@ mod tests {
             .collect();
         assert_eq!(added, ["LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"]);
     }
+
+    /// Tracks of a body (leg length 1) whose joints drift 0.001 a frame around a still pelvis, frame 0
+    /// standing `jump` away from frame 1.
+    fn drifting(jump: f32) -> Tracks {
+        let joints = (0..40)
+            .map(|t| {
+                std::array::from_fn(|k| {
+                    let y = if k == 0 { 0.0 } else if t == 0 { -jump } else { 0.001 * t as f32 };
+                    Vector3::new(k as f32 * 0.1, y, 0.0)
+                })
+            })
+            .collect();
+        Tracks { joints, feet: vec![[Vector3::zeros(); 2]; 40] }
+    }
+
+    #[test]
+    fn frame_zero_is_a_rest_pose_only_when_it_jumps_a_twentieth_of_the_leg() {
+        // A jump of 0.032 + 0.001 on 16 of the 17 joints: 0.031 on average, 33 times the clip's
+        // typical step but under 0.05 legs.
+        assert_eq!(leading_rest_frames(&drifting(0.032), 1.0, None), 0);
+        assert_eq!(leading_rest_frames(&drifting(0.1), 1.0, None), 1);
+        assert_eq!(leading_rest_frames(&drifting(0.032), 1.0, Some(true)), 1);
+        assert_eq!(leading_rest_frames(&drifting(0.1), 1.0, Some(false)), 0);
+    }
 }
