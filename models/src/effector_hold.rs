@@ -159,7 +159,6 @@ mod tests {
 
     use super::*;
     use crate::cleanup::Cleanup;
-    use crate::human::{HumanClip, ImportOptions};
     use crate::morphology::load_character;
     use crate::runtime::Retargeter;
 
@@ -296,7 +295,7 @@ mod tests {
     fn the_crab_keeps_the_claw_of_the_resting_hand_still_on_the_bundled_wave() {
         let (tree, morph) = character("characters/crab.urdf");
         let mut r = Retargeter::load(&assets().join("checkpoints/crab")).unwrap();
-        let clip = HumanClip::from_bvh_file(&assets().join("motions/wave.bvh"), &ImportOptions::default()).unwrap();
+        let clip = crate::test_data::bundled_clip("wave");
         let chains = HeldChains::new(&tree, &morph, &r.record().correspondence.mapping);
         // The person waves the right hand; the left hand rests.
         let (left, right) = (&chains.chains()[0].1, &chains.chains()[1].1);

@@ -29,3 +29,9 @@ pub(crate) fn bundled_character(name: &str) -> (crate::kinematics::KinematicTree
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
     crate::morphology::load_character(&path).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// A clip bundled in `assets/motions` (`walk`, `reach`, `wave`), imported with the default options.
+pub(crate) fn bundled_clip(name: &str) -> crate::human::HumanClip {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/motions/{name}.bvh"));
+    crate::human::HumanClip::from_bvh_file(&path, &crate::human::ImportOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}

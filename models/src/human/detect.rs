@@ -124,20 +124,7 @@ pub(super) fn snap_fps(fps: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::human::test_rig::{Spec, body, parse, torso};
-
-    /// Joint indices of `joints` in the order a BVH lists them (depth first, children in list order).
-    fn file_order(joints: &[Spec]) -> Vec<usize> {
-        fn visit(i: usize, joints: &[Spec], out: &mut Vec<usize>) {
-            out.push(i);
-            for k in (0..joints.len()).filter(|&k| joints[k].1 == Some(joints[i].0)) {
-                visit(k, joints, out);
-            }
-        }
-        let mut out = Vec::new();
-        visit(0, joints, &mut out);
-        out
-    }
+    use crate::human::test_rig::{body, file_order, parse, torso};
 
     #[test]
     fn constant_position_channels_are_translations_at_their_offset_and_displacements_near_zero() {

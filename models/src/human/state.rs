@@ -212,11 +212,7 @@ mod tests {
 
     #[test]
     fn sampling_a_clip_tick_by_tick_gives_its_states() {
-        let clip = HumanClip::from_bvh_file(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh"),
-            &crate::human::ImportOptions::default(),
-        )
-        .unwrap();
+        let clip = crate::test_data::bundled_clip("walk");
         let at30 = clip.resampled(30.0);
         let states = at30.states();
         for (k, want) in states.iter().enumerate().take(60) {
@@ -228,11 +224,7 @@ mod tests {
 
     #[test]
     fn a_one_frame_clip_has_its_pose_and_no_velocities() {
-        let mut clip = HumanClip::from_bvh_file(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh"),
-            &crate::human::ImportOptions::default(),
-        )
-        .unwrap();
+        let mut clip = crate::test_data::bundled_clip("walk");
         let moving = clip.states()[0].clone();
         assert!(moving.root_linear_velocity().norm() > 0.1, "the walk's first frame moves");
         clip.frames.truncate(1);

@@ -15,8 +15,28 @@ pub(crate) fn bvh(joints: &[Spec]) -> Bvh {
     parse(joints, |i| i == 0, &[vec![0.0; channels]])
 }
 
+/// Indices (into `joints`) of joint `i`'s children, in list order.
+fn children(joints: &[Spec], i: usize) -> Vec<usize> {
+    (0..joints.len()).filter(|&k| joints[k].1 == Some(joints[i].0)).collect()
+}
+
+/// Indices of `joints` in the order [`parse`] writes them, which is the order of the parsed BVH's joints
+/// and of each frame's values (depth first, children in list order).
+pub(crate) fn file_order(joints: &[Spec]) -> Vec<usize> {
+    fn visit(i: usize, joints: &[Spec], out: &mut Vec<usize>) {
+        out.push(i);
+        for k in children(joints, i) {
+            visit(k, joints, out);
+        }
+    }
+    let mut out = Vec::new();
+    visit(0, joints, &mut out);
+    out
+}
+
 /// A BVH of `joints` in which the joints `positioned` picks have position channels (before their
-/// rotations) and the others rotations only, with `frames` holding each frame's values in file order.
+/// rotations) and the others rotations only, with `frames` holding each frame's values in file order
+/// ([`file_order`]).
 pub(crate) fn parse(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames: &[Vec<f32>]) -> Bvh {
     fn write(i: usize, joints: &[Spec], positioned: &dyn Fn(usize) -> bool, out: &mut String) {
         let (name, parent, [x, y, z]) = joints[i];
@@ -24,7 +44,7 @@ pub(crate) fn parse(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames:
         let channels =
             if positioned(i) { format!("6 Xposition Yposition Zposition {ROTATIONS}") } else { format!("3 {ROTATIONS}") };
         out.push_str(&format!("{kind} {name}\n{{\nOFFSET {x} {y} {z}\nCHANNELS {channels}\n"));
-        let children: Vec<usize> = (0..joints.len()).filter(|&k| joints[k].1 == Some(name)).collect();
+        let children = children(joints, i);
         for &k in &children {
             write(k, joints, positioned, out);
         }

@@ -288,8 +288,7 @@ mod tests {
     use crate::learn::prior::MotionPrior;
     use crate::learn::prior::test_support::{scratch_dir, spot};
     use crate::learn::train_ace::test_support::{bundled_humans, tiny_config, train_in, trained_ace_dir};
-    use crate::morphology::load_character;
-    use crate::test_data::require;
+    use crate::test_data::{bundled_character, require};
 
     fn asset(path: &str) -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
@@ -326,8 +325,7 @@ mod tests {
     fn a_looped_clip_gives_finite_poses_for_sixty_seconds() {
         let (tree, morph, _) = spot();
         let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
-        let clip =
-            HumanClip::from_bvh_file(&asset("assets/motions/wave.bvh"), &ImportOptions::default()).unwrap();
+        let clip = crate::test_data::bundled_clip("wave");
         let once = r.retarget_clip(tree, morph, &clip).unwrap();
         // Imported at the file's rate and resampled to the project's.
         assert_eq!(once.states.len(), clip.resampled(PROJECT_FPS).frames.len());
@@ -434,7 +432,7 @@ mod tests {
         use crate::learn::checkpoint::Normaliser;
         use crate::learn::prior::{PriorConfig, state_mask};
 
-        let (tree, morph) = load_character(&asset("assets/characters/stretch.urdf")).unwrap();
+        let (tree, morph) = bundled_character("stretch");
         let wheels = wheels::find(&tree, &morph, &tree.standing_pose());
         assert!(!wheels.is_empty(), "the bundled Stretch has wheels");
         let set = generate(
@@ -642,7 +640,7 @@ mod tests {
         assert!(e.contains(CONFIG_FILE) && e.contains(ACE_FILE) && e.contains("not from the same save"), "{e}");
 
         // Another character than the checkpoint's.
-        let (crab, crab_morph) = load_character(&asset("assets/characters/crab.urdf")).unwrap();
+        let (crab, crab_morph) = bundled_character("crab");
         let r = Retargeter::load(trained_ace_dir(), Device::Cpu).unwrap();
         let e = r.start_state(&crab, &crab_morph).unwrap_err().to_string();
         assert!(e.contains("another character") && e.contains("crab"), "{e}");
