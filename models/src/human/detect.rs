@@ -168,18 +168,23 @@ mod tests {
         assert_eq!(added, ["LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"]);
     }
 
-    /// Tracks of a body (leg length 1) whose joints drift 0.001 a frame around a still pelvis, frame 0
-    /// standing `jump` away from frame 1.
-    fn drifting(jump: f32) -> Tracks {
+    /// Tracks of 40 frames around a still pelvis whose 16 other joints move by `steps[t]` from frame
+    /// `t` to `t + 1` (a pose step of 16/17 of it), and by `drift` a frame after the given steps.
+    fn stepping(steps: &[f32], drift: f32) -> Tracks {
+        let mut y = 0.0;
         let joints = (0..40)
             .map(|t| {
-                std::array::from_fn(|k| {
-                    let y = if k == 0 { 0.0 } else if t == 0 { -jump } else { 0.001 * t as f32 };
-                    Vector3::new(k as f32 * 0.1, y, 0.0)
-                })
+                let frame = std::array::from_fn(|k| Vector3::new(k as f32 * 0.1, if k == 0 { 0.0 } else { y }, 0.0));
+                y += steps.get(t).copied().unwrap_or(drift);
+                frame
             })
             .collect();
         Tracks { joints, feet: vec![[Vector3::zeros(); 2]; 40] }
+    }
+
+    /// Frame 0 standing `jump` (and a frame's drift of 0.001) away from frame 1, on a leg of 1.
+    fn drifting(jump: f32) -> Tracks {
+        stepping(&[jump + 0.001], 0.001)
     }
 
     #[test]
@@ -190,5 +195,42 @@ mod tests {
         assert_eq!(leading_rest_frames(&drifting(0.1), 1.0, None), 1);
         assert_eq!(leading_rest_frames(&drifting(0.032), 1.0, Some(true)), 1);
         assert_eq!(leading_rest_frames(&drifting(0.1), 1.0, Some(false)), 0);
+    }
+
+    #[test]
+    fn the_blend_out_of_a_rest_pose_is_the_frames_that_jump_a_fiftieth_of_the_leg() {
+        // In centimetres (a leg of 100): after the rest frame, two steps of 3 and one of 1, then the
+        // clip's own 0.1 a frame. Only steps above 2 (a fiftieth of the leg; five typical steps are
+        // 0.47) are the blend.
+        let t = stepping(&[20.0, 3.0, 3.0, 1.0], 0.1);
+        assert_eq!(leading_rest_frames(&t, 100.0, None), 3);
+        // On a leg of 10 the step of 1 jumps too (0.2 a fiftieth, the five typical steps above it).
+        assert_eq!(leading_rest_frames(&t, 10.0, None), 4);
+        // The blend takes at most a quarter of the clip: 10 of the 39 steps after the rest frame.
+        let blend: Vec<f32> = std::iter::once(20.0).chain(std::iter::repeat_n(3.0, 15)).collect();
+        assert_eq!(leading_rest_frames(&stepping(&blend, 0.1), 100.0, None), 11);
+    }
+
+    #[test]
+    fn a_clip_of_fewer_than_three_frames_keeps_every_frame() {
+        let cut = |n: usize| {
+            let t = drifting(0.1);
+            Tracks { joints: t.joints[..n].to_vec(), feet: t.feet[..n].to_vec() }
+        };
+        assert_eq!(leading_rest_frames(&cut(1), 1.0, Some(true)), 0);
+        assert_eq!(leading_rest_frames(&cut(2), 1.0, Some(true)), 0);
+        // Three frames: forced, frame 0 goes (the blend may take none of them, a quarter of three).
+        assert_eq!(leading_rest_frames(&cut(3), 1.0, Some(true)), 1);
+    }
+
+    #[test]
+    fn frame_rates_snap_to_the_whole_rate_their_rounded_frame_time_gives() {
+        assert_eq!(snap_fps(1.0 / 0.008333), 120.0);
+        assert_eq!(snap_fps(1.0 / 0.0333333), 30.0);
+        // Within 10⁻⁴ of the rate only: 120.011 snaps, 120.013 and NTSC's 29.97 do not.
+        assert_eq!(snap_fps(120.011), 120.0);
+        assert_eq!(snap_fps(120.013), 120.013);
+        assert_eq!(snap_fps(29.97), 29.97);
+        assert_eq!(snap_fps(0.00001), 0.00001);
     }
 }

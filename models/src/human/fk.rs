@@ -151,4 +151,69 @@ mod tests {
         pose.compute(&bvh, 0, &[Translation::AddToOffset; 2]);
         assert!((pose.pos[0] - Vector3::new(1.0, 2.0, 3.0)).norm() < 1e-6);
     }
+
+    /// A root `a` at (1, 2, 3) turned by `root` (Z, X, Y degrees); its child `b` at (0, 1, 0) with
+    /// position channels (10, 20, 30) and turned by `child`; below `b`, `c` at (0, 0, 2) with an end
+    /// site (1, 0, 0); beside `b`, `d` at (5, 0, 0).
+    fn chain(root: [f32; 3], child: [f32; 3]) -> Bvh {
+        let text = format!(
+            "HIERARCHY\nROOT a\n{{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n\
+             JOINT b\n{{\nOFFSET 0 1 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n\
+             JOINT c\n{{\nOFFSET 0 0 2\nCHANNELS 3 Zrotation Xrotation Yrotation\nEnd Site\n{{\nOFFSET 1 0 0\n}}\n}}\n}}\n\
+             JOINT d\n{{\nOFFSET 5 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\nEnd Site\n{{\nOFFSET 0 1 0\n}}\n}}\n}}\n\
+             MOTION\nFrames: 1\nFrame Time: 0.1\n1 2 3 {} {} {} 10 20 30 {} {} {} 0 0 0 0 0 0\n",
+            root[0], root[1], root[2], child[0], child[1], child[2]
+        );
+        Bvh::parse(&text, "t").unwrap()
+    }
+
+    fn close(a: Vector3<f32>, b: [f32; 3]) -> bool {
+        (a - Vector3::from(b)).norm() < 1e-5
+    }
+
+    #[test]
+    fn each_axis_turns_right_handed() {
+        let modes = [Translation::AddToOffset; 4];
+        let cases = [([90.0, 0.0, 0.0], [0.0, 0.0, 2.0], [0.0, 1.0, 0.0]), ([0.0, 90.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, 0.0]), ([0.0, 0.0, 90.0], [2.0, 0.0, 0.0], [0.0, 0.0, -1.0])];
+        for (child, c, end) in cases {
+            // `b`'s rotation turns `c`'s offset (0, 0, 2) and the end site (1, 0, 0) below it.
+            let bvh = chain([0.0; 3], child);
+            let mut pose = Pose::new(&bvh);
+            pose.compute(&bvh, 0, &modes);
+            let b = pose.pos[1];
+            assert!(close(b, [11.0, 23.0, 33.0]), "{b:?}");
+            assert!(close(pose.pos[2] - b, c), "{child:?}: {:?}", pose.pos[2] - b);
+            assert!(close(pose.point(2, &Vector3::x()) - pose.pos[2], end), "{child:?}");
+        }
+    }
+
+    #[test]
+    fn a_joints_world_rotation_composes_its_ancestors_and_carries_its_children() {
+        // The root turned 90° about Z, `b` 90° about X: `b`'s world rotation is Rz·Rx.
+        let bvh = chain([90.0, 0.0, 0.0], [0.0, 90.0, 0.0]);
+        let mut pose = Pose::new(&bvh);
+        pose.compute(&bvh, 0, &[Translation::Replace; 4]);
+        let want = Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
+        assert!((pose.rotation(1) - want).norm() < 1e-5, "{}", pose.rotation(1));
+        // Replace: `b` sits at its channels (10, 20, 30) turned by the root: (−20, 10, 30) from it.
+        assert!(close(pose.pos[1], [-19.0, 12.0, 33.0]), "{:?}", pose.pos[1]);
+        assert!(close(pose.pos[2], [-17.0, 12.0, 33.0]), "{:?}", pose.pos[2]);
+        // `d` turns with the root only: (5, 0, 0) → (0, 5, 0).
+        assert!(close(pose.pos[3], [1.0, 7.0, 3.0]), "{:?}", pose.pos[3]);
+    }
+
+    #[test]
+    fn a_pose_for_some_joints_computes_them_and_their_ancestors_only() {
+        let bvh = chain([0.0; 3], [0.0; 3]);
+        let mut pose = Pose::for_joints(&bvh, &[2, 1]);
+        pose.compute(&bvh, 0, &[Translation::AddToOffset; 4]);
+        assert!(close(pose.pos[0], [1.0, 2.0, 3.0]));
+        assert!(close(pose.pos[1], [11.0, 23.0, 33.0]));
+        assert!(close(pose.pos[2], [11.0, 23.0, 35.0]));
+        assert_eq!(pose.pos[3], Vector3::zeros(), "`d` is not asked for");
+        let mut pose = Pose::for_joints(&bvh, &[3]);
+        pose.compute(&bvh, 0, &[Translation::AddToOffset; 4]);
+        assert!(close(pose.pos[3], [6.0, 2.0, 3.0]));
+        assert_eq!(pose.pos[1], Vector3::zeros());
+    }
 }
