@@ -46,7 +46,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # the BVH reader. The matching of a BVH's joints to the canonical skeleton runs the import tests (every
 # shared clip's sources per convention) and the unit tests; the human state x^h also the following and
 # metrics tests, which read it; the reading of joint names, the length units and up axes, what the
-# importer infers from the posed skeleton and the per-frame tracks the import tests and the unit tests.
+# importer infers from the posed skeleton, the per-frame tracks, the BVH's forward kinematics, the
+# clip (timing, resampling, warnings) and the import pipeline (its checks of absurd values) the import
+# tests and the unit tests; the hostile-input tests of the last two are run by hand on their survivors.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -71,6 +73,9 @@ declare -A how=(
   [models/src/human/units.rs]="$core -- --test human_import --lib"
   [models/src/human/detect.rs]="$core -- --test human_import --lib"
   [models/src/human/tracks.rs]="$core -- --test human_import --lib"
+  [models/src/human/fk.rs]="$core -- --test human_import --lib"
+  [models/src/human/clip.rs]="$core -- --test human_import --lib"
+  [models/src/human/import.rs]="$core -- --test human_import --lib"
   [models/src/human/state.rs]="$core -- --test human_import --test following --test metrics --lib"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
@@ -88,7 +93,8 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/standing.rs models/src/effector_hold.rs models/src/velocity_limit.rs
        models/src/correspondence.rs models/src/metrics/following.rs models/src/human/bvh.rs
        models/src/human/matching.rs models/src/human/names.rs models/src/human/units.rs
-       models/src/human/detect.rs models/src/human/tracks.rs models/src/human/state.rs models/src/kinematics.rs models/src/metrics/collision.rs models/src/urdf.rs
+       models/src/human/detect.rs models/src/human/tracks.rs models/src/human/fk.rs
+       models/src/human/clip.rs models/src/human/import.rs models/src/human/state.rs models/src/kinematics.rs models/src/metrics/collision.rs models/src/urdf.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
