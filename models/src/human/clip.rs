@@ -291,3 +291,127 @@ pub fn decode_text<'a>(
     }
     Ok(String::from_utf8_lossy(bytes))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A clip at `fps` whose pelvis is at `pelvis[t]` (every other joint at the origin) and turned by
+    /// `tilt[t]` radians about x (0: upright).
+    fn clip(fps: f32, pelvis: &[[f32; 3]], tilt: &[f32]) -> HumanClip {
+        let frames = pelvis
+            .iter()
+            .zip(tilt)
+            .map(|(p, &a)| {
+                let mut positions = [Vector3::zeros(); JOINT_COUNT];
+                positions[Joint::Pelvis.index()] = Vector3::from(*p);
+                HumanFrame { positions, root_rotation: UnitQuaternion::from_euler_angles(a, 0.0, 0.0) }
+            })
+            .collect();
+        HumanClip {
+            name: "dir/take.bvh".into(),
+            convention: "generic".into(),
+            unit: "m".into(),
+            source_fps: fps,
+            fps,
+            frames,
+            height_m: 1.7,
+            mapped_joints: JOINT_COUNT,
+            source_joints: std::array::from_fn(|_| String::new()),
+            skeleton_up: None,
+        }
+    }
+
+    fn still(n: usize) -> Vec<[f32; 3]> {
+        vec![[0.0; 3]; n]
+    }
+
+    #[test]
+    fn the_pelvis_is_upright_within_sixty_degrees_of_vertical() {
+        let upright = clip(30.0, &still(4), &[0.0, 0.3, -1.0, 1.2]);
+        assert_eq!(upright.upright_fraction(), 0.75);
+        assert_eq!(upright.posture_warning(), None);
+        let lying = clip(30.0, &still(4), &[0.0, 1.1, -1.1, 1.6]);
+        assert_eq!(lying.upright_fraction(), 0.25);
+        let warning = lying.posture_warning().unwrap();
+        assert!(warning.starts_with("dir/take.bvh: the pelvis is upright (within 60° of vertical) in only 25 % of the frames"), "{warning}");
+        // Half the frames upright is not "most of the clip" lying.
+        assert_eq!(clip(30.0, &still(2), &[0.0, 1.6]).posture_warning(), None);
+    }
+
+    #[test]
+    fn a_skeleton_standing_along_another_axis_than_its_frames_is_a_lying_clip() {
+        let mut c = clip(30.0, &still(2), &[0.0, 0.0]);
+        c.skeleton_up = Some(("y".into(), "-z".into()));
+        let warning = c.posture_warning().unwrap();
+        assert!(warning.starts_with("dir/take.bvh: the person seems to lie or crawl"), "{warning}");
+        assert!(warning.contains("along the file's y axis in its rest pose, but the frames' feet-to-head direction is along its -z axis"), "{warning}");
+        assert!(warning.ends_with("give `up = \"y\"` in a joint-mapping file (--mapping FILE or take.mapping.toml)"), "{warning}");
+        assert_eq!(c.warnings(), [warning]);
+    }
+
+    #[test]
+    fn the_fastest_root_move_is_the_largest_pelvis_jump_and_the_time_it_lands() {
+        let c = clip(100.0, &[[0.0; 3], [0.01, 0.0, 0.0], [0.01, 0.3, 0.4], [0.01, 0.31, 0.4]], &[0.0; 4]);
+        let (speed, t) = c.fastest_root_move().unwrap();
+        assert!((speed - 50.0).abs() < 1e-3 && (t - 0.02).abs() < 1e-6, "{speed} m/s at {t} s");
+        let warning = c.root_jump_warning().unwrap();
+        assert!(warning.starts_with("dir/take.bvh: the pelvis jumps 0.50 m in one frame at 0.02 s (50 m/s"), "{warning}");
+        assert_eq!(c.warnings(), [warning]);
+        // 9 m/s is a sprint, not a jump; a clip of one frame does not move.
+        let run = clip(100.0, &[[0.0; 3], [0.09, 0.0, 0.0], [0.18, 0.0, 0.0]], &[0.0; 3]);
+        assert_eq!(run.root_jump_warning(), None);
+        assert!(run.warnings().is_empty());
+        assert_eq!(clip(100.0, &still(1), &[0.0]).fastest_root_move(), None);
+    }
+
+    #[test]
+    fn frames_between_samples_interpolate_positions_and_slerp_the_pelvis() {
+        let c = clip(10.0, &[[0.0; 3], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0]], &[0.0, 1.0, 1.0]);
+        assert!((c.duration() - 0.2).abs() < 1e-6);
+        assert_eq!(clip(10.0, &still(1), &[0.0]).duration(), 0.0);
+        let f = c.frame_at(0.025);
+        assert!((f.position(Joint::Pelvis) - Vector3::new(0.25, 0.0, 0.0)).norm() < 1e-5);
+        assert!((f.root_rotation.angle() - 0.25).abs() < 1e-5);
+        let f = c.frame_at(0.15);
+        assert!((f.position(Joint::Pelvis) - Vector3::new(1.0, 1.0, 0.0)).norm() < 1e-5);
+        // Within a thousandth of a frame of a sample: the sample itself.
+        assert_eq!(c.frame_at(0.10001), c.frames[1]);
+        assert_ne!(c.frame_at(0.1002), c.frames[1]);
+        assert_eq!(c.frame_at(-1.0), c.frames[0]);
+        assert_eq!(c.frame_at(0.2), c.frames[2]);
+        assert_eq!(c.frame_at(5.0), c.frames[2]);
+    }
+
+    #[test]
+    fn resampling_keeps_the_first_frame_and_steps_to_the_end() {
+        let pelvis: Vec<[f32; 3]> = (0..121).map(|k| [k as f32 / 120.0, 0.0, 0.0]).collect();
+        let c = clip(120.0, &pelvis, &[0.0; 121]);
+        let slow = c.resampled(30.0);
+        assert_eq!((slow.fps, slow.source_fps, slow.frames.len()), (30.0, 120.0, 31));
+        assert_eq!(slow.frames[0], c.frames[0]);
+        assert_eq!(slow.frames[30], c.frames[120]);
+        assert!((slow.frames[7].position(Joint::Pelvis).x - 7.0 / 30.0).abs() < 1e-5);
+        // 1 s at 8.5 fps: frames at 0, 1/8.5, …, 8/8.5 (the next, at 1.06 s, would pass the end).
+        assert_eq!(c.resampled(8.5).frames.len(), 9);
+    }
+
+    #[test]
+    fn the_mapping_file_beside_a_clip_is_named_after_its_stem() {
+        assert_eq!(mapping_path_beside(Path::new("mocap/walk.bvh")), Path::new("mocap/walk.mapping.toml"));
+        assert_eq!(mapping_path_beside(Path::new("run")), Path::new("run.mapping.toml"));
+    }
+
+    #[test]
+    fn clip_text_is_utf8_with_bad_bytes_replaced_and_utf16_refused() {
+        assert_eq!(decode_text(b"ROOT H\xe4fte", "a.bvh").unwrap(), "ROOT H\u{fffd}fte");
+        let utf16: Vec<u8> = "HIERARCHY".encode_utf16().flat_map(u16::to_le_bytes).collect();
+        match decode_text(&utf16, "a.bvh") {
+            Err(HumanImportError::Parse { file, line: 1, message }) => {
+                assert_eq!(file, "a.bvh");
+                assert_eq!(message, crate::input::ReadError::Utf16.to_string());
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -193,12 +193,14 @@ pub fn classify(name: &str) -> NameInfo {
                             .any(|b| rest == *b || (p.len() > 1 && rest.starts_with(b)))
                     })
                 });
+                // A side already read is kept, but the glued letter is still not part of the body
+                // word (`Right_lfoot` is a foot).
                 match glued {
-                    Some((p, s)) if side == Side::Centre => {
-                        side = s;
+                    Some((p, s)) => {
+                        set_side(s, &mut side);
                         body.push(w[p.len()..].to_string());
                     }
-                    _ => body.push(w),
+                    None => body.push(w),
                 }
             }
         }
@@ -340,8 +342,9 @@ mod tests {
         assert_eq!(c("lhand"), (Left, Part::Hand));
         assert_eq!(classify("lhandle").side, Centre);
         assert_eq!(classify("rings").side, Centre);
-        // A side already read is kept.
-        assert_eq!(classify("Right_lfoot").side, Right);
-        assert_eq!(classify("L_rhand").side, Left);
+        // A side already read is kept; the glued letter still leaves the body word.
+        assert_eq!(c("Right_lfoot"), (Right, Part::Foot));
+        assert_eq!(c("L_rhand"), (Left, Part::Hand));
+        assert_eq!(c("Left_lthigh"), (Left, Part::Thigh));
     }
 }
