@@ -361,3 +361,45 @@ pub(super) fn import(
 ) -> Result<HumanClip, HumanImportError> {
     import_with_report(text, file, opts).map(|(clip, _)| clip)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Canonical joints all at the pelvis (0, 0, 1) but the thighs at `left` and `right` and the spine
+    /// and chest at `spine` and `chest`.
+    fn hips(left: [f32; 3], right: [f32; 3], spine: [f32; 3], chest: [f32; 3]) -> [Vector3<f32>; JOINT_COUNT] {
+        let mut p = [Vector3::new(0.0, 0.0, 1.0); JOINT_COUNT];
+        p[Joint::LeftThigh.index()] = Vector3::from(left);
+        p[Joint::RightThigh.index()] = Vector3::from(right);
+        p[Joint::Spine.index()] = Vector3::from(spine);
+        p[Joint::Chest.index()] = Vector3::from(chest);
+        p
+    }
+
+    fn facing(p: &[Vector3<f32>; JOINT_COUNT]) -> (Vector3<f32>, Vector3<f32>) {
+        let r = root_rotation(p);
+        (r * Vector3::x(), r * Vector3::z())
+    }
+
+    fn close(a: Vector3<f32>, b: [f32; 3]) -> bool {
+        (a - Vector3::from(b)).norm() < 1e-5
+    }
+
+    #[test]
+    fn the_pelvis_faces_across_the_hips_and_stands_towards_the_spine() {
+        // Left hip at +y: facing +x, upright.
+        let (x, z) = facing(&hips([0.0, 0.1, 1.0], [0.0, -0.1, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 1.4]));
+        assert!(close(x, [1.0, 0.0, 0.0]) && close(z, [0.0, 0.0, 1.0]), "{x:?} {z:?}");
+        // Left hip at −x: facing +y; a spine leaning forward tilts the pelvis, its y stays across the hips.
+        let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.2, 1.2], [0.0, 0.0, 1.4]));
+        let h = 0.5f32.sqrt();
+        assert!(close(x, [0.0, h, -h]) && close(z, [0.0, h, h]), "{x:?} {z:?}");
+        // A spine at the pelvis' place: the chest gives up.
+        let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.4]));
+        assert!(close(x, [0.0, 1.0, 0.0]) && close(z, [0.0, 0.0, 1.0]), "{x:?} {z:?}");
+        // Both hips at one place: y is taken as across them.
+        let (x, _) = facing(&hips([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 1.4]));
+        assert!(close(x, [1.0, 0.0, 0.0]), "{x:?}");
+    }
+}
