@@ -414,4 +414,22 @@ mod tests {
             other => panic!("{other:?}"),
         }
     }
+
+    #[test]
+    fn a_mapping_file_beside_the_clip_is_read_with_it_unless_one_is_given() {
+        use crate::human::test_rig::{body, rest_text, torso};
+        let dir = std::env::temp_dir().join(format!("ace_clip_beside_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("stand.bvh");
+        std::fs::write(&path, rest_text(&body(&torso("Head")))).unwrap();
+        let plain = HumanClip::from_bvh_file(&path, &ImportOptions::default()).unwrap();
+        assert_eq!((plain.name.as_str(), plain.unit.as_str()), ("stand", "cm"));
+        std::fs::write(dir.join("stand.mapping.toml"), "unit = \"0.011\"\n").unwrap();
+        let beside = HumanClip::from_bvh_file(&path, &ImportOptions::default()).unwrap();
+        assert_eq!(beside.unit, "0.011");
+        assert!((beside.height_m / plain.height_m - 1.1).abs() < 1e-4, "{} m", beside.height_m);
+        let given = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str("unit = \"cm\"").unwrap()) };
+        assert_eq!(HumanClip::from_bvh_file(&path, &given).unwrap().unit, "cm");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

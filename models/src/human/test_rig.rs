@@ -11,8 +11,13 @@ const ROTATIONS: &str = "Zrotation Xrotation Yrotation";
 /// A one-frame BVH at its rest pose of `joints` (listed parents first): the root with position and
 /// rotation channels, the others with rotations.
 pub(crate) fn bvh(joints: &[Spec]) -> Bvh {
+    Bvh::parse(&rest_text(joints), "t.bvh").unwrap()
+}
+
+/// The text of [`bvh`]'s BVH.
+pub(crate) fn rest_text(joints: &[Spec]) -> String {
     let channels: usize = 6 + 3 * (joints.len() - 1);
-    parse(joints, |i| i == 0, &[vec![0.0; channels]])
+    text(joints, |i| i == 0, &[vec![0.0; channels]])
 }
 
 /// Indices (into `joints`) of joint `i`'s children, in list order.
@@ -38,6 +43,11 @@ pub(crate) fn file_order(joints: &[Spec]) -> Vec<usize> {
 /// rotations) and the others rotations only, with `frames` holding each frame's values in file order
 /// ([`file_order`]).
 pub(crate) fn parse(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames: &[Vec<f32>]) -> Bvh {
+    Bvh::parse(&text(joints, positioned, frames), "t.bvh").unwrap()
+}
+
+/// The text of [`parse`]'s BVH.
+pub(crate) fn text(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames: &[Vec<f32>]) -> String {
     fn write(i: usize, joints: &[Spec], positioned: &dyn Fn(usize) -> bool, out: &mut String) {
         let (name, parent, [x, y, z]) = joints[i];
         let kind = if parent.is_none() { "ROOT" } else { "JOINT" };
@@ -60,7 +70,7 @@ pub(crate) fn parse(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames:
         let values: Vec<String> = f.iter().map(|v| v.to_string()).collect();
         text.push_str(&(values.join(" ") + "\n"));
     }
-    Bvh::parse(&text, "t.bvh").unwrap()
+    text
 }
 
 /// A leg below the hips: thigh, shin and foot named `names`, the hip `x` to the side.
