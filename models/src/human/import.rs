@@ -402,4 +402,116 @@ mod tests {
         let (x, _) = facing(&hips([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 1.4]));
         assert!(close(x, [1.0, 0.0, 0.0]), "{x:?}");
     }
+
+    use crate::human::mapping::JointMapping;
+    use crate::human::test_rig::{Spec, body, file_order, text, torso};
+
+    /// A standing rig (a leg of 80 cm) turned `lean` degrees about the file's z at rest, and its BVH
+    /// text of `n` frames whose root (in file order the first six values) has the values `root(frame)`
+    /// and every other joint rotation zero.
+    fn clip_text(lean: f32, n: usize, root: impl Fn(usize) -> [f32; 6]) -> String {
+        let (s, c) = lean.to_radians().sin_cos();
+        let joints: Vec<Spec> = body(&torso("Head"))
+            .into_iter()
+            .map(|(name, parent, [x, y, z])| (name, parent, [x * c - y * s, x * s + y * c, z]))
+            .collect();
+        let frames: Vec<Vec<f32>> = (0..n)
+            .map(|f| {
+                let mut v = root(f).to_vec();
+                v.resize(6 + 3 * (file_order(&joints).len() - 1), 0.0);
+                v
+            })
+            .collect();
+        text(&joints, |i| i == 0, &frames)
+    }
+
+    fn import_error(text: &str, opts: &ImportOptions) -> String {
+        import_with_report(text, "t.bvh", opts).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_skeleton_standing_along_y_at_rest_in_frames_lying_along_z_is_reported() {
+        // Xrotation 90 turns the file's y to its z in every frame (Yrotation −90 its x to its z).
+        let turned = |lean: f32, root: [f32; 6], opts: &ImportOptions| {
+            import_with_report(&clip_text(lean, 3, |_| root), "t.bvh", opts).unwrap()
+        };
+        let lying = |lean: f32, opts: &ImportOptions| turned(lean, [0.0, 0.0, 90.0, 0.0, 90.0, 0.0], opts);
+        let (clip, report) = lying(0.0, &ImportOptions::default());
+        assert_eq!(report.up_axis, "z");
+        assert_eq!(clip.skeleton_up, Some(("y".to_string(), "z".to_string())));
+        // Leaning 20° at rest, y is still 0.94 of feet-to-head; at 30° (0.87) the rest pose says nothing.
+        assert_eq!(lying(20.0, &ImportOptions::default()).0.skeleton_up, Some(("y".to_string(), "z".to_string())));
+        assert_eq!(lying(30.0, &ImportOptions::default()).0.skeleton_up, None);
+        // Standing along x at rest (as Bandai Namco's rigs do) says nothing either.
+        let (clip, report) = turned(-90.0, [0.0, 0.0, 90.0, 0.0, 0.0, -90.0], &ImportOptions::default());
+        assert_eq!((report.up_axis.as_str(), clip.skeleton_up), ("z", None));
+        // A mapping's `up` is the user's word: no report.
+        let up = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str("up = \"z\"").unwrap()) };
+        assert_eq!(lying(0.0, &up).0.skeleton_up, None);
+        // Frames along y, as the rest pose: nothing to report.
+        let standing = clip_text(0.0, 3, |_| [0.0, 90.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(import_with_report(&standing, "t.bvh", &ImportOptions::default()).unwrap().0.skeleton_up, None);
+    }
+
+    #[test]
+    fn values_beyond_a_human_and_a_capture_volume_are_refused_naming_the_joint_channel_and_frame() {
+        let opts = ImportOptions::default();
+        // 10⁷ file units is accepted by the file check, but in centimetres it is 100 km from the origin.
+        let far = clip_text(0.0, 3, |f| [if f == 1 { 1e7 } else { 0.0 }, 90.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            import_error(&far, &opts),
+            "t.bvh: implausible motion: pelvis (BVH joint `Hips`) is 1e5 m from the origin in frame 2 (unit cm); a human \
+             clip stays within 10000 m: check the file's OFFSET and position values"
+        );
+        let beyond = clip_text(0.0, 3, |f| [0.0, if f == 2 { 2e7 } else { 90.0 }, 0.0, 0.0, 0.0, 0.0]);
+        assert!(import_error(&beyond, &opts).starts_with(
+            "t.bvh: implausible motion: position channel 2 of joint `Hips` (line 2) is 2e7 file units in frame 3"
+        ));
+        // Rotations: a million degrees is a spinning root, more is not mocap.
+        let spin = clip_text(0.0, 3, |f| [0.0, 90.0, 0.0, 1e6 * f as f32 / 2.0, 0.0, 0.0]);
+        assert!(import_with_report(&spin, "t.bvh", &opts).is_ok());
+        let beyond = clip_text(0.0, 3, |f| [0.0, 90.0, 0.0, 0.0, 0.0, if f == 1 { -1.5e6 } else { 0.0 }]);
+        assert!(import_error(&beyond, &opts).starts_with(
+            "t.bvh: implausible motion: rotation channel 6 of joint `Hips` (line 2) is -1.5e6° in frame 2"
+        ));
+    }
+
+    #[test]
+    fn offsets_beyond_ten_kilometres_in_millimetres_or_none_at_all_are_refused() {
+        let opts = ImportOptions::default();
+        let stand = clip_text(0.0, 1, |_| [0.0, 90.0, 0.0, 0.0, 0.0, 0.0]);
+        let head = "OFFSET 0 8 0";
+        assert!(stand.contains(head));
+        let e = import_error(&stand.replacen(head, "OFFSET 0 2e7 0", 1), &opts);
+        assert!(e.starts_with("t.bvh: implausible motion: joint `Head` (line "), "{e}");
+        assert!(e.contains(") has an OFFSET of 2e7 file units"), "{e}");
+        // An end site counts as a length too.
+        let e = import_error(&stand.replace("OFFSET 0 1 0", "OFFSET 0 -3e7 0"), &opts);
+        assert!(e.contains("has an OFFSET of 3e7 file units"), "{e}");
+        // Every OFFSET and end site below the root zero: no bone lengths, whatever the root's.
+        let flat: String = stand
+            .lines()
+            .enumerate()
+            .map(|(i, l)| if l.starts_with("OFFSET") && i > 3 { "OFFSET 0 0 0".to_string() } else { l.to_string() })
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(flat.contains("OFFSET 0 90 0"));
+        assert!(import_error(&flat, &opts).starts_with("t.bvh: every OFFSET below the root is zero: the skeleton (17 joints) has no bone lengths"));
+        // The end sites alone give lengths; the joints, all at one place, are then not a body.
+        let sites = flat.replace("End Site\n{\nOFFSET 0 0 0", "End Site\n{\nOFFSET 0 1 0");
+        let e = import_error(&sites, &opts);
+        assert!(e.starts_with("t.bvh: unknown skeleton: could not map canonical joint(s) pelvis, spine"), "{e}");
+    }
+
+    #[test]
+    fn a_target_frame_rate_must_be_positive_and_give_at_most_two_hours_at_sixty() {
+        let t = clip_text(0.0, 3, |_| [0.0, 90.0, 0.0, 0.0, 0.0, 0.0]);
+        let at = |fps: f32| ImportOptions { fps: Some(fps), mapping: None };
+        for bad in [0.0, -30.0, f32::NAN, f32::INFINITY] {
+            assert_eq!(import_error(&t, &at(bad)), format!("t.bvh: invalid target frame rate {bad}"));
+        }
+        // Three frames at 30 fps are 1/15 s: 7·10⁶ fps would make 466,667 frames.
+        assert!(import_error(&t, &at(7e6)).contains("resampled to 7000000 fps would be 466667 frames; at most 432000"));
+        assert_eq!(import_with_report(&t, "t.bvh", &at(600.0)).unwrap().0.frames.len(), 41);
+    }
 }
