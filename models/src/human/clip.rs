@@ -362,6 +362,10 @@ mod tests {
         let run = clip(100.0, &[[0.0; 3], [0.09, 0.0, 0.0], [0.18, 0.0, 0.0]], &[0.0; 3]);
         assert_eq!(run.root_jump_warning(), None);
         assert!(run.warnings().is_empty());
+        // 10 m/s exactly (1 m in a tenth of a second) is still a person.
+        let sprint = clip(10.0, &[[0.0; 3], [1.0, 0.0, 0.0]], &[0.0; 2]);
+        assert_eq!(sprint.fastest_root_move(), Some((10.0, 0.1)));
+        assert_eq!(sprint.root_jump_warning(), None);
         assert_eq!(clip(100.0, &still(1), &[0.0]).fastest_root_move(), None);
     }
 
