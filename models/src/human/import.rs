@@ -395,9 +395,9 @@ mod tests {
         let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.2, 1.2], [0.0, 0.0, 1.4]));
         let h = 0.5f32.sqrt();
         assert!(close(x, [0.0, h, -h]) && close(z, [0.0, h, h]), "{x:?} {z:?}");
-        // A spine at the pelvis' place: the chest gives up.
-        let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.4]));
-        assert!(close(x, [0.0, 1.0, 0.0]) && close(z, [0.0, 0.0, 1.0]), "{x:?} {z:?}");
+        // A spine at the pelvis' place: the chest, leaning forward, gives up.
+        let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.4, 1.4]));
+        assert!(close(x, [0.0, h, -h]) && close(z, [0.0, h, h]), "{x:?} {z:?}");
         // Both hips at one place: y is taken as across them.
         let (x, _) = facing(&hips([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 1.4]));
         assert!(close(x, [1.0, 0.0, 0.0]), "{x:?}");
@@ -406,14 +406,21 @@ mod tests {
     use crate::human::mapping::JointMapping;
     use crate::human::test_rig::{Spec, body, file_order, text, torso};
 
-    /// A standing rig (a leg of 80 cm) turned `lean` degrees about the file's z at rest, and its BVH
-    /// text of `n` frames whose root (in file order the first six values) has the values `root(frame)`
-    /// and every other joint rotation zero.
+    /// A standing rig (a leg of 80 cm, the hips' OFFSET 90 up) turned `lean` degrees about the file's
+    /// z at rest below the hips, and its BVH text of `n` frames whose root (in file order the first six
+    /// values) has the values `root(frame)` and every other joint rotation zero.
     fn clip_text(lean: f32, n: usize, root: impl Fn(usize) -> [f32; 6]) -> String {
+        clip_text_of(body(&torso("Head")), lean, n, root)
+    }
+
+    fn clip_text_of(rig: Vec<Spec>, lean: f32, n: usize, root: impl Fn(usize) -> [f32; 6]) -> String {
         let (s, c) = lean.to_radians().sin_cos();
-        let joints: Vec<Spec> = body(&torso("Head"))
+        let joints: Vec<Spec> = rig
             .into_iter()
-            .map(|(name, parent, [x, y, z])| (name, parent, [x * c - y * s, x * s + y * c, z]))
+            .map(|(name, parent, [x, y, z])| match parent {
+                None => (name, parent, [x, y, z]),
+                Some(_) => (name, parent, [x * c - y * s, x * s + y * c, z]),
+            })
             .collect();
         let frames: Vec<Vec<f32>> = (0..n)
             .map(|f| {
@@ -497,6 +504,18 @@ mod tests {
             .join("\n");
         assert!(flat.contains("OFFSET 0 90 0"));
         assert!(import_error(&flat, &opts).starts_with("t.bvh: every OFFSET below the root is zero: the skeleton (17 joints) has no bone lengths"));
+        // Legs of no length (hip, knee and ankle at one place) in a body that has them.
+        let mut rig = body(&torso("Head"));
+        for joint in rig.iter_mut().filter(|j| matches!(j.0, "LeftLeg" | "LeftFoot" | "RightLeg" | "RightFoot")) {
+            joint.2 = [0.0; 3];
+        }
+        // The matching does not take such legs, a mapping naming every joint does.
+        let stubs = clip_text_of(rig, 0.0, 1, |_| [0.0, 90.0, 0.0, 0.0, 0.0, 0.0]);
+        let names = ["Hips", "Spine", "Chest", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand", "RightArm"];
+        let names = [&names[..], &["RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot"]].concat();
+        let mapping: String = Joint::ALL.iter().zip(names).map(|(j, n)| format!("{} = \"{n}\"\n", j.name())).collect();
+        let named = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str(&mapping).unwrap()) };
+        assert_eq!(import_error(&stubs, &named), "t.bvh: the legs have zero length");
         // The end sites alone give lengths; the joints, all at one place, are then not a body.
         let sites = flat.replace("End Site\n{\nOFFSET 0 0 0", "End Site\n{\nOFFSET 0 1 0");
         let e = import_error(&sites, &opts);
