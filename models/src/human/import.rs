@@ -532,5 +532,10 @@ mod tests {
         // Three frames at 30 fps are 1/15 s: 7·10⁶ fps would make 466,667 frames.
         assert!(import_error(&t, &at(7e6)).contains("resampled to 7000000 fps would be 466667 frames; at most 432000"));
         assert_eq!(import_with_report(&t, "t.bvh", &at(600.0)).unwrap().0.frames.len(), 41);
+        // The limit itself is allowed: three frames half a second apart are 1 s, 431,999 fps on them
+        // 432,000 frames (checked on the header, without making them).
+        let second = Bvh::parse(&t.replace("Frame Time: 0.0333333", "Frame Time: 0.5"), "t.bvh").unwrap();
+        assert!(check_resampling(&second, 431_999.0, "t.bvh").is_ok());
+        assert!(check_resampling(&second, 432_000.0, "t.bvh").is_err());
     }
 }
