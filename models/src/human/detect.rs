@@ -168,6 +168,24 @@ mod tests {
         assert_eq!(added, ["LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"]);
     }
 
+    #[test]
+    fn the_floor_reading_of_a_moving_root_samples_the_whole_clip() {
+        // The root's channels stand it at (0, 90, 0), its OFFSET, in every frame but the first, where it
+        // is at 0 (a person crouching, or a glitch): read as full translations the feet stand on the
+        // floor (file height 0) in nine frames of ten; added to the OFFSET, only in the first.
+        let joints = body(&torso("Head"));
+        let frames: Vec<Vec<f32>> = (0..10)
+            .map(|f| {
+                let mut v = vec![0.0, if f == 0 { 0.0 } else { 90.0 }, 0.5 * f as f32, 0.0, 0.0, 0.0];
+                v.resize(6 + 3 * (joints.len() - 1), 0.0);
+                v
+            })
+            .collect();
+        let b = parse(&joints, |i| i == 0, &frames);
+        let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
+        assert_eq!(detect_translation(&b, &map)[0], Translation::Replace);
+    }
+
     /// Tracks of 40 frames around a still pelvis whose 16 other joints move by `steps[t]` from frame
     /// `t` to `t + 1` (a pose step of 16/17 of it), and by `drift` a frame after the given steps.
     fn stepping(steps: &[f32], drift: f32) -> Tracks {

@@ -365,6 +365,8 @@ pub(super) fn import(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::human::mapping::JointMapping;
+    use crate::human::test_rig::{Spec, body, file_order, text, torso};
 
     /// Canonical joints all at the pelvis (0, 0, 1) but the thighs at `left` and `right` and the spine
     /// and chest at `spine` and `chest`.
@@ -398,13 +400,10 @@ mod tests {
         // A spine at the pelvis' place: the chest, leaning forward, gives up.
         let (x, z) = facing(&hips([-0.1, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.4, 1.4]));
         assert!(close(x, [0.0, h, -h]) && close(z, [0.0, h, h]), "{x:?} {z:?}");
-        // Both hips at one place: y is taken as across them.
+        // Both hips at one place: y falls back to +y, so the pelvis faces +x.
         let (x, _) = facing(&hips([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 1.4]));
         assert!(close(x, [1.0, 0.0, 0.0]), "{x:?}");
     }
-
-    use crate::human::mapping::JointMapping;
-    use crate::human::test_rig::{Spec, body, file_order, text, torso};
 
     /// A standing rig (a leg of 80 cm, the hips' OFFSET 90 up) turned `lean` degrees about the file's
     /// z at rest below the hips, and its BVH text of `n` frames whose root (in file order the first six
