@@ -138,6 +138,7 @@ impl Pose {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::human::test_rig::close;
 
     #[test]
     fn rotations_compose_in_listed_order() {
@@ -165,10 +166,6 @@ mod tests {
             root[0], root[1], root[2], child[0], child[1], child[2]
         );
         Bvh::parse(&text, "t").unwrap()
-    }
-
-    fn close(a: Vector3<f32>, b: [f32; 3]) -> bool {
-        (a - Vector3::from(b)).norm() < 1e-5
     }
 
     #[test]

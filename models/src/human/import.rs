@@ -366,7 +366,7 @@ pub(super) fn import(
 mod tests {
     use super::*;
     use crate::human::mapping::JointMapping;
-    use crate::human::test_rig::{Spec, body, file_order, text, torso};
+    use crate::human::test_rig::{Spec, body, close, text, torso};
 
     /// Canonical joints all at the pelvis (0, 0, 1) but the thighs at `left` and `right` and the spine
     /// and chest at `spine` and `chest`.
@@ -382,10 +382,6 @@ mod tests {
     fn facing(p: &[Vector3<f32>; JOINT_COUNT]) -> (Vector3<f32>, Vector3<f32>) {
         let r = root_rotation(p);
         (r * Vector3::x(), r * Vector3::z())
-    }
-
-    fn close(a: Vector3<f32>, b: [f32; 3]) -> bool {
-        (a - Vector3::from(b)).norm() < 1e-5
     }
 
     #[test]
@@ -424,7 +420,7 @@ mod tests {
         let frames: Vec<Vec<f32>> = (0..n)
             .map(|f| {
                 let mut v = root(f).to_vec();
-                v.resize(6 + 3 * (file_order(&joints).len() - 1), 0.0);
+                v.resize(6 + 3 * (joints.len() - 1), 0.0);
                 v
             })
             .collect();
@@ -510,8 +506,10 @@ mod tests {
         }
         // The matching does not take such legs, a mapping naming every joint does.
         let stubs = clip_text_of(rig, 0.0, 1, |_| [0.0, 90.0, 0.0, 0.0, 0.0, 0.0]);
-        let names = ["Hips", "Spine", "Chest", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand", "RightArm"];
-        let names = [&names[..], &["RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot"]].concat();
+        let names = [
+            "Hips", "Spine", "Chest", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm",
+            "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot",
+        ];
         let mapping: String = Joint::ALL.iter().zip(names).map(|(j, n)| format!("{} = \"{n}\"\n", j.name())).collect();
         let named = ImportOptions { fps: None, mapping: Some(JointMapping::from_toml_str(&mapping).unwrap()) };
         assert_eq!(import_error(&stubs, &named), "t.bvh: the legs have zero length");

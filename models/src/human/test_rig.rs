@@ -1,6 +1,8 @@
 //! Small BVH rigs written in the unit tests: a joint list (name, parent's name, offset) → a parsed
 //! [`Bvh`], and the parts of a humanoid to assemble one from.
 
+use nalgebra::Vector3;
+
 use super::bvh::Bvh;
 
 /// A joint: name, parent's name (`None` for the root), offset.
@@ -71,6 +73,11 @@ pub(crate) fn text(joints: &[Spec], positioned: impl Fn(usize) -> bool, frames: 
         text.push_str(&(values.join(" ") + "\n"));
     }
     text
+}
+
+/// Whether `a` is within 10⁻⁵ of `b`.
+pub(crate) fn close(a: Vector3<f32>, b: [f32; 3]) -> bool {
+    (a - Vector3::from(b)).norm() < 1e-5
 }
 
 /// A leg below the hips: thigh, shin and foot named `names`, the hip `x` to the side.

@@ -119,28 +119,23 @@ mod tests {
     use crate::human::fk::Translation;
     use crate::human::test_rig::{bvh, leg, rig, torso};
 
-    /// A rig at rest whose left foot has a toe (ahead, below the ankle) and whose right shin is 50
-    /// long, the left 40; the feet's end sites stand 1 above their last joint.
-    fn rig_with_toe() -> (Bvh, SkeletonMap) {
+    /// The tracks of a rig at rest whose left foot has a toe (ahead, below the ankle) and whose right
+    /// shin is 50 long, the left 40; the feet's end sites stand 1 above their last joint. Position
+    /// channels are added to the OFFSET: the root (whose channels are zero) stands at its OFFSET
+    /// (0, 90, 0).
+    fn rig_with_toe() -> Tracks {
         let mut right = leg(["RightUpLeg", "RightLeg", "RightFoot"], -8.0);
         right[2].2 = [0.0, -50.0, 0.0];
         let toe = vec![("LeftToe", Some("LeftFoot"), [0.0, -2.0, 10.0])];
         let joints = rig(&[torso("Head"), leg(["LeftUpLeg", "LeftLeg", "LeftFoot"], 8.0), toe, right]);
         let b = bvh(&joints);
         let map = SkeletonMap::build(&b, None, "t.bvh").unwrap();
-        (b, map)
-    }
-
-    /// Position channels added to the OFFSET: the root (whose channels are zero) at its OFFSET
-    /// (0, 90, 0).
-    fn added(b: &Bvh) -> Vec<Translation> {
-        vec![Translation::AddToOffset; b.joints.len()]
+        track(&b, &map, &[0], &vec![Translation::AddToOffset; b.joints.len()])
     }
 
     #[test]
     fn the_feet_box_bounds_both_feet_their_toes_and_end_sites_and_nothing_else() {
-        let (b, map) = rig_with_toe();
-        let t = track(&b, &map, &[0], &added(&b));
+        let t = rig_with_toe();
         assert_eq!(t.frame_count(), 1);
         // Left ankle (8, 5, 0), its toe (8, 3, 10) and the toe's end site (8, 4, 10); right ankle
         // (-8, -5, 0) and its end site (-8, -4, 0). The hips (0, 90, 0) and the hands are outside.
@@ -151,8 +146,7 @@ mod tests {
 
     #[test]
     fn the_lowest_foot_point_is_the_boxs_corner_along_a_signed_axis() {
-        let (b, map) = rig_with_toe();
-        let t = track(&b, &map, &[0], &added(&b));
+        let t = rig_with_toe();
         let lowest = |up: [f32; 3]| lowest_foot(&t, &Vector3::from(up))[0];
         assert_eq!(lowest([0.0, 1.0, 0.0]), -5.0);
         assert_eq!(lowest([0.0, -1.0, 0.0]), -5.0);
@@ -163,8 +157,7 @@ mod tests {
 
     #[test]
     fn the_leg_length_is_hip_to_ankle_averaged_over_both_sides() {
-        let (b, map) = rig_with_toe();
-        let t = track(&b, &map, &[0], &added(&b));
+        let t = rig_with_toe();
         // Left 40 + 40, right 40 + 50.
         assert_eq!(leg_length(&t), 85.0);
     }
