@@ -488,3 +488,358 @@ fn path_clear(
     }
     true
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::controller::ControllerConfig;
+    use nalgebra::{Matrix3, Point3, Vector3};
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64 as StdRng;
+
+    /// A three-joint arm on a box lying on the ground (its root 0.1 m up): a yaw at the box's top, a
+    /// shoulder and an elbow pitching forward (+x) for positive angles, a 0.1 m upper post, a 0.4 m
+    /// upper arm and a 0.4 m forearm, standing straight up at 0.
+    const ARM: &str = r#"<robot name="arm">
+      <link name="base"><collision><geometry><box size="0.4 0.4 0.2"/></geometry></collision></link>
+      <joint name="yaw" type="revolute"><parent link="base"/><child link="post"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" velocity="2" effort="1"/></joint>
+      <link name="post"><collision><origin xyz="0 0 0.05"/><geometry><cylinder radius="0.03" length="0.1"/></geometry></collision></link>
+      <joint name="shoulder" type="revolute"><parent link="post"/><child link="upper"/><origin xyz="0 0 0.1"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" velocity="1" effort="1"/></joint>
+      <link name="upper"><collision><origin xyz="0 0 0.2"/><geometry><cylinder radius="0.025" length="0.4"/></geometry></collision></link>
+      <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" velocity="10" effort="1"/></joint>
+      <link name="fore"><collision><origin xyz="0 0 0.2"/><geometry><cylinder radius="0.02" length="0.4"/></geometry></collision></link>
+    </robot>"#;
+
+    fn arm() -> (KinematicTree, Morphology, Rig) {
+        let tree = KinematicTree::from_urdf_str(ARM).unwrap();
+        let morph = Morphology::analyze(&tree);
+        let rig = Rig::new(&tree, &morph, &ControllerConfig::default(), 30.0).unwrap();
+        assert_eq!(rig.reach.len(), 1, "one arm, no leftover DoF");
+        assert_eq!(rig.reach[0].dofs, [0, 1, 2]);
+        assert!(rig.nominal_q.iter().all(|&x| x == 0.0), "stowed straight up: {:?}", rig.nominal_q);
+        (tree, morph, rig)
+    }
+
+    fn link(tree: &KinematicTree, name: &str) -> usize {
+        tree.link_index(name).unwrap()
+    }
+
+    fn close(a: &[f32], b: &[f32], tol: f32) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
+    }
+
+    /// An axis-aligned box in the root frame.
+    fn cube(center: [f32; 3], half: f32) -> Obb {
+        Obb {
+            center: Point3::from(center),
+            axes: Matrix3::identity(),
+            half: Vector3::repeat(half),
+        }
+    }
+
+    /// Whether the path from straight up to `to` is clear, with `others` (and their links) in the way.
+    fn clear(tree: &KinematicTree, rig: &Rig, cfg: &ReachConfig, to: [f32; 3], others: &[(Obb, usize)]) -> bool {
+        let (boxes, links): (Vec<Obb>, Vec<usize>) = others.iter().copied().unzip();
+        let mut full = rig.nominal_q.clone();
+        path_clear(tree, rig, cfg, &rig.reach[0], &[0.0; 3], &to, &mut full, &boxes, &links)
+    }
+
+    #[test]
+    fn a_move_follows_a_minimum_jerk_curve_from_its_start_to_its_target() {
+        let st = ReachState {
+            from: vec![1.0, -2.0],
+            to: vec![3.0, 2.0],
+            s: 0.25,
+            duration: 1.0,
+            hold: 0.0,
+        };
+        let mut out = [0.0; 2];
+        st.config_at(0.0, &mut out);
+        assert_eq!(out, [1.0, -2.0]);
+        st.config_at(1.0, &mut out);
+        assert_eq!(out, [3.0, 2.0]);
+        st.config_at(0.5, &mut out);
+        assert_eq!(out, [2.0, 0.0]);
+        // At a quarter of the way in time, 10·s³ − 15·s⁴ + 6·s⁵ = 0.103515625 of the way in space.
+        st.current(&mut out);
+        assert!(close(&out, &[1.0 + 2.0 * 0.103515625, -2.0 + 4.0 * 0.103515625], 1e-6), "{out:?}");
+        let rest = ReachState::at(vec![0.5], 2.0);
+        assert_eq!((rest.from, rest.to, rest.s, rest.hold), (vec![0.5], vec![0.5], 1.0, 2.0));
+    }
+
+    #[test]
+    fn a_group_moves_for_its_duration_holds_then_draws_its_next_target() {
+        let (tree, _, rig) = arm();
+        let cfg = ReachConfig::default();
+        let mut rng = StdRng::seed_from_u64(1);
+        let mut q = rig.nominal_q.clone();
+        let mut states = vec![ReachState {
+            from: vec![0.0; 3],
+            to: vec![0.5, 0.5, 0.5],
+            s: 0.0,
+            duration: 2.0,
+            hold: 0.5,
+        }];
+        let mut step = |states: &mut Vec<ReachState>, q: &mut Vec<f32>, dt: f32| {
+            step_reach(&tree, &rig, &cfg, states, q, dt, &mut rng)
+        };
+        // Half a second of a two-second move: a quarter of the way, written to the group's DoFs.
+        assert_eq!(step(&mut states, &mut q, 0.5), ReachEvents::default());
+        assert_eq!((states[0].s, states[0].hold), (0.25, 0.5));
+        assert!(close(&q, &[0.5 * 0.103515625; 3], 1e-6), "{q:?}");
+        // A long frame ends the move at the target; the hold has not started.
+        step(&mut states, &mut q, 10.0);
+        assert_eq!((states[0].s, states[0].hold), (1.0, 0.5));
+        assert_eq!(q, [0.5; 3]);
+        // Holding counts down, and nothing new is drawn while time is left.
+        assert_eq!(step(&mut states, &mut q, 0.25), ReachEvents::default());
+        assert_eq!((states[0].hold, states[0].to.clone()), (0.25, vec![0.5; 3]));
+        // The hold ends at exactly zero: a new move starts from where the group stands.
+        let ev = step(&mut states, &mut q, 0.25);
+        assert_eq!(ev.targets + ev.fallbacks, 1, "{ev:?}");
+        assert_eq!((states[0].s, states[0].from.clone()), (0.0, vec![0.5; 3]));
+        assert_eq!(q, [0.5; 3]);
+    }
+
+    #[test]
+    fn a_target_beyond_the_limits_is_clamped_to_them() {
+        let (tree, _, rig) = arm();
+        let mut q = rig.nominal_q.clone();
+        let mut states = vec![ReachState::at(vec![5.0, -5.0, 5.0], 10.0)];
+        let mut rng = StdRng::seed_from_u64(1);
+        step_reach(&tree, &rig, &ReachConfig::default(), &mut states, &mut q, 0.1, &mut rng);
+        assert_eq!(q, [2.0, -1.6, 3.0]);
+    }
+
+    /// Plans group 0 once from `current` (holding, due) and returns the new state and whether a clear
+    /// target was found.
+    fn plan_from(tree: &KinematicTree, rig: &Rig, cfg: &ReachConfig, current: [f32; 3], seed: u64) -> (ReachState, bool) {
+        let mut states = vec![ReachState::at(current.to_vec(), 0.0)];
+        let found = plan(tree, rig, cfg, &mut states, 0, &mut StdRng::seed_from_u64(seed));
+        (states.remove(0), found)
+    }
+
+    #[test]
+    fn a_move_lasts_as_long_as_its_slowest_joint_needs_at_the_drawn_speed() {
+        let (tree, _, rig) = arm();
+        // Always back to the stowed configuration, at a quarter of the velocity limits, holding 1.5 s.
+        let cfg = ReachConfig {
+            stow_probability: 1.0,
+            local_probability: 0.0,
+            speed_fraction: 0.25,
+            max_speed_fraction: 0.25,
+            hold_seconds: [1.5, 1.5],
+            ..ReachConfig::default()
+        };
+        let (st, found) = plan_from(&tree, &rig, &cfg, [0.5, 0.5, 0.5], 3);
+        assert!(found);
+        assert_eq!((st.from.clone(), st.to.clone(), st.s, st.hold), (vec![0.5; 3], vec![0.0; 3], 0.0, 1.5));
+        // The yaw needs 0.5 / (0.25 · 2) = 1 s, the shoulder 0.5 / (0.25 · 1) = 2 s, the elbow less.
+        assert!((st.duration - 2.0).abs() < 1e-5, "{}", st.duration);
+        // The elbow's 10 rad/s counts as at most three times the default 2 rad/s: 3 / (0.25 · 6) = 2 s.
+        let (st, _) = plan_from(&tree, &rig, &cfg, [0.0, 0.0, 3.0], 3);
+        assert!((st.duration - 2.0).abs() < 1e-5, "{}", st.duration);
+        // A small move takes the shortest duration.
+        let (st, _) = plan_from(&tree, &rig, &cfg, [0.01, 0.0, 0.0], 3);
+        assert_eq!(st.duration, cfg.min_duration);
+        // Each move draws its speed between the two fractions.
+        let between = ReachConfig {
+            speed_fraction: 0.25,
+            max_speed_fraction: 0.5,
+            ..cfg.clone()
+        };
+        let durations: Vec<f32> = (0..40).map(|seed| plan_from(&tree, &rig, &between, [0.0, 1.0, 0.0], seed).0.duration).collect();
+        let (lo, hi) = (durations.iter().copied().fold(f32::INFINITY, f32::min), durations.iter().copied().fold(0.0, f32::max));
+        assert!(lo >= 2.0 - 1e-4 && hi <= 4.0 + 1e-4 && hi - lo > 1.0, "{lo} {hi}");
+    }
+
+    #[test]
+    fn near_targets_stay_within_their_fraction_of_each_range_and_far_ones_span_it() {
+        let (tree, _, rig) = arm();
+        let windows = rig.reach[0].windows.clone();
+        assert_eq!(windows, [(-2.0, 2.0), (-1.6, 1.6), (-3.0, 3.0)]);
+        let near = ReachConfig {
+            local_probability: 1.0,
+            stow_probability: 1.0,
+            local_fraction: 0.1,
+            ..ReachConfig::default()
+        };
+        // From the yaw's upper limit: up to 0.4 rad back, never past it; never the stowed configuration.
+        let current = [2.0, 0.3, 0.0];
+        let mut farthest = [0.0f32; 3];
+        for seed in 0..60 {
+            let (st, found) = plan_from(&tree, &rig, &near, current, seed);
+            assert!(found);
+            for (k, ((x, c), (lo, hi))) in st.to.iter().zip(current).zip(&windows).enumerate() {
+                let r = 0.1 * (hi - lo);
+                assert!((x - c).abs() <= r + 1e-5 && *x >= *lo && *x <= *hi, "DoF {k}: {x} from {c}");
+                farthest[k] = farthest[k].max((x - c).abs() / r);
+            }
+        }
+        assert!(farthest.iter().all(|&f| f > 0.8), "near targets hardly move: {farthest:?}");
+        // Anywhere within the limits: the yaw spans its range.
+        let far = ReachConfig {
+            local_probability: 0.0,
+            stow_probability: 0.0,
+            ..ReachConfig::default()
+        };
+        let yaws: Vec<f32> = (0..60).map(|seed| plan_from(&tree, &rig, &far, [0.0; 3], seed).0.to[0]).collect();
+        let (lo, hi) = (yaws.iter().copied().fold(f32::INFINITY, f32::min), yaws.iter().copied().fold(f32::NEG_INFINITY, f32::max));
+        assert!(lo < -1.6 && hi > 1.6, "far targets span {lo}..{hi} of -2..2");
+    }
+
+    #[test]
+    fn with_no_clear_path_the_group_heads_back_to_its_stowed_configuration() {
+        let (tree, _, mut rig) = arm();
+        // A floor above the whole arm: every draw is refused.
+        rig.reach[0].floor = 10.0;
+        let cfg = ReachConfig {
+            stow_probability: 0.0,
+            ..ReachConfig::default()
+        };
+        let mut states = vec![ReachState::at(vec![0.5, 0.5, 0.5], 0.0)];
+        let mut q = rig.nominal_q.clone();
+        let ev = step_reach(&tree, &rig, &cfg, &mut states, &mut q, 0.1, &mut StdRng::seed_from_u64(2));
+        assert_eq!(ev, ReachEvents { targets: 0, fallbacks: 1 });
+        assert_eq!((states[0].from.clone(), states[0].to.clone()), (vec![0.5; 3], vec![0.0; 3]));
+    }
+
+    #[test]
+    fn a_path_is_refused_through_the_ground_the_body_or_the_arm_itself() {
+        let (tree, _, rig) = arm();
+        let cfg = ReachConfig::default();
+        // Forward, level: clear. Out and down: the forearm ends 0.07 m below the ground.
+        assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.0], &[]));
+        assert!(!clear(&tree, &rig, &cfg, [0.0, 1.5, 1.5], &[]));
+        let mut low = rig.clone();
+        low.reach[0].floor = -1.0;
+        assert!(clear(&tree, &low, &cfg, [0.0, 1.5, 1.5], &[]));
+        // Forward and a little down, the forearm's lowest corner about 2 cm above the ground; 5 cm lower
+        // with the body at the bottom of its range, below it.
+        assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.9], &[]));
+        let mut crouched = rig.clone();
+        crouched.height_range[0] -= 0.05;
+        assert!(!clear(&tree, &crouched, &cfg, [0.0, 1.5, 0.9], &[]));
+        // A body that may pitch 0.6 rad lowers the forearm reaching out ahead 0.8·sin 0.6 = 0.45 m, below
+        // the ground; rolling as far lowers it only by its width. Reaching out sideways, the roll does.
+        let mut tilted = rig.clone();
+        tilted.max_tilt = [0.6, 0.0];
+        assert!(!clear(&tree, &tilted, &cfg, [0.0, 1.5, 0.0], &[]));
+        tilted.max_tilt = [0.0, 0.6];
+        assert!(clear(&tree, &tilted, &cfg, [0.0, 1.5, 0.0], &[]));
+        assert!(!clear(&tree, &tilted, &cfg, [1.57, 1.5, 0.0], &[]));
+        assert!(clear(&tree, &rig, &cfg, [1.57, 1.5, 0.0], &[]));
+        // Folded down into the box: refused for the body unless the group already touches it stowed.
+        assert_eq!(rig.swept.len(), 1);
+        assert_eq!(rig.swept[0].link, link(&tree, "base"));
+        assert!(!clear(&tree, &rig, &cfg, [0.0, 1.57, 2.7], &[]));
+        let mut touching = rig.clone();
+        touching.reach[0].tolerated = vec![true];
+        assert!(clear(&tree, &touching, &cfg, [0.0, 1.57, 2.7], &[]));
+        // Folded back onto the post: refused for the arm's own links, whatever the body and ground.
+        touching.reach[0].floor = -1.0;
+        assert!(!clear(&tree, &touching, &cfg, [0.0, 1.57, 3.0], &[]));
+    }
+
+    #[test]
+    fn a_path_is_refused_through_another_groups_path_grown_by_the_margin() {
+        let (tree, _, rig) = arm();
+        let cfg = ReachConfig::default();
+        let world = fk_root(&tree, &[0.0, 1.5, 0.0]);
+        // The forearm's centre reaching forward, level.
+        let fore = world[link(&tree, "fore")].transform_point(&Point3::new(0.0, 0.0, 0.2));
+        let base = link(&tree, "base");
+        let at = |dz: f32| cube([fore.x, fore.y, fore.z + dz], 0.05);
+        assert!(!clear(&tree, &rig, &cfg, [0.0, 1.5, 0.0], &[(at(0.0), base)]));
+        // 0.05 m of air between the forearm and a box below it (the path comes down from above): clear,
+        // and refused with a 0.05 m margin.
+        let below = -(0.02 + 0.05 + 0.05);
+        assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.0], &[(at(below), base)]));
+        // (The box the arm stands on is let go: the margin would close the upper arm's 7.5 cm over it.)
+        let wide = ReachConfig { margin: 0.05, ..cfg.clone() };
+        let mut on_box = rig.clone();
+        on_box.reach[0].tolerated = vec![true];
+        assert!(clear(&tree, &on_box, &cfg, [0.0, 1.5, 0.0], &[(at(below), base)]));
+        assert!(!clear(&tree, &on_box, &wide, [0.0, 1.5, 0.0], &[(at(below), base)]));
+        // A link the forearm is never checked against (its own upper arm) is no obstacle.
+        assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.0], &[(at(0.0), link(&tree, "upper"))]));
+    }
+
+    #[test]
+    fn home_windows_keep_each_joint_within_what_moves_the_tip_that_far() {
+        let (tree, _, rig) = arm();
+        let mut g = rig.reach[0].clone();
+        let ReachKind::Arm(tip) = g.kind else { panic!("{:?}", g.kind) };
+        assert_eq!(tip, link(&tree, "fore"));
+        // The tip (the forearm's origin, at the elbow, 0.6 m up) is 0.5 m from the post's origin; a
+        // quarter of that, 0.125 m, is 0.3125 rad of the shoulder (0.4 m below it). Neither the yaw (the
+        // tip is on its axis) nor the elbow (the tip is at it) moves the tip: they keep their ranges.
+        g.set_home_windows(&tree, &[0.0; 3], Some(0.25));
+        let expect = [(-2.0, 2.0), (-0.3125, 0.3125), (-3.0, 3.0)];
+        for (w, e) in g.windows.iter().zip(expect) {
+            assert!((w.0 - e.0).abs() < 1e-3 && (w.1 - e.1).abs() < 1e-3, "{:?} against {expect:?}", g.windows);
+        }
+        // Near a limit the window stops at it. Stowed at 1.5 rad, the tip is (0.4·sin 1.5, 0.1 + 0.4·cos 1.5)
+        // from the post's origin.
+        g.set_home_windows(&tree, &[0.0, 1.5, 0.0], Some(0.25));
+        let half = 0.25 * (0.4 * 1.5f32.sin()).hypot(0.1 + 0.4 * 1.5f32.cos()) / 0.4;
+        assert!((g.windows[1].0 - (1.5 - half)).abs() < 1e-3 && g.windows[1].1 == 1.6, "{:?}", g.windows[1]);
+        // Without a home reach, or for a group that is not an arm: the limits.
+        g.set_home_windows(&tree, &[0.0; 3], None);
+        assert_eq!(g.windows, [(-2.0, 2.0), (-1.6, 1.6), (-3.0, 3.0)]);
+        g.kind = ReachKind::Misc;
+        g.set_home_windows(&tree, &[0.0; 3], Some(0.25));
+        assert_eq!(g.windows, [(-2.0, 2.0), (-1.6, 1.6), (-3.0, 3.0)]);
+    }
+
+    #[test]
+    fn obstacles_the_stowed_arm_already_touches_are_tolerated() {
+        let (tree, _, rig) = arm();
+        let nominal = fk_root(&tree, &rig.nominal_q);
+        // The upper arm's centre, straight up: 0.4 m above the box's centre.
+        let upper = [0.0, 0.0, 0.4];
+        let base = link(&tree, "base");
+        let obstacle = |center: [f32; 3], link: usize| Obstacle { link, obb: cube(center, 0.05) };
+        let mut g = rig.reach[0].clone();
+        let gap = 0.025 + 0.05 + 0.03;
+        let obstacles = [
+            obstacle(upper, base),
+            obstacle([gap, 0.0, 0.4], base),
+            obstacle([2.0, 0.0, 0.4], base),
+            obstacle(upper, link(&tree, "post")),
+        ];
+        g.tolerate(&rig.proxies, &nominal, &obstacles, 0.0);
+        assert_eq!(g.tolerated, [true, false, false, false]);
+        g.tolerate(&rig.proxies, &nominal, &obstacles, 0.05);
+        assert_eq!(g.tolerated, [true, true, false, false]);
+    }
+
+    #[test]
+    fn groups_take_each_arms_free_joints_then_the_rest_with_a_floor_below_where_they_stand() {
+        let (tree, morph, rig) = arm();
+        let standing = rig.standing.clone();
+        let proxies = Proxies::new(&tree, &standing);
+        let (post, upper, fore) = (link(&tree, "post"), link(&tree, "upper"), link(&tree, "fore"));
+        let all = groups(&tree, &morph, &proxies, &standing, &[false; 3]);
+        assert_eq!(all.len(), 1);
+        assert_eq!((all[0].dofs.clone(), all[0].links.clone()), (vec![0, 1, 2], vec![post, upper, fore]));
+        assert_eq!(all[0].floor, GROUND_MARGIN);
+        // A DoF another part owns is not the arm's; the arm starts at its first free joint.
+        let rest = groups(&tree, &morph, &proxies, &standing, &[true, false, false]);
+        assert_eq!(rest.len(), 1);
+        assert_eq!((rest[0].dofs.clone(), rest[0].links.clone()), (vec![1, 2], vec![upper, fore]));
+        // Without a manipulator every free DoF is left over, in one group.
+        let mut armless = morph.clone();
+        armless.manipulators.clear();
+        let misc = groups(&tree, &armless, &proxies, &standing, &[false, true, false]);
+        assert_eq!(misc.len(), 1);
+        assert!(matches!(misc[0].kind, ReachKind::Misc));
+        assert_eq!((misc[0].dofs.clone(), misc[0].links.clone()), (vec![0, 2], vec![post, upper, fore]));
+        // Standing with the post's foot 5 mm above the ground (the box sunk into it), the group may go
+        // 1 mm lower than that.
+        let mut sunk = standing.clone();
+        sunk.root.translation.vector.z -= 0.195;
+        let low = groups(&tree, &morph, &Proxies::new(&tree, &sunk), &sunk, &[false; 3]);
+        assert!((low[0].floor - 0.004).abs() < 1e-5, "{}", low[0].floor);
+    }
+}
