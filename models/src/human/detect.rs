@@ -216,6 +216,28 @@ mod tests {
     }
 
     #[test]
+    fn a_jump_of_exactly_a_twentieth_of_the_leg_or_eight_typical_steps_is_not_a_rest_pose() {
+        // Steps of powers of two, so that every pose step is exact: a first jump of 1 against 0.125 a
+        // frame is exactly eight typical steps (both 16/17 of the joints' step).
+        let eight = stepping(&[1.0], 0.125);
+        assert_eq!(pose_step(&eight, 0), 8.0 * pose_step(&eight, 1));
+        assert_eq!(leading_rest_frames(&eight, 1.0, None), 0);
+        assert_eq!(leading_rest_frames(&stepping(&[1.125], 0.125), 1.0, None), 1);
+        // A leg whose twentieth is exactly the first jump (about 0.5, some sixty typical steps): a jump
+        // of a few 1/1024 more than 0.5 whose f32 has a leg of exactly twenty times it.
+        let (far, leg) = (0..256)
+            .find_map(|k| {
+                let far = stepping(&[0.5 + k as f32 / 1024.0], 0.0078125);
+                let jump = pose_step(&far, 0);
+                let near = (jump / 0.05).to_bits();
+                (near - 4..=near + 4).map(f32::from_bits).find(|&leg| 0.05 * leg == jump).map(|leg| (far, leg))
+            })
+            .expect("a leg of exactly twenty jumps");
+        assert_eq!(leading_rest_frames(&far, leg, None), 0);
+        assert_eq!(leading_rest_frames(&far, 0.999 * leg, None), 1);
+    }
+
+    #[test]
     fn the_blend_out_of_a_rest_pose_is_the_frames_that_jump_a_fiftieth_of_the_leg() {
         // In centimetres (a leg of 100): after the rest frame, two steps of 3 and one of 1, then the
         // clip's own 0.1 a frame. Only steps above 2 (a fiftieth of the leg; five typical steps are
