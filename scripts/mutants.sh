@@ -50,7 +50,9 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # clip (timing, resampling, warnings) and the import pipeline (its checks of absurd values) the import
 # tests and the unit tests; the hostile-input tests of the last two are run by hand on their survivors.
 # Reaching (the arms' and leftover DoFs' targets, paths and timing) runs the controller tests on the
-# bundled and shared robots and the crate's unit tests (its own, on an arm written in the test).
+# bundled and shared robots and the crate's unit tests (its own, on an arm written in the test). The
+# glTF export runs the export tests (the bundled and shared robots read back node by node; the Khronos
+# validator runs only where `.local/node` is installed, so not in the worktree).
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -80,6 +82,7 @@ declare -A how=(
   [models/src/human/import.rs]="$core -- --test human_import --lib"
   [models/src/human/state.rs]="$core -- --test human_import --test following --test metrics --lib"
   [models/src/controller/reach.rs]="$core -- --test controllers --lib"
+  [models/src/export/gltf.rs]="$core -- --lib -- export"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
   [models/src/urdf.rs]="$core -- --test character_import --test metrics --lib"
