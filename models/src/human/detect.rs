@@ -246,6 +246,19 @@ mod tests {
         assert_eq!(leading_rest_frames(&t, 100.0, None), 3);
         // On a leg of 10 the step of 1 jumps too (0.2 a fiftieth, the five typical steps above it).
         assert_eq!(leading_rest_frames(&t, 10.0, None), 4);
+        // A step of exactly a fiftieth of the leg is not the blend: steps of about 0.25 after a jump of 1,
+        // then 1/128 a frame (powers of two, exact), on a leg of exactly fifty of them.
+        let (t, leg) = (0..256)
+            .find_map(|k| {
+                let step = 0.25 + k as f32 / 1024.0;
+                let t = stepping(&[1.0, step, step], 0.0078125);
+                let jump = pose_step(&t, 1);
+                let near = (jump / 0.02).to_bits();
+                (near - 4..=near + 4).map(f32::from_bits).find(|&leg| 0.02 * leg == jump).map(|leg| (t, leg))
+            })
+            .expect("a leg of exactly fifty steps");
+        assert_eq!(leading_rest_frames(&t, leg, None), 1);
+        assert_eq!(leading_rest_frames(&t, 0.999 * leg, None), 3);
         // The blend takes at most a quarter of the clip: 10 of the 39 steps after the rest frame.
         let blend: Vec<f32> = std::iter::once(20.0).chain(std::iter::repeat_n(3.0, 15)).collect();
         assert_eq!(leading_rest_frames(&stepping(&blend, 0.1), 100.0, None), 11);
