@@ -1318,4 +1318,103 @@ mod tests {
         let g = fit_capsule(&limb, Some(Vector3::new(1.0, 0.0, 0.0))).expect("capsule");
         assert!(axis(&g).z.abs() > 0.99, "{:?}", axis(&g));
     }
+
+    #[test]
+    fn percent_escapes_in_uris_are_decoded_and_anything_else_kept() {
+        assert_eq!(percent_decode("Fox%20Body%2Ebin"), "Fox Body.bin");
+        assert_eq!(percent_decode("%41"), "A");
+        // Multi-byte UTF-8, and a byte that is not UTF-8 (replaced, not an error).
+        assert_eq!(percent_decode("caf%C3%A9.bin"), "café.bin");
+        assert_eq!(percent_decode("%FF"), "\u{FFFD}");
+        // Not an escape: a percent sign at the end, one hex digit short, or not hex.
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("x%4"), "x%4");
+        assert_eq!(percent_decode("%zz%4g"), "%zz%4g");
+    }
+
+    #[test]
+    fn base64_decodes_either_alphabet_with_or_without_padding() {
+        // RFC 4648's test vectors.
+        for (text, b64) in [("", ""), ("f", "Zg=="), ("fo", "Zm8="), ("foo", "Zm9v"), ("foob", "Zm9vYg=="), ("fooba", "Zm9vYmE="), ("foobar", "Zm9vYmFy")] {
+            assert_eq!(decode_base64(b64).as_deref(), Some(text.as_bytes()), "{b64}");
+        }
+        // Both alphabets' last two digits (62, 63), the other letters and digits, whitespace and no padding.
+        assert_eq!(decode_base64("+/8").unwrap(), [0xFB, 0xFF]);
+        assert_eq!(decode_base64("-_8").unwrap(), [0xFB, 0xFF]);
+        assert_eq!(decode_base64("AZaz\n09").unwrap(), [0x01, 0x96, 0xB3, 0xD3]);
+        assert_eq!(decode_base64("Zm9v\r\n YmFy").unwrap(), b"foobar");
+        assert_eq!(decode_base64("Zm9*"), None);
+    }
+
+    #[test]
+    fn the_rotation_of_a_scaled_matrix_is_its_polar_factor() {
+        let r = UnitQuaternion::from_euler_angles(0.3, -1.1, 2.0);
+        let m = r.to_rotation_matrix().matrix() * Matrix3::from_diagonal(&Vector3::new(300.0, 2.0, 0.5));
+        let p = polar_rotation(&m).expect("a rotation");
+        assert!(p.angle_to(&r) < 1e-4, "{}", p.angle_to(&r));
+        // A tiny uniform scale is still a rotation; a flattened, mirrored or non-finite matrix is not.
+        assert!(polar_rotation(&(r.to_rotation_matrix().matrix() * 1e-3)).unwrap().angle_to(&r) < 1e-4);
+        assert!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1e-8))).is_some());
+        assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1e-10))), None);
+        assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0))), None);
+        assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, 1.0))), None);
+        assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, f32::NAN, 1.0))), None);
+    }
+
+    #[test]
+    fn placements_are_the_same_within_a_ten_thousandth_of_their_scale_and_distance() {
+        let at = |scale: f32, x: f32| {
+            let mut m = Matrix4::identity() * scale;
+            m[(3, 3)] = 1.0;
+            m[(0, 3)] = x;
+            m
+        };
+        assert!(same_placement(&at(300.0, 0.0), &at(300.0, 0.0)));
+        // The linear part: 300 ± 0.02 is within 1e-4 of 300, ± 0.04 is not.
+        assert!(same_placement(&at(300.02, 0.0), &at(300.0, 0.0)));
+        assert!(!same_placement(&at(300.04, 0.0), &at(300.0, 0.0)));
+        // The translation: 1000 ± 0.09 is within 1e-4 of 1 + 1000, ± 0.12 is not; near the origin 1e-4
+        // of one unit.
+        assert!(same_placement(&at(1.0, 1000.09), &at(1.0, 1000.0)));
+        assert!(!same_placement(&at(1.0, 1000.12), &at(1.0, 1000.0)));
+        assert!(same_placement(&at(1.0, 0.00009), &at(1.0, 0.0)));
+        assert!(!same_placement(&at(1.0, 0.00012), &at(1.0, 0.0)));
+    }
+
+    #[test]
+    fn a_capsule_covers_the_core_of_its_points_from_the_5th_to_the_95th_percentile() {
+        // A tube of radius 0.1 from z = 1 to 2: 101 rings of 8 points.
+        let tube: Vec<Point3<f32>> = (0..=100)
+            .flat_map(|k| {
+                (0..8).map(move |a| {
+                    let t = a as f32 * std::f32::consts::FRAC_PI_4;
+                    Point3::new(0.1 * t.cos(), 0.1 * t.sin(), 1.0 + k as f32 / 100.0)
+                })
+            })
+            .collect();
+        let g = fit_capsule(&tube, None).expect("capsule");
+        let Shape::Capsule { radius, length } = g.shape else { panic!("{:?}", g.shape) };
+        // Rings 5 and 95 (of 0..=100) end the caps: 0.9 long, less two radii of 0.1.
+        assert!((radius - 0.1).abs() < 1e-5, "{radius}");
+        assert!((length - 0.7).abs() < 1e-4, "{length}");
+        assert!((g.origin.translation.vector - Vector3::new(0.0, 0.0, 1.5)).norm() < 1e-4, "{}", g.origin.translation.vector);
+        assert!(axis(&g).z.abs() > 1.0 - 1e-5, "{:?}", axis(&g));
+        // More points on one side: the radius is their median distance from the axis, not the largest.
+        let mut lopsided = tube.clone();
+        lopsided.extend((0..=100).map(|k| Point3::new(0.3, 0.0, 1.0 + k as f32 / 100.0)));
+        let Shape::Capsule { radius, .. } = fit_capsule(&lopsided, None).unwrap().shape else { unreachable!() };
+        assert!(radius < 0.15, "{radius}");
+        // A ring around its given axis is a flat capsule: as wide as the ring, of no length.
+        let ring: Vec<Point3<f32>> = (0..16)
+            .map(|a| {
+                let t = a as f32 * std::f32::consts::PI / 8.0;
+                Point3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let Shape::Capsule { radius, length } = fit_capsule(&ring, Some(Vector3::z())).unwrap().shape else { unreachable!() };
+        assert!((radius - 1.0).abs() < 1e-5 && length == 0.0, "{radius} {length}");
+        // Fewer than four points have no capsule.
+        assert_eq!(fit_capsule(&tube[..3], None), None);
+        assert!(fit_capsule(&tube[..4], None).is_some());
+    }
 }
