@@ -215,6 +215,20 @@ mod tests {
         assert_eq!(leading_rest_frames(&drifting(0.1), 1.0, Some(false)), 0);
     }
 
+    /// Tracks `at(x)` for the first x in steps of 1/1024 from 0 whose pose step `t` is, in f32, exactly
+    /// `fraction` of some leg; and that leg.
+    fn exact_leg(at: impl Fn(f32) -> Tracks, t: usize, fraction: f32) -> (Tracks, f32) {
+        (0..256)
+            .find_map(|k| {
+                let tracks = at(k as f32 / 1024.0);
+                let step = pose_step(&tracks, t);
+                let near = (step / fraction).to_bits();
+                let leg = (near - 4..=near + 4).map(f32::from_bits).find(|&leg| fraction * leg == step)?;
+                Some((tracks, leg))
+            })
+            .expect("a leg of which the step is exactly the fraction")
+    }
+
     #[test]
     fn a_jump_of_exactly_a_twentieth_of_the_leg_or_eight_typical_steps_is_not_a_rest_pose() {
         // Steps of powers of two, so that every pose step is exact: a first jump of 1 against 0.125 a
@@ -225,14 +239,7 @@ mod tests {
         assert_eq!(leading_rest_frames(&stepping(&[1.125], 0.125), 1.0, None), 1);
         // A leg whose twentieth is exactly the first jump (about 0.5, some sixty typical steps): a jump
         // of a few 1/1024 more than 0.5 whose f32 has a leg of exactly twenty times it.
-        let (far, leg) = (0..256)
-            .find_map(|k| {
-                let far = stepping(&[0.5 + k as f32 / 1024.0], 0.0078125);
-                let jump = pose_step(&far, 0);
-                let near = (jump / 0.05).to_bits();
-                (near - 4..=near + 4).map(f32::from_bits).find(|&leg| 0.05 * leg == jump).map(|leg| (far, leg))
-            })
-            .expect("a leg of exactly twenty jumps");
+        let (far, leg) = exact_leg(|x| stepping(&[0.5 + x], 0.0078125), 0, 0.05);
         assert_eq!(leading_rest_frames(&far, leg, None), 0);
         assert_eq!(leading_rest_frames(&far, 0.999 * leg, None), 1);
     }
@@ -248,15 +255,7 @@ mod tests {
         assert_eq!(leading_rest_frames(&t, 10.0, None), 4);
         // A step of exactly a fiftieth of the leg is not the blend: steps of about 0.25 after a jump of 1,
         // then 1/128 a frame (powers of two, exact), on a leg of exactly fifty of them.
-        let (t, leg) = (0..256)
-            .find_map(|k| {
-                let step = 0.25 + k as f32 / 1024.0;
-                let t = stepping(&[1.0, step, step], 0.0078125);
-                let jump = pose_step(&t, 1);
-                let near = (jump / 0.02).to_bits();
-                (near - 4..=near + 4).map(f32::from_bits).find(|&leg| 0.02 * leg == jump).map(|leg| (t, leg))
-            })
-            .expect("a leg of exactly fifty steps");
+        let (t, leg) = exact_leg(|x| stepping(&[1.0, 0.25 + x, 0.25 + x], 0.0078125), 1, 0.02);
         assert_eq!(leading_rest_frames(&t, leg, None), 1);
         assert_eq!(leading_rest_frames(&t, 0.999 * leg, None), 3);
         // The blend takes at most a quarter of the clip: 10 of the 39 steps after the rest frame.
