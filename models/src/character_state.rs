@@ -242,3 +242,155 @@ pub fn ee_positions(layout: &CharacterLayout, state: &[f32]) -> Vec<Point3<f32>>
         .map(|c| Point3::new(c[0], c[1], c[2]))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bundled Spot: four feet and an arm.
+    fn spot() -> (KinematicTree, Morphology) {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
+        crate::morphology::load_character(&file).unwrap()
+    }
+
+    fn yawed(x: f32, y: f32, z: f32, yaw: f32) -> Isometry3<f32> {
+        Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+    }
+
+    fn close(a: &[f32], b: &[f32], tol: f32) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
+    }
+
+    #[test]
+    fn every_entry_is_named_where_the_layout_puts_it() {
+        let (tree, morph) = spot();
+        let l = CharacterLayout::new(&tree, &morph);
+        let names = l.entry_names(&tree, &morph);
+        assert_eq!(names.len(), l.dim());
+        assert_eq!(l.dim(), 17 + tree.dof() + 6 * morph.n_end_effectors());
+        let (dofs, ees) = (tree.dof_names(), morph.end_effector_links(&tree));
+        assert_eq!(ees.len(), 5, "four feet and the gripper: {ees:?}");
+        let expect = [
+            (0, "root_height".to_string()),
+            (l.root_orientation().start, "root_orientation.w".into()),
+            (l.root_orientation().end - 1, "root_orientation.z".into()),
+            (l.root_displacement().start, "root_displacement.x".into()),
+            (l.root_displacement().end - 1, "root_displacement.y".into()),
+            (l.root_delta_rotation().start + 1, "root_delta_rotation.x".into()),
+            (l.root_linear_velocity().start + 2, "root_linear_velocity.z".into()),
+            (l.root_angular_velocity().start, "root_angular_velocity.x".into()),
+            (l.joint_positions().start, format!("q:{}", dofs[0])),
+            (l.joint_positions().end - 1, format!("q:{}", dofs[dofs.len() - 1])),
+            (l.ee_positions().start, format!("ee_pos:{}.x", ees[0])),
+            (l.ee_positions().start + 3 * 4 + 2, format!("ee_pos:{}.z", ees[4])),
+            (l.ee_velocities().start + 3 + 1, format!("ee_vel:{}.y", ees[1])),
+            (l.dim() - 1, format!("ee_vel:{}.z", ees[4])),
+        ];
+        for (i, name) in expect {
+            assert_eq!(names[i], name, "entry {i}");
+        }
+    }
+
+    #[test]
+    fn a_turning_walking_root_reads_in_its_heading_frames() {
+        let (tree, morph) = spot();
+        let l = CharacterLayout::new(&tree, &morph);
+        let dt = 0.1;
+        // Heading 0.5 rad, then 0.8: 3 cm up and 0.2 m along world x, the body pitched 0.2 rad at the end.
+        let q = tree.neutral_q();
+        let prev = CharacterPose { root: yawed(1.0, 2.0, 0.5, 0.5), q: q.clone() };
+        let pitch = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.2);
+        let mut cur = CharacterPose { root: yawed(1.2, 2.0, 0.53, 0.8), q: q.clone() };
+        cur.root.rotation *= pitch;
+        cur.q[3] += 0.1;
+        let x = character_state(&tree, &morph, &prev, &cur, dt);
+        assert_eq!(x[l.root_height()], [0.53]);
+        // Orientation: the pitch alone, the yaw taken out by the heading.
+        assert!(close(&x[l.root_orientation()], &[0.1f32.cos(), 0.0, 0.1f32.sin(), 0.0], 1e-5), "{:?}", &x[l.root_orientation()]);
+        // The 0.2 m along world x, in the previous heading (0.5 rad): forward and to the right.
+        assert!(close(&x[l.root_displacement()], &[0.2 * 0.5f32.cos(), -0.2 * 0.5f32.sin()], 1e-5));
+        // The change of heading, 0.3 rad, is the delta rotation's yaw (with the pitch, in the previous
+        // heading frame); the velocity is in the current heading (0.8 rad).
+        let delta = read_quat(&x[l.root_delta_rotation()]);
+        let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3) * pitch;
+        assert!(delta.angle_to(&turn) < 1e-5, "{:?}", delta.euler_angles());
+        assert!(close(&x[l.root_linear_velocity()], &[2.0 * 0.8f32.cos(), -2.0 * 0.8f32.sin(), 0.3], 1e-4));
+        let w = &x[l.root_angular_velocity()];
+        assert!(w[2] > 2.5 && w[2] < 3.5, "{w:?}");
+        assert_eq!(x[l.joint_positions()], cur.q[..]);
+        // End effectors: where forward kinematics puts them, in the current heading frame, and their
+        // world velocity turned into it.
+        let (before, now) = (tree.forward_kinematics(&prev), tree.forward_kinematics(&cur));
+        let heading = yawed(1.2, 2.0, 0.53, 0.8);
+        for (k, &e) in morph.end_effectors().iter().enumerate() {
+            let (a, b) = (morph.ee_point(e, &before), morph.ee_point(e, &now));
+            let at = heading.inverse_transform_point(&b);
+            let v = heading.rotation.inverse() * ((b - a) / dt);
+            let r = l.ee_positions().start + 3 * k;
+            assert!(close(&x[r..r + 3], at.coords.as_slice(), 1e-5), "end effector {k} at {:?}", &x[r..r + 3]);
+            let r = l.ee_velocities().start + 3 * k;
+            assert!(close(&x[r..r + 3], v.as_slice(), 1e-3), "end effector {k} moving {:?}", &x[r..r + 3]);
+            assert!((ee_positions(&l, &x)[k] - at).norm() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn quaternions_read_back_normalised_and_a_degenerate_one_as_the_identity() {
+        assert_eq!(read_quat(&[0.0, 0.0, 0.0, 0.0]), UnitQuaternion::identity());
+        assert_eq!(read_quat(&[1e-7, 0.0, 0.0, 0.0]), UnitQuaternion::identity());
+        assert!(read_quat(&[2.0, 0.0, 0.0, 0.0]).angle() < 1e-6);
+        let half_turn = read_quat(&[0.0, 0.0, 0.0, 3.0]);
+        assert!((half_turn.angle() - std::f32::consts::PI).abs() < 1e-5);
+        assert!((half_turn.axis().unwrap().z - 1.0).abs() < 1e-6);
+        let q = read_quat(&[0.6, 0.0, 0.8, 0.0]);
+        assert!((q.angle() - 2.0 * 0.8f32.atan2(0.6)).abs() < 1e-5 && q.axis().unwrap().y > 0.999);
+    }
+
+    #[test]
+    #[should_panic(expected = "state buffer has the wrong length")]
+    fn a_state_buffer_of_the_wrong_length_is_refused() {
+        let (tree, morph) = spot();
+        let p = tree.neutral_pose(yawed(0.0, 0.0, 0.5, 0.0));
+        let mut out = vec![0.0; CharacterLayout::new(&tree, &morph).dim() - 1];
+        character_state_into(&tree, &morph, &p, &p, 0.1, &mut StateScratch::default(), &mut out);
+    }
+
+    #[test]
+    #[should_panic(expected = "dt must be positive")]
+    fn a_state_over_no_time_is_refused() {
+        let (tree, morph) = spot();
+        let p = tree.neutral_pose(yawed(0.0, 0.0, 0.5, 0.0));
+        character_state(&tree, &morph, &p, &p, 0.0);
+    }
+
+    #[test]
+    fn a_rollout_integrates_the_heading_and_takes_the_tilt_as_it_is_each_frame() {
+        let (tree, morph) = spot();
+        let l = CharacterLayout::new(&tree, &morph);
+        // Each frame: 0.1 m forward, a tenth of a radian left, 0.4 m high, pitched 0.2 rad.
+        let mut x = vec![0.0; l.dim()];
+        x[l.root_height()][0] = 0.4;
+        let pitch = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.2);
+        x[l.root_orientation()].copy_from_slice(&quat_wxyz(&pitch));
+        x[l.root_displacement()].copy_from_slice(&[0.1, 0.0]);
+        x[l.root_delta_rotation()].copy_from_slice(&quat_wxyz(&UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.1)));
+        x[l.joint_positions()][0] = 0.25;
+        // From a root rolled 0.3 rad at heading 1.0: after ten frames heading 2.0, pitched 0.2, no roll.
+        let mut root = yawed(0.0, 0.0, 0.5, 1.0);
+        root.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.3);
+        let mut path = Vector3::zeros();
+        for k in 0..10 {
+            path += UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 1.0 + 0.1 * k as f32) * Vector3::new(0.1, 0.0, 0.0);
+            let pose = decode_pose(&l, &root, &x);
+            assert_eq!(pose.q, x[l.joint_positions()]);
+            root = pose.root;
+        }
+        let expected = yawed(path.x, path.y, 0.4, 2.0).rotation * pitch;
+        assert!(root.rotation.angle_to(&expected) < 1e-4, "{:?}", root.rotation.euler_angles());
+        assert!((root.translation.vector - Vector3::new(path.x, path.y, 0.4)).norm() < 1e-5);
+        // The heading frame of the tilted root: at the root, x along its forward on the ground.
+        let h = root_heading(&root);
+        assert!(h.rotation.angle_to(&UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 2.0)) < 1e-4);
+        assert_eq!(h.translation.vector, root.translation.vector);
+    }
+}
