@@ -51,7 +51,8 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # tests and the unit tests; the hostile-input tests of the last two are run by hand on their survivors.
 # Reaching (the arms' and leftover DoFs' targets, paths and timing) runs the controller tests on the
 # bundled and shared robots and the crate's unit tests (its own, on an arm written in the test). The
-# glTF export runs the export tests (the bundled and shared robots read back node by node; the Khronos
+# glTF export and its writer run the export tests (the bundled and shared robots read back node by
+# node, the writer's own on the buffer, accessors, animation and GLB container; the Khronos
 # validator runs only where `.local/node` is installed, so not in the worktree). The character state
 # x^r runs the import tests (its layout, invariance and round trip on the bundled robots), the dataset
 # tests (states of consecutive frames) and its unit tests.
@@ -85,6 +86,7 @@ declare -A how=(
   [models/src/human/state.rs]="$core -- --test human_import --test following --test metrics --lib"
   [models/src/controller/reach.rs]="$core -- --test controllers --lib"
   [models/src/export/gltf.rs]="$core -- --lib -- export"
+  [models/src/export/writer.rs]="$core -- --lib -- export"
   [models/src/character_state.rs]="$core -- --test character_import --test dataset --lib"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"

@@ -238,3 +238,116 @@ impl Default for Builder {
         Builder::new(Root::default(), Vec::new())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn component(b: &Builder, a: Index<json::Accessor>) -> ComponentType {
+        match b.root.get(a).unwrap().component_type {
+            Checked::Valid(GenericComponentType(c)) => c,
+            Checked::Invalid => panic!("invalid component type"),
+        }
+    }
+
+    #[test]
+    fn views_start_on_four_byte_boundaries_in_the_one_buffer() {
+        let mut b = Builder::default();
+        let first = b.view(&[1, 2, 3], None);
+        let second = b.view(&[4, 5], Some(json::buffer::Target::ArrayBuffer));
+        assert_eq!(b.bin, [1, 2, 3, 0, 4, 5]);
+        let (v1, v2) = (b.root.get(first).unwrap(), b.root.get(second).unwrap());
+        assert_eq!((v1.byte_offset, v1.byte_length), (Some(USize64(0)), USize64(3)));
+        assert_eq!((v2.byte_offset, v2.byte_length), (Some(USize64(4)), USize64(2)));
+        assert_eq!(v2.target, Some(Checked::Valid(json::buffer::Target::ArrayBuffer)));
+        assert_eq!(v1.buffer.value(), 0);
+    }
+
+    #[test]
+    fn float_accessors_count_elements_and_bound_each_component_exactly() {
+        let mut b = Builder::default();
+        let data = [1.0, -2.0, 0.1, -3.5, 4.0, 0.2];
+        let a = b.floats(&data, 3, None, true);
+        let acc = b.root.get(a).unwrap();
+        assert_eq!((acc.count, acc.type_), (USize64(2), Checked::Valid(Type::Vec3)));
+        assert_eq!(component(&b, a), ComponentType::F32);
+        assert_eq!(acc.min, Some(json::Value::from(vec![-3.5f32, -2.0, 0.1])));
+        assert_eq!(acc.max, Some(json::Value::from(vec![1.0f32, 4.0, 0.2])));
+        assert_eq!(b.bin, data.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>());
+        for (width, kind) in [(1, Type::Scalar), (4, Type::Vec4), (16, Type::Mat4)] {
+            let a = b.floats(&[0.0; 16], width, None, false);
+            let acc = b.root.get(a).unwrap();
+            assert_eq!((acc.count, acc.type_, acc.min.clone()), (USize64((16 / width) as u64), Checked::Valid(kind), None));
+        }
+    }
+
+    #[test]
+    fn indices_are_sixteen_bit_up_to_65535_vertices() {
+        let mut b = Builder::default();
+        let small = b.indices(&[0, 1, 65534], 65535);
+        assert_eq!(component(&b, small), ComponentType::U16);
+        assert_eq!(b.bin, [0, 0, 1, 0, 0xFE, 0xFF]);
+        let large = b.indices(&[0, 1, 65535], 65536);
+        assert_eq!(component(&b, large), ComponentType::U32);
+        assert_eq!(b.bin[8..], [0, 0, 0, 0, 1, 0, 0, 0, 0xFF, 0xFF, 0, 0]);
+        assert_eq!(b.root.get(large).unwrap().count, USize64(3));
+    }
+
+    #[test]
+    fn rotations_stay_in_one_hemisphere_from_key_to_key() {
+        let r = |angle: f32| UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
+        // 350° is −10°: its quaternion (w = cos 175° < 0) is flipped to follow the first key's.
+        let v = quat_values(&[r(0.0), r(350f32.to_radians()), r(340f32.to_radians())]);
+        let (s5, c5) = 5f32.to_radians().sin_cos();
+        let (s10, c10) = 10f32.to_radians().sin_cos();
+        let expect = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -s5, c5, 0.0, 0.0, -s10, c10];
+        assert!(v.iter().zip(expect).all(|(a, b)| (a - b).abs() < 1e-6), "{v:?}");
+        assert_eq!(vec3_values(&[Vector3::new(1.0, 2.0, 3.0), Vector3::new(4.0, 5.0, 6.0)]), [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn the_animation_and_buffer_are_written_at_the_end() {
+        // No channels: no animation; the buffer is the padded binary data.
+        let mut b = Builder::default();
+        b.view(&[7; 5], None);
+        let (root, bin) = b.finish("walk");
+        assert!(root.animations.is_empty());
+        assert_eq!((bin.len(), root.buffers.len(), root.buffers[0].byte_length), (8, 1, USize64(8)));
+        // A file's own buffer 0 is replaced, not added to; the channels make one animation.
+        let mut file = Root::default();
+        file.push(json::Buffer { byte_length: USize64(99), name: None, uri: Some("old.bin".into()), extensions: None, extras: Default::default() });
+        let mut b = Builder::new(file, vec![1, 2, 3, 4]);
+        let times = b.floats(&[0.0, 0.5], 1, None, true);
+        b.channel(0, Property::Rotation, times, &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        b.channel(1, Property::Translation, times, &[0.0; 6]);
+        let (root, bin) = b.finish("walk");
+        assert_eq!((root.buffers.len(), root.buffers[0].byte_length, root.buffers[0].uri.clone()), (1, USize64(bin.len() as u64), None));
+        let anim = &root.animations[0];
+        assert_eq!((anim.name.as_deref(), anim.channels.len(), anim.samplers.len()), (Some("walk"), 2, 2));
+        assert_eq!(anim.channels[1].target.node.value(), 1);
+        assert_eq!(anim.channels[1].sampler.value(), 1);
+        assert_eq!(anim.channels[0].target.path, Checked::Valid(Property::Rotation));
+        let out = |i: usize| root.get(anim.samplers[i].output).unwrap().clone();
+        assert_eq!((out(0).type_, out(0).count), (Checked::Valid(Type::Vec4), USize64(2)));
+        assert_eq!((out(1).type_, out(1).count), (Checked::Valid(Type::Vec3), USize64(2)));
+        assert_eq!(anim.samplers[1].input, times);
+        assert_eq!(anim.samplers[0].interpolation, Checked::Valid(Interpolation::Linear));
+    }
+
+    #[test]
+    fn a_glb_is_its_header_then_the_padded_json_and_binary_chunks() {
+        let mut b = Builder::default();
+        b.view(&[9; 6], None);
+        let (root, bin) = b.finish("clip");
+        let out = glb(&root, &bin).unwrap();
+        let json = root.to_vec().unwrap();
+        let json_len = json.len().next_multiple_of(4);
+        assert_eq!(&out[..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(out[4..8].try_into().unwrap()), 2);
+        assert_eq!(u32::from_le_bytes(out[8..12].try_into().unwrap()) as usize, out.len());
+        assert_eq!(out.len(), 12 + 8 + json_len + 8 + 8);
+        assert_eq!(&out[20..20 + json.len()], json.as_slice());
+        assert!(out[20 + json.len()..20 + json_len].iter().all(|&c| c == b' '));
+        assert_eq!(&out[28 + json_len..], [9, 9, 9, 9, 9, 9, 0, 0]);
+    }
+}
