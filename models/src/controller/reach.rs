@@ -688,6 +688,92 @@ mod tests {
         assert!(lo < -1.6 && hi > 1.6, "far targets span {lo}..{hi} of -2..2");
     }
 
+    /// Two 0.9 m poles on a 1.6 m box, 1.2 m apart, each on a pitch joint at its foot: the left one
+    /// tilts towards the right one for positive angles, the right one towards the left for negative
+    /// ones.
+    const POLES: &str = r#"<robot name="poles">
+      <link name="base"><collision><geometry><box size="1.6 0.3 0.2"/></geometry></collision></link>
+      <joint name="left" type="revolute"><parent link="base"/><child link="lpole"/><origin xyz="-0.6 0 0.1"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" velocity="2" effort="1"/></joint>
+      <link name="lpole"><collision><origin xyz="0 0 0.45"/><geometry><cylinder radius="0.02" length="0.9"/></geometry></collision></link>
+      <joint name="right" type="revolute"><parent link="base"/><child link="rpole"/><origin xyz="0.6 0 0.1"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" velocity="2" effort="1"/></joint>
+      <link name="rpole"><collision><origin xyz="0 0 0.45"/><geometry><cylinder radius="0.02" length="0.9"/></geometry></collision></link>
+    </robot>"#;
+
+    /// Whether the left pole, upright, finds a clear path to its one target `to` (its window pinned
+    /// there) while the right pole follows `right` (ground and body let go).
+    fn left_pole_plans(to: f32, right: ReachState) -> bool {
+        let tree = KinematicTree::from_urdf_str(POLES).unwrap();
+        let mut rig = Rig::new(&tree, &Morphology::analyze(&tree), &ControllerConfig::default(), 30.0).unwrap();
+        let pole = |name: &str, window: (f32, f32)| {
+            let l = link(&tree, name);
+            ReachGroup {
+                kind: ReachKind::Misc,
+                dofs: vec![tree.links[l].joint.as_ref().and_then(|j| j.dof).unwrap()],
+                links: vec![l],
+                floor: -1.0,
+                tolerated: vec![true; rig.swept.len()],
+                windows: vec![window],
+            }
+        };
+        rig.reach = vec![pole("lpole", (to, to)), pole("rpole", (-1.6, 1.6))];
+        let cfg = ReachConfig {
+            stow_probability: 0.0,
+            local_probability: 0.0,
+            ..ReachConfig::default()
+        };
+        let mut states = vec![ReachState::at(vec![0.0], 0.0), right];
+        plan(&tree, &rig, &cfg, &mut states, 0, &mut StdRng::seed_from_u64(5))
+    }
+
+    #[test]
+    fn a_path_is_refused_where_another_group_is_still_going() {
+        let moving = |s: f32| ReachState { from: vec![0.0], to: vec![-1.5], s, duration: 1.0, hold: 1.0 };
+        // The left pole tilted 0.9 rad, its tip 0.15 m short of the right pole's foot. The right pole
+        // lying down towards it (−1.5 rad) passes under it; on its way down (about −0.7 to −1.3 rad)
+        // it crosses it.
+        assert!(left_pole_plans(0.9, ReachState::at(vec![0.0], 1.0)));
+        assert!(left_pole_plans(0.9, ReachState::at(vec![-1.5], 1.0)));
+        assert!(!left_pole_plans(0.9, ReachState::at(vec![-0.94], 1.0)));
+        // Going down from upright, or from 0.3 of the way (−0.25 rad): the rest of its path crosses.
+        assert!(!left_pole_plans(0.9, moving(0.0)));
+        assert!(!left_pole_plans(0.9, moving(0.3)));
+        // Nine tenths of the way (−1.49 rad), the crossing is behind it.
+        assert!(left_pole_plans(0.9, moving(0.9)));
+        // A smaller tilt keeps clear of its whole path.
+        assert!(left_pole_plans(0.3, moving(0.0)));
+    }
+
+    #[test]
+    fn a_group_below_another_is_placed_where_that_one_stands_now() {
+        // The arm split in two: the yaw and shoulder, then the elbow alone.
+        let (tree, _, mut rig) = arm();
+        let whole = rig.reach.remove(0);
+        let (post, upper, fore) = (link(&tree, "post"), link(&tree, "upper"), link(&tree, "fore"));
+        let part = |dofs: Vec<usize>, links: Vec<usize>, windows: Vec<(f32, f32)>| ReachGroup {
+            dofs,
+            links,
+            windows,
+            ..whole.clone()
+        };
+        rig.reach = vec![
+            part(vec![0, 1], vec![post, upper, fore], vec![(-2.0, 2.0), (-1.6, 1.6)]),
+            part(vec![2], vec![fore], vec![(1.5, 1.5)]),
+        ];
+        let cfg = ReachConfig {
+            stow_probability: 0.0,
+            local_probability: 0.0,
+            ..ReachConfig::default()
+        };
+        // The forearm 1.5 rad down: from the upright upper arm, level and clear; from the upper arm held
+        // level forward, it goes into the ground.
+        let elbow_plans = |shoulder: f32| {
+            let mut states = vec![ReachState::at(vec![0.0, shoulder], 1.0), ReachState::at(vec![0.0], 0.0)];
+            plan(&tree, &rig, &cfg, &mut states, 1, &mut StdRng::seed_from_u64(5))
+        };
+        assert!(elbow_plans(0.0));
+        assert!(!elbow_plans(1.5));
+    }
+
     #[test]
     fn with_no_clear_path_the_group_heads_back_to_its_stowed_configuration() {
         let (tree, _, mut rig) = arm();
