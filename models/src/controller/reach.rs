@@ -665,18 +665,21 @@ mod tests {
             ..ReachConfig::default()
         };
         // From the yaw's upper limit: up to 0.4 rad back, never past it; never the stowed configuration.
+        // The shoulder and elbow, away from their limits, move either way.
         let current = [2.0, 0.3, 0.0];
-        let mut farthest = [0.0f32; 3];
+        let (mut below, mut above) = ([0.0f32; 3], [0.0f32; 3]);
         for seed in 0..60 {
             let (st, found) = plan_from(&tree, &rig, &near, current, seed);
             assert!(found);
             for (k, ((x, c), (lo, hi))) in st.to.iter().zip(current).zip(&windows).enumerate() {
                 let r = 0.1 * (hi - lo);
                 assert!((x - c).abs() <= r + 1e-5 && *x >= *lo && *x <= *hi, "DoF {k}: {x} from {c}");
-                farthest[k] = farthest[k].max((x - c).abs() / r);
+                below[k] = below[k].max((c - x) / r);
+                above[k] = above[k].max((x - c) / r);
             }
         }
-        assert!(farthest.iter().all(|&f| f > 0.8), "near targets hardly move: {farthest:?}");
+        assert!(below.iter().all(|&f| f > 0.8), "near targets hardly move: {below:?}");
+        assert!(above[0] == 0.0 && above[1] > 0.8 && above[2] > 0.8, "near targets move one way: {above:?}");
         // Anywhere within the limits: the yaw spans its range.
         let far = ReachConfig {
             local_probability: 0.0,
