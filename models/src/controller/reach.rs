@@ -639,6 +639,15 @@ mod tests {
         // The elbow's 10 rad/s counts as at most three times the default 2 rad/s: 3 / (0.25 · 6) = 2 s.
         let (st, _) = plan_from(&tree, &rig, &cfg, [0.0, 0.0, 3.0], 3);
         assert!((st.duration - 2.0).abs() < 1e-5, "{}", st.duration);
+        // To a target other than the stowed one (the windows pinned at 0.4): the shoulder's 0.9 rad
+        // take 3.6 s.
+        let mut pinned = rig.clone();
+        pinned.reach[0].windows = vec![(0.4, 0.4); 3];
+        let anywhere = ReachConfig { stow_probability: 0.0, ..cfg.clone() };
+        let (st, found) = plan_from(&tree, &pinned, &anywhere, [-0.5; 3], 3);
+        assert!(found);
+        assert_eq!(st.to, [0.4; 3]);
+        assert!((st.duration - 3.6).abs() < 1e-4, "{}", st.duration);
         // A small move takes the shortest duration.
         let (st, _) = plan_from(&tree, &rig, &cfg, [0.01, 0.0, 0.0], 3);
         assert_eq!(st.duration, cfg.min_duration);
