@@ -586,6 +586,48 @@ fn primitive(rb: &Readback, mesh: usize) -> (Vec<Vector3<f32>>, Vec<Vector3<f32>
 }
 
 #[test]
+fn the_world_turns_from_z_up_to_gltfs_y_up() {
+    // (x, y, z) ↦ (x, z, −y): up stays up, forward stays x, the character's left goes to −z.
+    let r = z_up_to_y_up();
+    assert!((r * Vector3::z() - Vector3::y()).norm() < 1e-6);
+    assert!((r * Vector3::x() - Vector3::x()).norm() < 1e-6);
+    assert!((r * Vector3::y() + Vector3::z()).norm() < 1e-6);
+}
+
+#[test]
+fn the_humans_bones_run_from_each_joint_to_the_next() {
+    let tree = stretch();
+    let clip = walk_clip();
+    let human = &clip.frames[..2];
+    let poses = vec![tree.neutral_pose(Isometry3::identity()); 2];
+    let opts = GltfOptions {
+        human: Some(HumanOverlay::new(human, Vector3::zeros())),
+        ..GltfOptions::default()
+    };
+    let rb = Readback::new(&character_glb(&tree, &poses, FPS, &opts).unwrap().bytes);
+    // The shared bone mesh: a cylinder of the bone radius from z = 0 to 1, scaled along z per bone.
+    let bone = rb.doc.meshes().find(|m| m.name() == Some("human_bone")).unwrap();
+    let (pos, _, _) = primitive(&rb, bone.index());
+    let (lo, hi) = pos.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+    assert!(lo.abs() < 1e-6 && (hi - 1.0).abs() < 1e-6, "the bone mesh spans z {lo}..{hi}");
+    let radial = pos.iter().map(|p| p.xy().norm()).fold(0.0, f32::max);
+    assert!((radial - 0.015).abs() < 1e-6, "{radial}");
+    // Each bone node hangs under its parent joint and points at its joint, as long as the bone.
+    for j in Joint::ALL {
+        let Some(parent) = j.parent() else { continue };
+        let name = format!("{}_bone", j.name());
+        let node = rb.doc.nodes().find(|n| n.name() == Some(name.as_str())).unwrap();
+        let holder = rb.doc.nodes().find(|n| n.children().any(|c| c.index() == node.index())).unwrap();
+        assert_eq!(holder.name(), Some(parent.name()));
+        let (_, [x, y, z, w], [sx, sy, sz]) = node.transform().decomposed();
+        let tip = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)) * Vector3::new(0.0, 0.0, sz);
+        let f = &human[0];
+        let want = f.root_rotation.inverse() * (f.position(j) - f.position(parent));
+        assert!((tip - want).norm() < 1e-5 && sx == 1.0 && sy == 1.0, "{name}: {tip} against {want}");
+    }
+}
+
+#[test]
 fn mesh_files_scale_colours_and_stand_ins() {
     let dir = scratch("meshes");
     std::fs::create_dir_all(dir.join("meshes")).unwrap();
