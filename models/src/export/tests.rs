@@ -627,6 +627,59 @@ fn the_humans_bones_run_from_each_joint_to_the_next() {
     }
 }
 
+/// Every triangle of a closed mesh faces away from `centroid` with its vertices' normals along its
+/// face, and the mesh encloses `volume`.
+fn assert_faces_outwards(pos: &[Vector3<f32>], nrm: &[Vector3<f32>], idx: &[u32], centroid: Vector3<f32>, volume: f32) {
+    let mut enclosed = 0.0;
+    for t in idx.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|i| pos[t[i] as usize]);
+        enclosed += a.dot(&b.cross(&c)) / 6.0;
+        let face = (b - a).cross(&(c - a)).normalize();
+        assert!(face.dot(&((a + b + c) / 3.0 - centroid)) > 0.0, "a triangle faces inwards");
+        for &i in t {
+            assert!((nrm[i as usize] - face).norm() < 1e-5, "normal {} vs face {face}", nrm[i as usize]);
+        }
+    }
+    assert!((enclosed - volume).abs() < 1e-5, "volume {enclosed}");
+}
+
+/// A unit tetrahedron as an OBJ file with a normal per face.
+const TETRA_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n\
+vn 0 0 -1\nvn 0 -1 0\nvn -1 0 0\nvn 0.57735027 0.57735027 0.57735027\n\
+f 1//1 3//1 2//1\nf 1//2 2//2 4//2\nf 1//3 4//3 3//3\nf 2//4 3//4 4//4\n";
+
+#[test]
+fn a_mesh_files_own_normals_follow_its_scale_and_primitives_are_named_for_their_shape() {
+    let dir = scratch("normals");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("tetra.obj"), TETRA_OBJ).unwrap();
+    // Mirrored in y and stretched unevenly: the slanted face's normal turns, the winding flips.
+    let urdf = dir.join("obj.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="obj">
+  <link name="base">
+    <visual><geometry><mesh filename="tetra.obj" scale="1 -0.5 2"/></geometry></visual>
+    <visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual>
+    <visual><geometry><cylinder radius="0.1" length="0.2"/></geometry></visual>
+    <visual><geometry><sphere radius="0.1"/></geometry></visual>
+  </link>
+</robot>"#,
+    )
+    .unwrap();
+    let tree = KinematicTree::from_urdf_file(&urdf).unwrap();
+    let poses = vec![tree.neutral_pose(Isometry3::identity()); 2];
+    let out = character_glb(&tree, &poses, FPS, &GltfOptions::default()).unwrap();
+    assert!(out.warnings.is_empty(), "{:?}", out.warnings);
+    let rb = Readback::new(&out.bytes);
+    let names: Vec<&str> = rb.doc.meshes().filter_map(|m| m.name()).collect();
+    assert_eq!(names, ["tetra", "box", "cylinder", "sphere"]);
+    let (pos, nrm, idx) = primitive(&rb, 0);
+    assert!(pos.contains(&Vector3::new(0.0, -0.5, 0.0)) && pos.contains(&Vector3::new(0.0, 0.0, 2.0)));
+    assert_faces_outwards(&pos, &nrm, &idx, Vector3::new(0.25, -0.125, 0.5), 1.0 / 6.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn mesh_files_scale_colours_and_stand_ins() {
     let dir = scratch("meshes");
@@ -665,23 +718,7 @@ fn mesh_files_scale_colours_and_stand_ins() {
     assert!(
         corners.contains(&Vector3::new(0.0, -2.0, 0.0)) && corners.contains(&Vector3::new(0.0, 0.0, 0.5))
     );
-    let centroid = Vector3::new(0.25, -0.5, 0.125);
-    let mut volume = 0.0;
-    for t in idx.chunks_exact(3) {
-        let [a, b, c] = [0, 1, 2].map(|i| pos[t[i] as usize]);
-        volume += a.dot(&b.cross(&c)) / 6.0;
-        let face = (b - a).cross(&(c - a)).normalize();
-        assert!(
-            face.dot(&((a + b + c) / 3.0 - centroid)) > 0.0,
-            "a triangle faces inwards"
-        );
-        assert!(
-            (nrm[t[0] as usize] - face).norm() < 1e-5,
-            "normal {} vs face {face}",
-            nrm[t[0] as usize]
-        );
-    }
-    assert!((volume - 1.0 / 6.0).abs() < 1e-5, "volume {volume}");
+    assert_faces_outwards(&pos, &nrm, &idx, Vector3::new(0.25, -0.5, 0.125), 1.0 / 6.0);
     let acc = tetra
         .primitives()
         .next()
