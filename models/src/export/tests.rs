@@ -674,6 +674,12 @@ fn a_mesh_files_own_normals_follow_its_scale_and_primitives_are_named_for_their_
     let rb = Readback::new(&out.bytes);
     let names: Vec<&str> = rb.doc.meshes().filter_map(|m| m.name()).collect();
     assert_eq!(names, ["tetra", "box", "cylinder", "sphere"]);
+    // Without a colour: the default grey, opaque, dielectric and fairly rough.
+    let material = rb.doc.meshes().nth(1).unwrap().primitives().next().unwrap().material();
+    let pbr = material.pbr_metallic_roughness();
+    assert_eq!(pbr.base_color_factor(), gltf::DEFAULT_COLOR);
+    assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.0, 0.6));
+    assert_eq!(material.alpha_mode(), ::gltf::material::AlphaMode::Opaque);
     let (pos, nrm, idx) = primitive(&rb, 0);
     assert!(pos.contains(&Vector3::new(0.0, -0.5, 0.0)) && pos.contains(&Vector3::new(0.0, 0.0, 2.0)));
     assert_faces_outwards(&pos, &nrm, &idx, Vector3::new(0.25, -0.125, 0.5), 1.0 / 6.0);
