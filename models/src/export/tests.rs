@@ -680,6 +680,7 @@ fn a_mesh_files_own_normals_follow_its_scale_and_primitives_are_named_for_their_
     assert_eq!(pbr.base_color_factor(), gltf::DEFAULT_COLOR);
     assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.0, 0.6));
     assert_eq!(material.alpha_mode(), ::gltf::material::AlphaMode::Opaque);
+    assert_eq!(material.name(), Some("rgba(0.7 0.7 0.72 1)"));
     let (pos, nrm, idx) = primitive(&rb, 0);
     assert!(pos.contains(&Vector3::new(0.0, -0.5, 0.0)) && pos.contains(&Vector3::new(0.0, 0.0, 2.0)));
     assert_faces_outwards(&pos, &nrm, &idx, Vector3::new(0.25, -0.125, 0.5), 1.0 / 6.0);
