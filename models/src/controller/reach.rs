@@ -806,14 +806,14 @@ mod tests {
     fn a_path_is_refused_through_the_ground_the_body_or_the_arm_itself() {
         let (tree, _, rig) = arm();
         let cfg = ReachConfig::default();
-        // Forward, level: clear. Out and down: the forearm ends 0.07 m below the ground.
+        // Forward, level: clear. Out and down: the forearm's box reaches 6 cm below the ground.
         assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.0], &[]));
         assert!(!clear(&tree, &rig, &cfg, [0.0, 1.5, 1.5], &[]));
         let mut low = rig.clone();
         low.reach[0].floor = -1.0;
         assert!(clear(&tree, &low, &cfg, [0.0, 1.5, 1.5], &[]));
-        // Forward and a little down, the forearm's lowest corner about 2 cm above the ground; 5 cm lower
-        // with the body at the bottom of its range, below it.
+        // Forward and a little down, the forearm's lowest corner 4 cm above the ground, 3 cm above the
+        // group's floor; 5 cm lower with the body at the bottom of its range, below it.
         assert!(clear(&tree, &rig, &cfg, [0.0, 1.5, 0.9], &[]));
         let mut crouched = rig.clone();
         crouched.height_range[0] -= 0.05;
