@@ -246,19 +246,15 @@ pub fn ee_positions(layout: &CharacterLayout, state: &[f32]) -> Vec<Point3<f32>>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_data::{bundled_character, close};
 
     /// The bundled Spot: four feet and an arm.
     fn spot() -> (KinematicTree, Morphology) {
-        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf");
-        crate::morphology::load_character(&file).unwrap()
+        bundled_character("spot")
     }
 
     fn yawed(x: f32, y: f32, z: f32, yaw: f32) -> Isometry3<f32> {
         Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
-    }
-
-    fn close(a: &[f32], b: &[f32], tol: f32) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
     }
 
     #[test]

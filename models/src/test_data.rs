@@ -1,6 +1,7 @@
 //! The shared data for the unit tests (`../shared/data` beside the repository; integration tests have
-//! their own in `tests/common`). A test that needs it fails when it is missing, unless
-//! `ACE_ALLOW_MISSING_DATA=1` says to skip what needs it.
+//! their own in `tests/common`), the bundled characters and clips, and the closeness check of
+//! vectors. A test that needs shared data fails when it is missing, unless `ACE_ALLOW_MISSING_DATA=1`
+//! says to skip what needs it.
 
 use std::path::PathBuf;
 
@@ -34,4 +35,9 @@ pub(crate) fn bundled_character(name: &str) -> (crate::kinematics::KinematicTree
 pub(crate) fn bundled_clip(name: &str) -> crate::human::HumanClip {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/motions/{name}.bvh"));
     crate::human::HumanClip::from_bvh_file(&path, &crate::human::ImportOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Whether `a` and `b` have the same length and every pair of entries is within `tol`.
+pub(crate) fn close(a: &[f32], b: &[f32], tol: f32) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
 }

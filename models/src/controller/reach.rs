@@ -493,6 +493,7 @@ fn path_clear(
 mod tests {
     use super::*;
     use crate::controller::ControllerConfig;
+    use crate::test_data::close;
     use nalgebra::{Matrix3, Point3, Vector3};
     use rand::SeedableRng;
     use rand_pcg::Pcg64 as StdRng;
@@ -524,8 +525,18 @@ mod tests {
         tree.link_index(name).unwrap()
     }
 
-    fn close(a: &[f32], b: &[f32], tol: f32) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
+    /// The smallest and largest of `v`.
+    fn span(v: &[f32]) -> (f32, f32) {
+        v.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)))
+    }
+
+    /// Targets drawn anywhere within the windows, never the stowed configuration.
+    fn anywhere() -> ReachConfig {
+        ReachConfig {
+            stow_probability: 0.0,
+            local_probability: 0.0,
+            ..ReachConfig::default()
+        }
     }
 
     /// An axis-aligned box in the root frame.
@@ -643,8 +654,8 @@ mod tests {
         // take 3.6 s.
         let mut pinned = rig.clone();
         pinned.reach[0].windows = vec![(0.4, 0.4); 3];
-        let anywhere = ReachConfig { stow_probability: 0.0, ..cfg.clone() };
-        let (st, found) = plan_from(&tree, &pinned, &anywhere, [-0.5; 3], 3);
+        let unstowed = ReachConfig { stow_probability: 0.0, ..cfg.clone() };
+        let (st, found) = plan_from(&tree, &pinned, &unstowed, [-0.5; 3], 3);
         assert!(found);
         assert_eq!(st.to, [0.4; 3]);
         assert!((st.duration - 3.6).abs() < 1e-4, "{}", st.duration);
@@ -658,7 +669,7 @@ mod tests {
             ..cfg.clone()
         };
         let durations: Vec<f32> = (0..40).map(|seed| plan_from(&tree, &rig, &between, [0.0, 1.0, 0.0], seed).0.duration).collect();
-        let (lo, hi) = (durations.iter().copied().fold(f32::INFINITY, f32::min), durations.iter().copied().fold(0.0, f32::max));
+        let (lo, hi) = span(&durations);
         assert!(lo >= 2.0 - 1e-4 && hi <= 4.0 + 1e-4 && hi - lo > 1.0, "{lo} {hi}");
     }
 
@@ -690,13 +701,8 @@ mod tests {
         assert!(below.iter().all(|&f| f > 0.8), "near targets hardly move: {below:?}");
         assert!(above[0] == 0.0 && above[1] > 0.8 && above[2] > 0.8, "near targets move one way: {above:?}");
         // Anywhere within the limits: the yaw spans its range.
-        let far = ReachConfig {
-            local_probability: 0.0,
-            stow_probability: 0.0,
-            ..ReachConfig::default()
-        };
-        let yaws: Vec<f32> = (0..60).map(|seed| plan_from(&tree, &rig, &far, [0.0; 3], seed).0.to[0]).collect();
-        let (lo, hi) = (yaws.iter().copied().fold(f32::INFINITY, f32::min), yaws.iter().copied().fold(f32::NEG_INFINITY, f32::max));
+        let yaws: Vec<f32> = (0..60).map(|seed| plan_from(&tree, &rig, &anywhere(), [0.0; 3], seed).0.to[0]).collect();
+        let (lo, hi) = span(&yaws);
         assert!(lo < -1.6 && hi > 1.6, "far targets span {lo}..{hi} of -2..2");
     }
 
@@ -728,13 +734,8 @@ mod tests {
             }
         };
         rig.reach = vec![pole("lpole", (to, to)), pole("rpole", (-1.6, 1.6))];
-        let cfg = ReachConfig {
-            stow_probability: 0.0,
-            local_probability: 0.0,
-            ..ReachConfig::default()
-        };
         let mut states = vec![ReachState::at(vec![0.0], 0.0), right];
-        plan(&tree, &rig, &cfg, &mut states, 0, &mut StdRng::seed_from_u64(5))
+        plan(&tree, &rig, &anywhere(), &mut states, 0, &mut StdRng::seed_from_u64(5))
     }
 
     #[test]
@@ -771,16 +772,11 @@ mod tests {
             part(vec![0, 1], vec![post, upper, fore], vec![(-2.0, 2.0), (-1.6, 1.6)]),
             part(vec![2], vec![fore], vec![(1.5, 1.5)]),
         ];
-        let cfg = ReachConfig {
-            stow_probability: 0.0,
-            local_probability: 0.0,
-            ..ReachConfig::default()
-        };
         // The forearm 1.5 rad down: from the upright upper arm, level and clear; from the upper arm held
         // level forward, it goes into the ground.
         let elbow_plans = |shoulder: f32| {
             let mut states = vec![ReachState::at(vec![0.0, shoulder], 1.0), ReachState::at(vec![0.0], 0.0)];
-            plan(&tree, &rig, &cfg, &mut states, 1, &mut StdRng::seed_from_u64(5))
+            plan(&tree, &rig, &anywhere(), &mut states, 1, &mut StdRng::seed_from_u64(5))
         };
         assert!(elbow_plans(0.0));
         assert!(!elbow_plans(1.5));
