@@ -601,6 +601,19 @@ fn bad_rigs_get_errors_that_name_the_file_and_the_problem() {
         matches!(p, GltfProblem::Buffer { index: 0, .. }) && m.contains("missing.bin"),
         "{m}"
     );
+    // An escape cut short by a character of two bytes is kept as it is (it once panicked).
+    let (m, p) = problem(&rig(
+        &d,
+        "escape.gltf",
+        3,
+        [1.0, 0.0, 0.0, 0.0],
+        [0; 4],
+        |v| v["buffers"][0]["uri"] = serde_json::json!("%a\u{e9}.bin"),
+    ));
+    assert!(
+        matches!(p, GltfProblem::Buffer { index: 0, .. }) && m.contains("%a\u{e9}.bin"),
+        "{m}"
+    );
     let (m, p) = problem(&rig(
         &d,
         "many.gltf",

@@ -1081,46 +1081,29 @@ fn read_buffers(
     Ok(out)
 }
 
-/// `s` with its `%XX` escapes decoded, as URIs of files beside a glTF carry them.
+/// `s` with its `%XX` escapes decoded (bytes that are not UTF-8 replaced), as URIs of files beside a
+/// glTF carry them. Anything that is not a whole escape is kept as it is.
 pub fn percent_decode(s: &str) -> String {
-    let b = s.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] == b'%' && i + 2 < b.len() {
-            if let Ok(v) = u8::from_str_radix(&s[i + 1..i + 3], 16) {
-                out.push(v);
-                i += 3;
-                continue;
-            }
-        }
-        out.push(b[i]);
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
+    percent_encoding::percent_decode_str(s).decode_utf8_lossy().into_owned()
 }
 
-/// Decodes base64 (standard or URL-safe alphabet, padding and whitespace ignored), as data URIs carry it.
+/// Decodes base64 as data URIs carry it: the standard alphabet or the URL-safe one, padding optional,
+/// whitespace and the unused bits of the last digit ignored. `None` for anything else.
 pub fn decode_base64(s: &str) -> Option<Vec<u8>> {
-    let val = |c: u8| match c {
-        b'A'..=b'Z' => Some(c - b'A'),
-        b'a'..=b'z' => Some(c - b'a' + 26),
-        b'0'..=b'9' => Some(c - b'0' + 52),
-        b'+' | b'-' => Some(62),
-        b'/' | b'_' => Some(63),
-        _ => None,
+    use base64::engine::{DecodePaddingMode, GeneralPurpose, GeneralPurposeConfig};
+    const LENIENT: GeneralPurpose = GeneralPurpose::new(
+        &base64::alphabet::STANDARD,
+        GeneralPurposeConfig::new()
+            .with_decode_padding_mode(DecodePaddingMode::Indifferent)
+            .with_decode_allow_trailing_bits(true),
+    );
+    let standard = |c: u8| match c {
+        b'-' => b'+',
+        b'_' => b'/',
+        c => c,
     };
-    let mut out = Vec::with_capacity(s.len() * 3 / 4);
-    let (mut acc, mut bits) = (0u32, 0u32);
-    for c in s.bytes().filter(|c| !c.is_ascii_whitespace() && *c != b'=') {
-        acc = (acc << 6) | u32::from(val(c)?);
-        bits += 6;
-        if bits >= 8 {
-            bits -= 8;
-            out.push((acc >> bits) as u8);
-        }
-    }
-    Some(out)
+    let digits: Vec<u8> = s.bytes().filter(|c| !c.is_ascii_whitespace()).map(standard).collect();
+    base64::Engine::decode(&LENIENT, digits).ok()
 }
 
 /// Whether two world matrices place a node the same to float precision: their linear parts within
@@ -1330,6 +1313,9 @@ mod tests {
         assert_eq!(percent_decode("100%"), "100%");
         assert_eq!(percent_decode("x%4"), "x%4");
         assert_eq!(percent_decode("%zz%4g"), "%zz%4g");
+        // An escape cut short inside a character of several bytes.
+        assert_eq!(percent_decode("%a\u{e9}.bin"), "%a\u{e9}.bin");
+        assert_eq!(percent_decode("%\u{e9}"), "%\u{e9}");
     }
 
     #[test]
@@ -1344,6 +1330,8 @@ mod tests {
         assert_eq!(decode_base64("AZaz\n09").unwrap(), [0x01, 0x96, 0xB3, 0xD3]);
         assert_eq!(decode_base64("Zm9v\r\n YmFy").unwrap(), b"foobar");
         assert_eq!(decode_base64("Zm9*"), None);
+        // A lone digit after whole groups holds no byte.
+        assert_eq!(decode_base64("Zm9vY"), None);
     }
 
     #[test]
