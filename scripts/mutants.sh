@@ -55,7 +55,11 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # node, the writer's own on the buffer, accessors, animation and GLB container; the Khronos
 # validator runs only where `.local/node` is installed, so not in the worktree). The character state
 # x^r runs its own unit tests (on the bundled Spot; they catch every viable mutant but one exact tie,
-# and take a second where the import and dataset tests that also read x^r take fifteen).
+# and take a second where the import and dataset tests that also read x^r take fifteen). Of the glTF
+# import only its helpers are mutated, against their unit tests (URI escapes, base64, placements, the
+# polar rotation, capsule fitting): the rest of the reader is checked by the creature tests, which take
+# too long per mutant. A clip on a creature's own model (`export/rig.rs`) runs the rig export tests
+# (the shared creatures' clips written, read back and validated where the validator is installed).
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -88,6 +92,8 @@ declare -A how=(
   [models/src/export/gltf.rs]="$core -- --lib -- export"
   [models/src/export/writer.rs]="$core -- --lib -- export"
   [models/src/character_state.rs]="$core -- --lib -- character_state"
+  [models/src/character/gltf.rs]="$core --re percent_decode|decode_base64|same_placement|polar_rotation|fit_capsule -- --lib -- character::gltf"
+  [models/src/export/rig.rs]="$core -- --test rig_export"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
   [models/src/urdf.rs]="$core -- --test character_import --test metrics --lib"
@@ -106,6 +112,8 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/human/matching.rs models/src/human/names.rs models/src/human/units.rs
        models/src/human/detect.rs models/src/human/tracks.rs models/src/human/fk.rs
        models/src/human/clip.rs models/src/human/import.rs models/src/human/state.rs models/src/kinematics.rs models/src/metrics/collision.rs models/src/urdf.rs
+       models/src/controller/reach.rs models/src/export/gltf.rs models/src/export/writer.rs
+       models/src/character_state.rs models/src/character/gltf.rs models/src/export/rig.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)

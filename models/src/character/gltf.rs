@@ -1344,6 +1344,9 @@ mod tests {
         assert!(polar_rotation(&(r.to_rotation_matrix().matrix() * 1e-3)).unwrap().angle_to(&r) < 1e-4);
         assert!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1e-8))).is_some());
         assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1e-10))), None);
+        // Flat relative to its own size: a smallest scale under 1e-9 of the largest, however large.
+        assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1e6, 1e6, 1e-4))), None);
+        assert!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1e6, 1e6, 1e-2))).is_some());
         assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0))), None);
         assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, 1.0))), None);
         assert_eq!(polar_rotation(&Matrix3::from_diagonal(&Vector3::new(1.0, f32::NAN, 1.0))), None);
@@ -1387,6 +1390,22 @@ mod tests {
         assert!((length - 0.7).abs() < 1e-4, "{length}");
         assert!((g.origin.translation.vector - Vector3::new(0.0, 0.0, 1.5)).norm() < 1e-4, "{}", g.origin.translation.vector);
         assert!(axis(&g).z.abs() > 1.0 - 1e-5, "{:?}", axis(&g));
+        // Moved across its axis and along it, the capsule moves with the points.
+        let shift = Vector3::new(2.0, -1.0, 0.5);
+        let moved: Vec<Point3<f32>> = tube.iter().map(|p| p + shift).collect();
+        let m = fit_capsule(&moved, None).expect("capsule");
+        let Shape::Capsule { radius, length } = m.shape else { panic!("{:?}", m.shape) };
+        assert!((radius - 0.1).abs() < 1e-4 && (length - 0.7).abs() < 1e-4, "{radius} {length}");
+        assert!((m.origin.translation.vector - Vector3::new(2.0, -1.0, 2.0)).norm() < 1e-4, "{}", m.origin.translation.vector);
+        assert!(axis(&m).z.abs() > 1.0 - 1e-5, "{:?}", axis(&m));
+        // As many points again at its top end: the caps end at the new 5th and 95th percentiles (z 1.1
+        // and 2), not around the points' mean (z 1.75).
+        let mut top_heavy = tube.clone();
+        top_heavy.extend(tube.iter().map(|p| Point3::new(p.x, p.y, 2.0)));
+        let t = fit_capsule(&top_heavy, None).expect("capsule");
+        let Shape::Capsule { length, .. } = t.shape else { panic!("{:?}", t.shape) };
+        assert!((length - 0.7).abs() < 1e-4, "{length}");
+        assert!((t.origin.translation.vector - Vector3::new(0.0, 0.0, 1.55)).norm() < 1e-4, "{}", t.origin.translation.vector);
         // More points on one side: the radius is their median distance from the axis, not the largest.
         let mut lopsided = tube.clone();
         lopsided.extend((0..=100).map(|k| Point3::new(0.3, 0.0, 1.0 + k as f32 / 100.0)));
@@ -1401,6 +1420,14 @@ mod tests {
             .collect();
         let Shape::Capsule { radius, length } = fit_capsule(&ring, Some(Vector3::z())).unwrap().shape else { unreachable!() };
         assert!((radius - 1.0).abs() < 1e-5 && length == 0.0, "{radius} {length}");
+        // A largest variance of exactly DISTINCT_AXIS times the next is distinct: the axis is the
+        // principal one (x), not the one given.
+        let cross: Vec<Point3<f32>> = [(1.0, 0.0, 3), (-1.0, 0.0, 3), (0.0, 1.0, 2), (0.0, -1.0, 2)]
+            .into_iter()
+            .flat_map(|(x, y, k)| std::iter::repeat_n(Point3::new(x, y, 0.0), k))
+            .collect();
+        assert_eq!(DISTINCT_AXIS, 1.5);
+        assert!(axis(&fit_capsule(&cross, Some(Vector3::z())).unwrap()).x.abs() > 0.99);
         // Fewer than four points have no capsule.
         assert_eq!(fit_capsule(&tube[..3], None), None);
         assert!(fit_capsule(&tube[..4], None).is_some());
