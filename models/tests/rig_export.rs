@@ -1,6 +1,7 @@
 //! Clips written onto the shared rigged creatures' own models (`../shared/data/creatures`; set
 //! `ACE_ALLOW_MISSING_DATA=1` to skip when absent): Khronos' validator accepts every variant, the model
-//! comes out whole, the skeleton in the file moves as the tree does, the creature's own clips come back
+//! comes out whole (from several buffers into one, without its own clips' data unless kept), the clip
+//! keys only what the nodes do not already hold, the skeleton in the file moves as the tree does, the creature's own clips come back
 //! through `clip_poses`, and bad inputs get errors that name the file.
 
 mod common;
@@ -274,6 +275,68 @@ fn rig_clips_of_the_shared_creatures_validate_and_keep_the_model() {
             let channels = rb.assert_no_idle_channels(anims - 1, file);
             let (animated, worst) = (w.animated_nodes, worst / s);
             eprintln!("{file} {tag}: {animated} bones animated ({channels} channels), worst bone position error {worst:.2e} of the size");
+        }
+    }
+    let _ = std::fs::remove_dir_all(out);
+}
+
+/// Accessors of `doc` that nothing refers to (meshes, skins, animations).
+fn unused_accessors(doc: &gltf::Document) -> usize {
+    let mut used = vec![false; doc.accessors().count()];
+    for p in doc.meshes().flat_map(|m| m.primitives().collect::<Vec<_>>()) {
+        p.attributes().for_each(|(_, a)| used[a.index()] = true);
+        p.indices().into_iter().for_each(|a| used[a.index()] = true);
+        for t in p.morph_targets() {
+            t.positions().into_iter().chain(t.normals()).chain(t.tangents()).for_each(|a| used[a.index()] = true);
+        }
+    }
+    doc.skins().filter_map(|s| s.inverse_bind_matrices()).for_each(|a| used[a.index()] = true);
+    for s in doc.animations().flat_map(|a| a.samplers().collect::<Vec<_>>()) {
+        used[s.input().index()] = true;
+        used[s.output().index()] = true;
+    }
+    used.iter().filter(|u| !**u).count()
+}
+
+#[test]
+fn a_model_in_several_buffers_comes_out_in_one_without_the_data_it_no_longer_uses() {
+    let Some(dir) = creatures() else { return };
+    let out = tmp("buffers");
+    // The Wolf with its data in two buffers (the second a copy of the first, odd buffer views in it).
+    let text = std::fs::read(dir.join("Quaternius_Wolf/Wolf.gltf")).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    let first = json["buffers"][0].clone();
+    json["buffers"].as_array_mut().unwrap().push(first);
+    for v in json["bufferViews"].as_array_mut().unwrap().iter_mut().skip(1).step_by(2) {
+        v["buffer"] = 1.into();
+    }
+    let animations = json["animations"].as_array().map_or(0, Vec::len);
+    assert!(animations > 0, "the Wolf has clips of its own");
+    // An extension that names no accessor or buffer view lets the export drop the Wolf's own clips'
+    // data; one that might (instancing) keeps every accessor where it was.
+    for (extension, renumbered) in [("KHR_materials_emissive_strength", true), ("EXT_mesh_gpu_instancing", false)] {
+        json["extensionsUsed"] = serde_json::json!([extension]);
+        let path = out.join(format!("{extension}.gltf"));
+        std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+        let c = load(&path);
+        let (src, src_buffers) = open(&path).unwrap();
+        assert_eq!(src_buffers.len(), 2);
+        let src_buffers: Vec<&[u8]> = src_buffers.iter().map(Vec::as_slice).collect();
+        let poses = turning_clip(&c);
+        let w = rig_clip_glb(&c, &poses, FPS, &RigClipOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        let rb = Readback::new(&w.bytes);
+        assert_eq!(Readback::positions(&rb.doc, &[&rb.blob]), Readback::positions(&src, &src_buffers), "{extension}");
+        assert_bones_follow_the_tree(&c, &rb, 0, poses.len() / 2, &poses[poses.len() / 2], 1e-4 * size(&c));
+        let unused = unused_accessors(&rb.doc);
+        if renumbered {
+            assert_eq!(unused, 0, "{extension}");
+        } else {
+            // The Wolf's own clips' accessors stay, now unused, beside those the file left unused.
+            let samplers = src.animations().flat_map(|a| a.samplers().collect::<Vec<_>>());
+            let own_clips: std::collections::HashSet<_> =
+                samplers.flat_map(|s| [s.input().index(), s.output().index()]).collect();
+            assert!(rb.doc.accessors().count() > src.accessors().count(), "{extension}");
+            assert_eq!(unused, unused_accessors(&src) + own_clips.len(), "{extension}");
         }
     }
     let _ = std::fs::remove_dir_all(out);
