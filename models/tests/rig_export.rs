@@ -1,8 +1,8 @@
 //! Clips written onto the shared rigged creatures' own models (`../shared/data/creatures`; set
 //! `ACE_ALLOW_MISSING_DATA=1` to skip when absent): Khronos' validator accepts every variant, the model
 //! comes out whole (from several buffers into one, without its own clips' data unless kept), the clip
-//! keys only what the nodes do not already hold, the skeleton in the file moves as the tree does, the creature's own clips come back
-//! through `clip_poses`, and bad inputs get errors that name the file.
+//! keys only what the nodes do not already hold, the skeleton in the file moves as the tree does, the
+//! creature's own clips come back through `clip_poses`, and bad inputs get errors that name the file.
 
 mod common;
 use common::{creatures, khronos_validate};
