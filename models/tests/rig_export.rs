@@ -342,6 +342,73 @@ fn a_model_in_several_buffers_comes_out_in_one_without_the_data_it_no_longer_use
     let _ = std::fs::remove_dir_all(out);
 }
 
+#[test]
+fn images_beside_the_model_or_in_data_uris_are_embedded_with_their_format() {
+    let Some(dir) = creatures() else { return };
+    let out = tmp("images");
+    let wolf = load(&dir.join("Quaternius_Wolf/Wolf.gltf"));
+    let poses = clip_poses(&wolf, 0, FPS);
+    let text = std::fs::read(dir.join("Quaternius_Wolf/Wolf.gltf")).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    let bytes = |head: &[u8]| [head, b"-the rest of the image".as_slice()].concat();
+    let png = bytes(b"\x89PNG\r\n\x1a\n");
+    let data_uri = |head: &str| format!("data:{head};base64,{}", base64::Engine::encode(&base64::engine::general_purpose::STANDARD, &png));
+    // (what the image gives, bytes of the file beside, the format expected in the export)
+    let images = [
+        (serde_json::json!({"uri": data_uri("")}), None, "image/png"),
+        // The type a data URI declares, or the image its own MIME type, wins over what its bytes look like.
+        (serde_json::json!({"uri": data_uri("image/jpeg")}), None, "image/jpeg"),
+        (serde_json::json!({"uri": "tex%20ture.jpg"}), Some(("tex ture.jpg", bytes(&[0xFF, 0xD8, 0xFF]))), "image/jpeg"),
+        (serde_json::json!({"uri": "skin.webp"}), Some(("skin.webp", bytes(b"RIFF\0\0\0\0WEBP"))), "image/webp"),
+        (serde_json::json!({"uri": "skin.ktx2"}), Some(("skin.ktx2", bytes(b"\xABKTX 20\xBB"))), "image/ktx2"),
+        (serde_json::json!({"uri": "named.png", "mimeType": "image/jpeg"}), Some(("named.png", png.clone())), "image/jpeg"),
+    ];
+    let model = |images: Vec<serde_json::Value>, name: &str| {
+        let mut json = json.clone();
+        json["images"] = images.into();
+        let path = out.join(name);
+        std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+        let mut c = wolf.clone();
+        c.tree.source = Some(path);
+        c
+    };
+    for (_, file, _) in &images {
+        if let Some((name, b)) = file {
+            std::fs::write(out.join(name), b).unwrap();
+        }
+    }
+    let c = model(images.iter().map(|i| i.0.clone()).collect(), "images.gltf");
+    let w = rig_clip_glb(&c, &poses, FPS, &RigClipOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    let rb = Readback::new(&w.bytes);
+    assert_eq!(rb.doc.images().count(), images.len());
+    for (img, (_, file, mime)) in rb.doc.images().zip(&images) {
+        let gltf::image::Source::View { view, mime_type } = img.source() else { panic!("image {} is not embedded", img.index()) };
+        assert_eq!(mime_type, *mime, "image {}", img.index());
+        let embedded = &rb.blob[view.offset()..view.offset() + view.length()];
+        assert_eq!(embedded, file.as_ref().map_or(&png, |f| &f.1).as_slice(), "image {}", img.index());
+    }
+
+    // A missing file, a folder, a file over the size cap (sparse: refused before it is read) and bytes
+    // of no known format without a MIME type: errors that name the model, the image and why.
+    std::fs::write(out.join("unknown.img"), b"not an image").unwrap();
+    std::fs::create_dir_all(out.join("folder.png")).unwrap();
+    let cap = ace_models::character::gltf::MAX_FILE_BYTES;
+    std::fs::File::create(out.join("huge.png")).unwrap().set_len(cap + 1).unwrap();
+    let not_a_file = format!("not a regular file of at most {cap} bytes");
+    for (image, why) in [
+        ("absent.png", "absent.png"),
+        ("folder.png", not_a_file.as_str()),
+        ("huge.png", not_a_file.as_str()),
+        ("unknown.img", "neither its URI nor its bytes"),
+    ] {
+        let c = model(vec![serde_json::json!({"uri": "skin.webp"}), serde_json::json!({"uri": image})], "bad.gltf");
+        let e = rig_clip_glb(&c, &poses, FPS, &RigClipOptions::default()).unwrap_err();
+        assert!(matches!(e.problem, ExportProblem::Image { index: 1, .. }), "{e}");
+        assert!(e.to_string().contains("bad.gltf") && e.to_string().contains(why), "{e}");
+    }
+    let _ = std::fs::remove_dir_all(out);
+}
+
 /// The creature's own clip → poses → exported as a new animation → poses again with `clip_poses`
 /// (on the same tree): the same poses.
 fn round_trip(c: &Creature, path: &Path, clip: usize, out: &Path) -> (f32, f32) {
