@@ -409,6 +409,50 @@ fn images_beside_the_model_or_in_data_uris_are_embedded_with_their_format() {
     let _ = std::fs::remove_dir_all(out);
 }
 
+#[test]
+fn a_bone_placed_by_a_matrix_is_keyed_as_translation_rotation_scale_and_the_skeleton_keeps_names_extras_and_asset() {
+    let Some(dir) = creatures() else { return };
+    let out = tmp("matrix");
+    let wolf = load(&dir.join("Quaternius_Wolf/Wolf.gltf"));
+    let poses = turning_clip(&wolf);
+    let text = std::fs::read(dir.join("Quaternius_Wolf/Wolf.gltf")).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    json["asset"]["copyright"] = "the artist".into();
+    // The Wolf's head as a matrix (column-major) instead of its translation, rotation and scale.
+    let head = json["nodes"].as_array().unwrap().iter().position(|n| n["name"] == "Head").expect("a Head bone");
+    let node = &mut json["nodes"][head];
+    let f = |v: &serde_json::Value, d: [f32; 4]| -> Vec<f32> {
+        v.as_array().map_or(d.to_vec(), |a| a.iter().map(|x| x.as_f64().unwrap() as f32).collect())
+    };
+    let (t, r, sc) = (f(&node["translation"], [0.0; 4]), f(&node["rotation"], [0.0, 0.0, 0.0, 1.0]), f(&node["scale"], [1.0; 4]));
+    let m = Matrix4::new_translation(&Vector3::new(t[0], t[1], t[2]))
+        * UnitQuaternion::from_quaternion(Quaternion::new(r[3], r[0], r[1], r[2])).to_homogeneous()
+        * Matrix4::new_nonuniform_scaling(&Vector3::new(sc[0], sc[1], sc[2]));
+    for key in ["translation", "rotation", "scale"] {
+        node.as_object_mut().unwrap().remove(key);
+    }
+    node["matrix"] = m.as_slice().to_vec().into();
+    node["extras"] = serde_json::json!({"rigging": "keep me"});
+    let path = out.join("Wolf.gltf");
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let mut c = wolf.clone();
+    c.tree.source = Some(path);
+    for only in [false, true] {
+        let opts = RigClipOptions { animation_only: only, ..Default::default() };
+        let target = out.join(format!("only_{only}.glb"));
+        let w = write_rig_clip(&target, &c, &poses, FPS, &opts).unwrap_or_else(|e| panic!("{e}"));
+        khronos_validate(&target);
+        let rb = Readback::new(&w.bytes);
+        let head = rb.doc.nodes().find(|n| n.name() == Some("Head")).unwrap();
+        let json = head.extras().as_ref().map(|e| e.get().to_owned());
+        assert_eq!(json.as_deref(), Some(r#"{"rigging":"keep me"}"#), "only {only}");
+        assert_eq!(rb.doc.as_json().asset.copyright.as_deref(), Some("the artist"), "only {only}");
+        assert_bones_follow_the_tree(&c, &rb, rb.doc.animations().count() - 1, 0, &poses[0], 1e-4 * size(&c));
+        assert_bones_follow_the_tree(&c, &rb, rb.doc.animations().count() - 1, poses.len() - 1, &poses[poses.len() - 1], 1e-4 * size(&c));
+    }
+    let _ = std::fs::remove_dir_all(out);
+}
+
 /// The creature's own clip → poses → exported as a new animation → poses again with `clip_poses`
 /// (on the same tree): the same poses.
 fn round_trip(c: &Creature, path: &Path, clip: usize, out: &Path) -> (f32, f32) {

@@ -9,7 +9,8 @@
 //!   bone, a translation channel too on those that translate (root motion on the body root's node,
 //!   deforming helpers); bones held at rest keep their node transform, unless the import moved them to
 //!   the skin's bind pose, where a constant channel holds them. Every channel has one LINEAR key
-//!   per pose at `k / fps` s; rotations stay in one hemisphere from key to key.
+//!   per pose at `k / fps` s; rotations stay in one hemisphere from key to key. A keyed node that the
+//!   file places by a matrix gets the matrix's translation, rotation and scale instead, as glTF asks.
 //! - **One buffer.** The file's buffers (a GLB's binary chunk, data URIs, `.bin` files beside a
 //!   `.gltf`) and its external or data-URI images are laid end to end in the GLB's one binary chunk, so
 //!   the output stands alone wherever it is written. The model's own animations are dropped unless
@@ -141,11 +142,29 @@ fn build(
         }
     }
     let (mut root, bin) = b.finish(opts.name.as_deref().unwrap_or(DEFAULT_CLIP_NAME));
+    trs_for_animated(&mut root);
     root.asset.generator = Some(concat!("ace_models ", env!("CARGO_PKG_VERSION")).into());
     Ok(RigClipOutput {
         bytes: glb(&root, &bin)?,
         animated_nodes: driven.len(),
     })
+}
+
+/// glTF keys only nodes placed by a translation, a rotation and a scale: a node the file places by a
+/// matrix gets the matrix's decomposition instead (the one the import read it with) when a channel
+/// targets it.
+fn trs_for_animated(root: &mut json::Root) {
+    let targets: Vec<usize> = root.animations.iter().flat_map(|a| &a.channels).map(|c| c.target.node.value()).collect();
+    for i in targets {
+        let node = &mut root.nodes[i];
+        if let Some(m) = node.matrix.take() {
+            let columns = std::array::from_fn(|c| std::array::from_fn(|r| m[4 * c + r]));
+            let (t, r, s) = ::gltf::scene::Transform::Matrix { matrix: columns }.decomposed();
+            node.translation = Some(t);
+            node.rotation = Some(json::scene::UnitQuaternion(r));
+            node.scale = Some(s);
+        }
+    }
 }
 
 /// Whether two translations or scales are the same to float precision.
