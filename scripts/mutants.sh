@@ -60,6 +60,8 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # polar rotation, capsule fitting): the rest of the reader is checked by the creature tests, which take
 # too long per mutant. A clip on a creature's own model (`export/rig.rs`) runs the rig export tests
 # (the shared creatures' clips written, read back and validated where the validator is installed).
+# The morphology analysis (feet, manipulators, wheels, head of a URDF robot; the profile's overrides)
+# runs the URDF import tests (the bundled and shared robots' body plans) and the unit tests.
 core="--package ace_models --no-default-features"
 learn="--package ace_models --features learn"
 declare -A how=(
@@ -94,6 +96,7 @@ declare -A how=(
   [models/src/character_state.rs]="$core -- --lib -- character_state"
   [models/src/character/gltf.rs]="$core --re percent_decode|decode_base64|same_placement|polar_rotation|fit_capsule -- --lib -- character::gltf"
   [models/src/export/rig.rs]="$core -- --test rig_export"
+  [models/src/morphology.rs]="$core -- --test character_import --lib"
   [models/src/kinematics.rs]="$core -- --test metrics --test character_import --test controllers --test creatures --lib"
   [models/src/metrics/collision.rs]="$core -- --test metrics --lib"
   [models/src/urdf.rs]="$core -- --test character_import --test metrics --lib"
@@ -114,6 +117,7 @@ order=(models/src/features.rs models/src/metrics/ufr.rs models/src/metrics/distr
        models/src/human/clip.rs models/src/human/import.rs models/src/human/state.rs models/src/kinematics.rs models/src/metrics/collision.rs models/src/urdf.rs
        models/src/controller/reach.rs models/src/export/gltf.rs models/src/export/writer.rs
        models/src/character_state.rs models/src/character/gltf.rs models/src/export/rig.rs
+       models/src/morphology.rs
        models/src/runtime/nets.rs
        models/src/learn/ace.rs models/src/learn/train_ace.rs models/src/learn/prior.rs
        plugin/src/retarget.rs)
