@@ -884,10 +884,48 @@ mod tests {
         assert_eq!(n.head.as_deref(), Some("head"));
         assert!(n.wheels.is_empty());
         assert_eq!(m.end_effectors().len(), 5);
+        assert_eq!(m.n_end_effectors(), 5);
         // Feet are sphere bottoms.
         let stand = t.forward_kinematics(&t.standing_pose());
         for &f in &m.feet {
             assert!(m.ee_point(f, &stand).z.abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn a_wheeled_base_s_wheel_dofs_are_its_wheel_joints() {
+        let (t, m) = crate::test_data::bundled_character("stretch");
+        assert_eq!(m.wheels.len(), 2, "{:?}", m.names(&t).wheels);
+        let dofs = m.wheel_dofs(&t);
+        let expected: Vec<usize> = m.wheels.iter().map(|&l| t.links[l].joint.as_ref().unwrap().dof.unwrap()).collect();
+        assert_eq!(dofs, expected);
+        assert!(dofs.iter().all(|&d| t.dof_names()[d].contains("wheel")), "{dofs:?}");
+        let (spot, legged) = crate::test_data::bundled_character("spot");
+        assert!(legged.wheel_dofs(&spot).is_empty());
+    }
+
+    #[test]
+    fn a_profile_s_numbers_are_checked_and_the_error_names_the_key() {
+        let ok = "feet = [\"a\"]\nscale = 0.01\n[limits]\nknee = [-1.0, 1.0]\n[rest_pose]\nknee = 0.5\n[tip_offsets]\nfoot = [0.0, 0.0, -0.02]\n";
+        let p = Profile::from_toml(ok, "good.profile.toml").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((p.scale, p.source.as_deref()), (Some(0.01), Some("good.profile.toml")));
+        for (text, key) in [
+            ("[limits]\nknee = [1.0, -1.0]", "limits.\"knee\""),
+            ("[limits]\nknee = [nan, 1.0]", "limits.\"knee\""),
+            ("[limits]\nknee = [-1.0, inf]", "limits.\"knee\""),
+            ("[rest_pose]\nknee = inf", "rest_pose.\"knee\""),
+            ("[tip_offsets]\nfoot = [0.0, nan, 0.0]", "tip_offsets.\"foot\""),
+            ("scale = 0.0", "scale"),
+            ("scale = 1000.0", "scale"),
+            ("scale = nan", "scale"),
+        ] {
+            let e = Profile::from_toml(text, "bad.profile.toml").unwrap_err();
+            assert_eq!(e.file, "bad.profile.toml");
+            assert!(matches!(&e.problem, ProfileProblem::BadValue { key: k, .. } if k == key), "{text}: {e}");
+        }
+        // A limit of no width is a joint held in place, not an error; the scale's range is inclusive.
+        for text in ["[limits]\nknee = [0.3, 0.3]", "scale = 0.0001", "scale = 100.0"] {
+            Profile::from_toml(text, "edge.profile.toml").unwrap_or_else(|e| panic!("{text}: {e}"));
         }
     }
 
