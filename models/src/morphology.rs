@@ -923,6 +923,13 @@ mod tests {
             assert_eq!(e.file, "bad.profile.toml");
             assert!(matches!(&e.problem, ProfileProblem::BadValue { key: k, .. } if k == key), "{text}: {e}");
         }
+        // From a file: the bundled hound's, and a missing one named in the error.
+        let assets = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures");
+        let hound = Profile::from_file(&assets.join("hound.profile.toml")).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(hound.at_rest, ["Spine", "Chest"]);
+        assert!(hound.source.as_deref().is_some_and(|s| s.ends_with("hound.profile.toml")));
+        let e = Profile::from_file(&assets.join("absent.profile.toml")).unwrap_err();
+        assert!(e.file.ends_with("absent.profile.toml") && matches!(e.problem, ProfileProblem::Io(_)), "{e}");
         // A limit of no width is a joint held in place, not an error; the scale's range is inclusive.
         for text in ["[limits]\nknee = [0.3, 0.3]", "scale = 0.0001", "scale = 100.0"] {
             Profile::from_toml(text, "edge.profile.toml").unwrap_or_else(|e| panic!("{text}: {e}"));
