@@ -937,6 +937,35 @@ mod tests {
     }
 
     #[test]
+    fn the_profile_beside_a_character_is_read_checked_for_its_kind_and_sets_the_rest_pose() {
+        let assets = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets");
+        let hound = Profile::beside(&assets.join("creatures/hound.glb")).unwrap().expect("the hound's profile");
+        assert_eq!(hound.at_rest, ["Spine", "Chest"]);
+        // A creature's key in a robot's profile is refused, naming it; a robot's keys are not.
+        let e = hound.check_urdf().unwrap_err();
+        assert!(matches!(e.problem, ProfileProblem::GltfOnly("at_rest")) && e.file.ends_with("hound.profile.toml"), "{e}");
+        Profile::from_toml("feet = [\"a\"]\n[rest_pose]\nknee = 0.5", "robot").unwrap().check_urdf().unwrap();
+        assert_eq!(Profile::beside(&assets.join("characters/spot.urdf")).unwrap(), None);
+        // A folder where the profile would be is an error, not skipped.
+        let dir = std::env::temp_dir().join(format!("ace-profile-beside-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("bot.profile.toml")).unwrap();
+        let e = Profile::beside(&dir.join("bot.urdf")).unwrap_err();
+        assert!(e.file.ends_with("bot.profile.toml"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+
+        let (mut tree, _) = crate::test_data::bundled_character("spot");
+        let joint = tree.dof_names()[2].clone();
+        let p = Profile::from_toml(&format!("[rest_pose]\n{joint} = 0.25"), "spot").unwrap();
+        p.apply_rest_pose(&mut tree).unwrap();
+        let q = tree.neutral_q();
+        assert_eq!(q[2], 0.25);
+        assert!(q.iter().enumerate().all(|(d, v)| d == 2 || *v == 0.0), "{q:?}");
+        let p = Profile::from_toml("[rest_pose]\nno_such_joint = 0.1", "spot").unwrap();
+        let e = p.apply_rest_pose(&mut tree).unwrap_err();
+        assert!(matches!(&e.problem, ProfileProblem::UnknownJoint(j) if j == "no_such_joint"), "{e}");
+    }
+
+    #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
         let mut x = String::from(r#"<robot name="arm">"#);
