@@ -966,6 +966,25 @@ mod tests {
     }
 
     #[test]
+    fn a_limb_s_reach_counts_offsets_prismatic_travel_and_the_last_shape() {
+        // base → (revolute, 0.1 up) l1, a 5 cm cube → (prismatic ±1 m, 0.3 ahead) l2, a 0.2 m sphere.
+        let mut x = String::from(r#"<robot name="reach">"#);
+        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
+        x += &joint("a", "revolute", "base", "l1", "0 0 0.1", "0 0 1");
+        x += &link("l1", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("b", "prismatic", "l1", "l2", "0.3 0 0", "1 0 0");
+        x += &link("l2", r#"<sphere radius="0.2"/>"#);
+        x += "</robot>";
+        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let a = Analysis::new(&t);
+        let (l1, l2) = (t.link_index("l1").unwrap(), t.link_index("l2").unwrap());
+        // From l1's joint: its own offset is not counted; l2's 0.3 m, its 1 m of travel, the sphere.
+        assert!((a.reach(l1) - 1.5).abs() < 1e-6, "{}", a.reach(l1));
+        assert!((a.reach(l2) - 1.2).abs() < 1e-6, "{}", a.reach(l2));
+        assert_eq!((a.count_movable(l1), a.count_movable(l2)), (2, 1));
+    }
+
+    #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
         let mut x = String::from(r#"<robot name="arm">"#);
