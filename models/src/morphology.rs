@@ -985,6 +985,29 @@ mod tests {
     }
 
     #[test]
+    fn a_branch_under_a_quarter_of_its_longest_sibling_s_reach_is_no_manipulator() {
+        // A box on the ground with a turning hub; from the hub a long arm rising 0.5 m and a 2 cm stub
+        // of two joints, below the height a head would need.
+        let mut x = String::from(r#"<robot name="stub">"#);
+        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
+        x += &joint("a", "revolute", "base", "hub", "0 0 0.1", "0 0 1");
+        x += &link("hub", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("b", "revolute", "hub", "upper", "0.05 0 0", "0 1 0");
+        x += &link("upper", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("c", "revolute", "upper", "fore", "0 0 0.5", "0 1 0");
+        x += &link("fore", r#"<sphere radius="0.03"/>"#);
+        x += &joint("s1", "revolute", "hub", "nub", "-0.03 0 0", "0 1 0");
+        x += &link("nub", r#"<box size="0.01 0.01 0.01"/>"#);
+        x += &joint("s2", "revolute", "nub", "nubtip", "-0.01 0 0", "0 1 0");
+        x += &link("nubtip", r#"<sphere radius="0.005"/>"#);
+        x += "</robot>";
+        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!((n.feet.len(), n.head.as_deref()), (0, None), "{n:?}");
+        assert_eq!(n.manipulators, ["fore"]);
+    }
+
+    #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
         let mut x = String::from(r#"<robot name="arm">"#);
