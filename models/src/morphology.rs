@@ -1005,6 +1005,36 @@ mod tests {
         let n = Morphology::analyze(&t).names(&t);
         assert_eq!((n.feet.len(), n.head.as_deref()), (0, None), "{n:?}");
         assert_eq!(n.manipulators, ["fore"]);
+        // Four times as large with a stub of 0.3 m against the arm's 2.2: still under a quarter.
+        let big = x.replace("0 0 0.5", "0 0 2").replace("0.05 0 0", "0.2 0 0").replace("-0.01 0 0", "-0.25 0 0");
+        let t = KinematicTree::from_urdf_str(&big).unwrap();
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!((n.feet.len(), n.head.as_deref()), (0, None), "{n:?}");
+        assert_eq!(n.manipulators, ["fore"]);
+    }
+
+    #[test]
+    fn wheels_spin_on_continuous_joints_or_revolute_ones_of_a_full_turn() {
+        // A box on two ball wheels and a caster; a third ball on a joint of ±1 rad is no wheel.
+        let wheel = |name: &str, y: f32, limits: &str| {
+            format!(
+                r#"<joint name="{name}_joint" type="{}"><parent link="base"/><child link="{name}"/>
+                   <origin xyz="0 {y} 0"/><axis xyz="0 1 0"/>{limits}</joint>{}"#,
+                if limits.is_empty() { "continuous" } else { "revolute" },
+                link(name, r#"<sphere radius="0.1"/>"#)
+            )
+        };
+        let mut x = String::from(r#"<robot name="wheels">"#);
+        x += &link("base", r#"<box size="0.4 0.3 0.1"/>"#);
+        x += &wheel("left", 0.2, "");
+        x += &wheel("right", -0.2, r#"<limit lower="-3.2" upper="3.2" velocity="1" effort="1"/>"#);
+        x += &wheel("flap", 0.0, r#"<limit lower="-1" upper="1" velocity="1" effort="1"/>"#);
+        x += r#"<joint name="caster_joint" type="fixed"><parent link="base"/><child link="caster"/><origin xyz="0.15 0 -0.05"/></joint>"#;
+        x += &link("caster", r#"<sphere radius="0.05"/>"#);
+        x += "</robot>";
+        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!(n.wheels, ["left", "right"], "{n:?}");
     }
 
     #[test]
