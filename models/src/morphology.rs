@@ -1015,7 +1015,7 @@ mod tests {
 
     #[test]
     fn wheels_spin_on_continuous_joints_or_revolute_ones_of_a_full_turn() {
-        // A box on two ball wheels and a caster; a third ball on a joint of ±1 rad is no wheel.
+        // A box on two ball wheels and a caster; a ball on a joint of ±1 rad is no wheel.
         let wheel = |name: &str, y: f32, limits: &str| {
             format!(
                 r#"<joint name="{name}_joint" type="{}"><parent link="base"/><child link="{name}"/>
@@ -1029,12 +1029,26 @@ mod tests {
         x += &wheel("left", 0.2, "");
         x += &wheel("right", -0.2, r#"<limit lower="-3.2" upper="3.2" velocity="1" effort="1"/>"#);
         x += &wheel("flap", 0.0, r#"<limit lower="-1" upper="1" velocity="1" effort="1"/>"#);
+        // Spinning but no wheel: about a vertical axis, off the ground, or with its shape off its axis.
+        let spinner = |name: &str, xyz: &str, axis: &str, shape_at: &str, radius: f32| {
+            format!(
+                r#"<joint name="{name}_joint" type="continuous"><parent link="base"/><child link="{name}"/>
+                   <origin xyz="{xyz}"/><axis xyz="{axis}"/></joint>
+                   <link name="{name}"><collision><origin xyz="{shape_at}"/><geometry><sphere radius="{radius}"/></geometry></collision></link>"#
+            )
+        };
+        x += &spinner("turntable", "-0.1 0 0", "0 0 1", "0 0 0", 0.1);
+        x += &spinner("fan", "0 0 0.05", "0 1 0", "0 0 0", 0.05);
+        x += &spinner("crank", "0.1 0 0.05", "0 1 0", "0.08 0 0", 0.15);
+        // A spinning link with no shape at all counts as a wheel when its axle is at the ground.
+        x += r#"<joint name="axle_joint" type="continuous"><parent link="base"/><child link="axle"/>
+                <origin xyz="0 0 -0.095"/><axis xyz="1 0 0"/></joint><link name="axle"/>"#;
         x += r#"<joint name="caster_joint" type="fixed"><parent link="base"/><child link="caster"/><origin xyz="0.15 0 -0.05"/></joint>"#;
         x += &link("caster", r#"<sphere radius="0.05"/>"#);
         x += "</robot>";
         let t = KinematicTree::from_urdf_str(&x).unwrap();
         let n = Morphology::analyze(&t).names(&t);
-        assert_eq!(n.wheels, ["left", "right"], "{n:?}");
+        assert_eq!(n.wheels, ["left", "right", "axle"], "{n:?}");
     }
 
     #[test]
