@@ -1052,6 +1052,41 @@ mod tests {
     }
 
     #[test]
+    fn a_foot_touches_the_ground_with_its_lowest_shape_and_a_sphere_among_equals() {
+        // Two legs of a hip and a knee; the left foot is a box with a sphere heel at the same depth
+        // (the heel touches), the right a sphere with a box sole 1 cm deeper (the sole touches).
+        let fixed = |parent: &str, child: &str, xyz: &str| {
+            format!(r#"<joint name="{child}_fix" type="fixed"><parent link="{parent}"/><child link="{child}"/><origin xyz="{xyz}"/></joint>"#)
+        };
+        let shape = |name: &str, at: &str, geometry: &str| {
+            format!(r#"<link name="{name}"><collision><origin xyz="{at}"/><geometry>{geometry}</geometry></collision></link>"#)
+        };
+        let mut x = String::from(r#"<robot name="soles">"#);
+        x += &link("body", r#"<box size="0.4 0.3 0.1"/>"#);
+        for (s, y) in [("l", 0.1), ("r", -0.1)] {
+            x += &joint(&format!("{s}_hip"), "revolute", "body", &format!("{s}_thigh"), &format!("0 {y} -0.05"), "0 1 0");
+            x += &link(&format!("{s}_thigh"), r#"<box size="0.05 0.05 0.3"/>"#);
+            x += &joint(&format!("{s}_knee"), "revolute", &format!("{s}_thigh"), &format!("{s}_shin"), "0 0 -0.3", "0 1 0");
+            x += &link(&format!("{s}_shin"), r#"<box size="0.04 0.04 0.3"/>"#);
+            x += &fixed(&format!("{s}_shin"), &format!("{s}_foot"), "0 0 -0.3");
+        }
+        x += &shape("l_foot", "0.04 0 -0.02", r#"<box size="0.1 0.06 0.04"/>"#);
+        x += &fixed("l_foot", "l_heel", "-0.03 0 -0.01");
+        x += &shape("l_heel", "0 0 0", r#"<sphere radius="0.03"/>"#);
+        x += &shape("r_foot", "0 0 0", r#"<sphere radius="0.03"/>"#);
+        x += &fixed("r_foot", "r_sole", "0.05 0 -0.02");
+        x += &shape("r_sole", "0 0 0", r#"<box size="0.06 0.06 0.04"/>"#);
+        x += "</robot>";
+        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let m = Morphology::analyze(&t);
+        assert_eq!(m.names(&t).feet, ["l_heel", "r_sole"]);
+        // Each foot point is the bottom of its shape, on the ground.
+        let stand = t.forward_kinematics(&t.neutral_pose(nalgebra::Isometry3::identity()));
+        let (l, r) = (m.ee_point(m.feet[0], &stand), m.ee_point(m.feet[1], &stand));
+        assert!((l.z - r.z).abs() < 1e-5 && (l.x - -0.03).abs() < 1e-5 && (r.x - 0.05).abs() < 1e-5, "{l} {r}");
+    }
+
+    #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
         let mut x = String::from(r#"<robot name="arm">"#);
