@@ -1076,6 +1076,12 @@ mod tests {
         x += &shape("r_foot", "0 0 0", r#"<sphere radius="0.03"/>"#);
         x += &fixed("r_foot", "r_sole", "0.05 0 -0.02");
         x += &shape("r_sole", "0 0 0", r#"<box size="0.06 0.06 0.04"/>"#);
+        // Toes after them: a box as deep as the left heel (the sphere keeps it), and one 1 mm above the
+        // right sole (the sole keeps it).
+        x += &fixed("l_heel", "l_toe", "0.15 0 -0.02");
+        x += &shape("l_toe", "0 0 0", r#"<box size="0.02 0.02 0.02"/>"#);
+        x += &fixed("r_sole", "r_toe", "0.06 0 -0.009");
+        x += &shape("r_toe", "0 0 0", r#"<box size="0.02 0.02 0.02"/>"#);
         x += "</robot>";
         let t = KinematicTree::from_urdf_str(&x).unwrap();
         let m = Morphology::analyze(&t);
