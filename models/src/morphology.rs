@@ -954,7 +954,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
 
         let (mut tree, _) = crate::test_data::bundled_character("spot");
-        let joint = tree.dof_names()[2].clone();
+        let joint = tree.dof_names()[2].to_string();
         let p = Profile::from_toml(&format!("[rest_pose]\n{joint} = 0.25"), "spot").unwrap();
         p.apply_rest_pose(&mut tree).unwrap();
         let q = tree.neutral_q();
