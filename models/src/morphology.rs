@@ -780,6 +780,19 @@ mod tests {
         format!(r#"<link name="{name}"><collision><geometry>{geometry}</geometry></collision></link>"#)
     }
 
+    /// A box lying on the ground, a turning joint (0.1 m up) to `l1`, a 5 cm cube, and a joint of `kind`
+    /// (0.3 m ahead, ±1) to `l2`, a sphere of 0.2 m.
+    fn arm_on_a_box(kind: &str) -> KinematicTree {
+        let mut x = String::from(r#"<robot name="arm">"#);
+        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
+        x += &joint("a", "revolute", "base", "l1", "0 0 0.1", "0 0 1");
+        x += &link("l1", r#"<box size="0.05 0.05 0.05"/>"#);
+        x += &joint("b", kind, "l1", "l2", "0.3 0 0", "0 1 0");
+        x += &link("l2", r#"<sphere radius="0.2"/>"#);
+        x += "</robot>";
+        KinematicTree::from_urdf_str(&x).unwrap()
+    }
+
     /// A humanoid: two legs from the pelvis; a waist joint carrying two arms with two-finger hands and a
     /// pan–tilt head. Exercises branching (waist → arms + neck) and gripper detection (fingers).
     fn humanoid() -> KinematicTree {
@@ -967,15 +980,8 @@ mod tests {
 
     #[test]
     fn a_limb_s_reach_counts_offsets_prismatic_travel_and_the_last_shape() {
-        // base → (revolute, 0.1 up) l1, a 5 cm cube → (prismatic ±1 m, 0.3 ahead) l2, a 0.2 m sphere.
-        let mut x = String::from(r#"<robot name="reach">"#);
-        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
-        x += &joint("a", "revolute", "base", "l1", "0 0 0.1", "0 0 1");
-        x += &link("l1", r#"<box size="0.05 0.05 0.05"/>"#);
-        x += &joint("b", "prismatic", "l1", "l2", "0.3 0 0", "1 0 0");
-        x += &link("l2", r#"<sphere radius="0.2"/>"#);
-        x += "</robot>";
-        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        // The arm on a box with a prismatic second joint of ±1 m.
+        let t = arm_on_a_box("prismatic");
         let a = Analysis::new(&t);
         let (l1, l2) = (t.link_index("l1").unwrap(), t.link_index("l2").unwrap());
         // From l1's joint: its own offset is not counted; l2's 0.3 m, its 1 m of travel, the sphere.
@@ -1095,14 +1101,7 @@ mod tests {
     #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
-        let mut x = String::from(r#"<robot name="arm">"#);
-        x += &link("base", r#"<box size="0.4 0.4 0.2"/>"#);
-        x += &joint("a", "revolute", "base", "l1", "0 0 0.1", "0 0 1");
-        x += &link("l1", r#"<box size="0.05 0.05 0.05"/>"#);
-        x += &joint("b", "revolute", "l1", "l2", "0.3 0 0", "0 1 0");
-        x += &link("l2", r#"<sphere radius="0.2"/>"#);
-        x += "</robot>";
-        let t = KinematicTree::from_urdf_str(&x).unwrap();
+        let t = arm_on_a_box("revolute");
         let m = Morphology::analyze(&t);
         assert!(m.feet.is_empty());
         assert_eq!(m.manipulators, [2]);
