@@ -1021,7 +1021,8 @@ mod tests {
 
     #[test]
     fn wheels_spin_on_continuous_joints_or_revolute_ones_of_a_full_turn() {
-        // A box on two ball wheels and a caster; a ball on a joint of ±1 rad is no wheel.
+        // A box on two ball wheels (one on a joint of ±π, a full turn as URDFs write it) and a caster; a
+        // ball on a joint of ±2.8 rad is no wheel.
         let wheel = |name: &str, y: f32, limits: &str| {
             format!(
                 r#"<joint name="{name}_joint" type="{}"><parent link="base"/><child link="{name}"/>
@@ -1033,8 +1034,8 @@ mod tests {
         let mut x = String::from(r#"<robot name="wheels">"#);
         x += &link("base", r#"<box size="0.4 0.3 0.1"/>"#);
         x += &wheel("left", 0.2, "");
-        x += &wheel("right", -0.2, r#"<limit lower="-3.2" upper="3.2" velocity="1" effort="1"/>"#);
-        x += &wheel("flap", 0.0, r#"<limit lower="-1" upper="1" velocity="1" effort="1"/>"#);
+        x += &wheel("right", -0.2, r#"<limit lower="-3.1416" upper="3.1416" velocity="1" effort="1"/>"#);
+        x += &wheel("flap", 0.0, r#"<limit lower="-2.8" upper="2.8" velocity="1" effort="1"/>"#);
         // Spinning but no wheel: about a vertical axis, off the ground, or with its shape off its axis.
         let spinner = |name: &str, xyz: &str, axis: &str, shape_at: &str, radius: f32| {
             format!(
