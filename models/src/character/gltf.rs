@@ -821,18 +821,22 @@ fn read_file(path: &Path) -> Result<Vec<u8>, GltfError> {
 /// buffers (the GLB binary chunk, data URIs, files beside it).
 pub fn open(path: &Path) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
     let bytes = read_file(path)?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    open_bytes(&bytes, path, &|uri| {
-        let file = base.join(uri);
-        let meta = std::fs::metadata(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-        if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
-            return Err(format!(
-                "{}: not a regular file of at most {MAX_FILE_BYTES} bytes",
-                file.display()
-            ));
-        }
-        std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))
-    })
+    open_bytes(&bytes, path, &|uri| read_beside(path, uri))
+}
+
+/// The bytes of the file that the glTF at `gltf` names by `uri` (already percent-decoded, relative to
+/// the glTF's folder): a regular file of at most [`MAX_FILE_BYTES`], or why not, naming the file.
+/// Buffers ([`open`]) and the rig export's images are read through it.
+pub(crate) fn read_beside(gltf: &Path, uri: &str) -> Result<Vec<u8>, String> {
+    let file = gltf.parent().unwrap_or(Path::new(".")).join(uri);
+    let meta = std::fs::metadata(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
+        return Err(format!(
+            "{}: not a regular file of at most {MAX_FILE_BYTES} bytes",
+            file.display()
+        ));
+    }
+    std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))
 }
 
 /// The files a glTF file's buffers name (their URIs percent-decoded, relative to the file), in buffer

@@ -31,7 +31,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::writer::{Builder, glb, quat_values, vec3_values};
 use super::{ExportError, ExportProblem, check_poses, write_atomic};
 use crate::character::Creature;
-use crate::character::gltf::{MAX_FILE_BYTES, decode_base64, open, percent_decode};
+use crate::character::gltf::{decode_base64, open, percent_decode, read_beside};
 use crate::character::rig_pose::{NodeTransform, RigMismatch, RigPose, RigScratch};
 use crate::kinematics::CharacterPose;
 
@@ -347,13 +347,7 @@ fn image_bytes(uri: &str, source: &Path) -> Result<(Vec<u8>, Option<String>), St
         let bytes = decode_base64(data).ok_or("invalid base64")?;
         return Ok((bytes, (!head.is_empty()).then(|| head.to_owned())));
     }
-    let file = source.parent().unwrap_or(Path::new(".")).join(percent_decode(uri));
-    let meta = std::fs::metadata(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    if !meta.is_file() || meta.len() > MAX_FILE_BYTES {
-        return Err(format!("{}: not a regular file of at most {MAX_FILE_BYTES} bytes", file.display()));
-    }
-    let bytes = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    Ok((bytes, None))
+    Ok((read_beside(source, &percent_decode(uri))?, None))
 }
 
 /// The MIME type of image bytes by their signature (the formats glTF and its extensions embed).
