@@ -635,24 +635,92 @@ fn bad_rigs_get_errors_that_name_the_file_and_the_problem() {
 
 /// The hand-made rig with one animation rotating `bone0` whose keyframes sit at 0 and `end` seconds.
 fn animated_rig(dir: &Path, name: &str, end: f32) -> PathBuf {
+    keyed_rig(dir, name, 1, &[0.0, end], &[[0.0, 0.0, 0.0, 1.0]; 2])
+}
+
+/// The hand-made rig with one animation, `Idle`, rotating node `node` through the keyframes `quats`
+/// (`[x, y, z, w]`, as many as `times` unless the test means otherwise) at `times`.
+fn keyed_rig(dir: &Path, name: &str, node: usize, times: &[f32], quats: &[[f32; 4]]) -> PathBuf {
     rig(dir, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
         let mut bin = Vec::new();
-        [0.0f32, end].iter().for_each(|t| bin.extend(t.to_le_bytes()));
-        [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0].iter().for_each(|q| bin.extend(q.to_le_bytes()));
+        times.iter().for_each(|t| bin.extend(t.to_le_bytes()));
+        quats.iter().flatten().for_each(|q| bin.extend(q.to_le_bytes()));
+        let (max, n) = (times.iter().copied().fold(f32::MIN, f32::max), times.len());
         v["buffers"].as_array_mut().unwrap().push(serde_json::json!(
             {"byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&bin))}));
         v["bufferViews"].as_array_mut().unwrap().extend([
-            serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 8}),
-            serde_json::json!({"buffer": 1, "byteOffset": 8, "byteLength": 32}),
+            serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 4 * n}),
+            serde_json::json!({"buffer": 1, "byteOffset": 4 * n, "byteLength": 16 * quats.len()}),
         ]);
         v["accessors"].as_array_mut().unwrap().extend([
-            serde_json::json!({"bufferView": 4, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [end]}),
-            serde_json::json!({"bufferView": 5, "componentType": 5126, "count": 2, "type": "VEC4"}),
+            serde_json::json!({"bufferView": 4, "componentType": 5126, "count": n, "type": "SCALAR", "min": [times[0]], "max": [max]}),
+            serde_json::json!({"bufferView": 5, "componentType": 5126, "count": quats.len(), "type": "VEC4"}),
         ]);
         v["animations"] = serde_json::json!([{"name": "Idle",
-            "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
+            "channels": [{"sampler": 0, "target": {"node": node, "path": "rotation"}}],
             "samplers": [{"input": 4, "output": 5}]}]);
     })
+}
+
+/// Keyframes glTF forbids (a zero or NaN quaternion, times out of order, fewer values than times)
+/// once became NaN poses that the joint limits then pinned to a limit for most of the clip. They are
+/// left out, or read sorted, with a warning naming the animation and the bone; the clip plays as
+/// its good keyframes say.
+#[test]
+fn broken_keyframes_of_a_clip_are_left_out_with_a_warning_not_played_as_nan() {
+    use ace_models::character::clips::clip_poses;
+    let d = tmp("broken-keys");
+    let half = std::f32::consts::FRAC_PI_8;
+    let bent = [half.sin(), 0.0, 0.0, half.cos()]; // 45° about the file's x
+    let times = [0.0, 0.25, 0.5, 1.0];
+    let reference = load(&keyed_rig(&d, "good.gltf", 2, &[0.0, 1.0], &[bent, bent]));
+    let want = clip_poses(&reference, 0, 30.0);
+    assert!(want.iter().all(|p| p.q.iter().any(|v| v.abs() > 0.1)), "the clip bends bone1");
+    let warned = |c: &Creature, what: &str| c.tree.warnings.iter().any(|w| w.contains("animation 0 (`Idle`), the rotation of `bone1`") && w.contains(what));
+    for (file, quats, what) in [
+        ("zero.gltf", [bent, [0.0; 4], [0.0; 4], bent], "2 of 4 keyframes are no rotation"),
+        ("nan.gltf", [bent, [f32::NAN, 0.0, 0.0, 1.0], [0.0, f32::INFINITY, 0.0, 1.0], bent], "2 of 4 keyframes are no rotation"),
+    ] {
+        let c = load(&keyed_rig(&d, file, 2, &times, &quats));
+        assert!(warned(&c, what), "{file}: {:?}", c.tree.warnings);
+        let got = clip_poses(&c, 0, 30.0);
+        assert_eq!(got.len(), want.len());
+        for (f, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert!(g.q.iter().zip(&w.q).all(|(a, b)| (a - b).abs() < 1e-4), "{file} frame {f}: {:?} against {:?}", g.q, w.q);
+        }
+    }
+    // Out of order: read sorted, so the clip bends halfway and straightens again.
+    let c = load(&keyed_rig(&d, "order.gltf", 2, &[1.0, 0.0, 0.5], &[[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0], bent]));
+    assert!(warned(&c, "out of order; they are read sorted"), "{:?}", c.tree.warnings);
+    let got = clip_poses(&c, 0, 30.0);
+    let amount = |f: usize| got[f].q.iter().map(|v| v.abs()).fold(0.0, f32::max);
+    let bend = std::f32::consts::FRAC_PI_4;
+    assert!(amount(0) < 1e-4 && amount(30) < 1e-4 && (amount(15) - bend).abs() < 1e-4, "{} {} {}", amount(0), amount(15), amount(30));
+    // Three times for two values: the channel is left out and the bone holds its place.
+    let c = load(&keyed_rig(&d, "short.gltf", 2, &times[..3], &[bent, bent]));
+    assert!(warned(&c, "3 keyframe times for 2 values; the channel is left out"), "{:?}", c.tree.warnings);
+    assert!(clip_poses(&c, 0, 30.0).iter().all(|p| p.q.iter().all(|v| v.abs() < 1e-4)));
+}
+
+/// A node's rotation is read as one rotation everywhere: normalised when it is not of unit length
+/// (the bind pose once took such a quaternion as a scale and shear, the clips as a rotation), and
+/// refused, naming the node, when it is zero.
+#[test]
+fn node_rotations_are_normalised_and_a_zero_one_is_refused() {
+    let d = tmp("node-rotation");
+    let with = |name: &str, r: [f32; 4]| rig(&d, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| v["nodes"][0]["rotation"] = serde_json::json!(r));
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let unit = load(&with("unit.gltf", [0.0, 0.0, h, h])).rig;
+    let long = load(&with("long.gltf", [0.0, 0.0, 2.0 * h, 2.0 * h])).rig;
+    assert_eq!(unit.vertices.len(), long.vertices.len());
+    for ((a, _), (b, _)) in unit.vertices.iter().zip(&long.vertices) {
+        assert!((a - b).norm() < 1e-5, "{a} against {b}");
+    }
+    for (a, b) in unit.bones.iter().zip(&long.bones) {
+        assert!((a.rest.translation.vector - b.rest.translation.vector).norm() < 1e-5 && a.rest.rotation.angle_to(&b.rest.rotation) < 1e-5, "{}", a.name);
+    }
+    let (msg, p) = problem(&with("zero.gltf", [0.0; 4]));
+    assert!(matches!(p, GltfProblem::BadTransform(_)) && msg.contains("node 0 (`mesh`) has the rotation [0.0, 0.0, 0.0, 0.0], which is no rotation"), "{msg}");
 }
 
 /// An animation's keyframe time sizes the sampling of the clip, so one beyond two hours is refused when

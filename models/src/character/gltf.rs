@@ -29,6 +29,10 @@
 //!   another pose (a frame of a clip); then a warning says how many joints were moved to their bind
 //!   pose. Joints whose nodes already stand there keep their node transforms exactly. A clip's
 //!   channels still start from the nodes' own transforms ([`Bone::file_local`]), as a player's do.
+//! - **Invalid values.** A node rotation that is not of unit length is normalised (a zero one is an
+//!   error). A clip's keyframes without a rotation (zero or not finite) or a finite translation are
+//!   left out, keyframe times out of order are read sorted, and a channel with fewer values than
+//!   times is left out, each with a warning naming the animation and the bone.
 //! - **Geometry.** Each body bone gets a capsule for the core of the vertices it deforms most (see
 //!   [`fit_capsule`]); a foot gets the sphere of its contact instead. UFR, the cleanup and the
 //!   controllers use them as they use URDF geometry.
@@ -325,6 +329,14 @@ impl Forward {
     }
 }
 
+/// Whether the quaternion `[x, y, z, w]` can stand for a rotation once normalised: finite and not
+/// (nearly) zero. glTF asks for unit quaternions; files quantised or written with few digits are
+/// normalised.
+fn usable_rotation(q: [f32; 4]) -> bool {
+    let norm = q.iter().map(|v| v * v).sum::<f32>().sqrt();
+    norm.is_finite() && norm > 1e-6
+}
+
 fn name_of(node: &::gltf::Node) -> String {
     node.name()
         .map(str::to_owned)
@@ -396,10 +408,24 @@ pub fn read_document(
         cycle.push(names[start].clone());
         return Err(fail(GltfProblem::Cycle(cycle)));
     }
-    let locals: Vec<Matrix4<f32>> = doc
-        .nodes()
-        .map(|nd| Matrix4::from(nd.transform().matrix()))
-        .collect();
+    // A node's local matrix as [`NodeTransform::of`] reads it (the `gltf` crate's `matrix()` would
+    // take a rotation that is not of unit length as a scale and shear).
+    let mut locals: Vec<Matrix4<f32>> = Vec::with_capacity(n);
+    for nd in doc.nodes() {
+        locals.push(match nd.transform() {
+            ::gltf::scene::Transform::Matrix { matrix } => Matrix4::from(matrix),
+            ::gltf::scene::Transform::Decomposed { rotation: r, .. } => {
+                if !usable_rotation(r) {
+                    return Err(fail(GltfProblem::BadTransform(format!(
+                        "node {} (`{}`) has the rotation {r:?}, which is no rotation (glTF asks for a unit quaternion [x, y, z, w])",
+                        nd.index(),
+                        names[nd.index()]
+                    ))));
+                }
+                NodeTransform::of(&nd).matrix()
+            }
+        });
+    }
     let mut world = vec![Matrix4::identity(); n];
     for &i in &order {
         world[i] = match parent[i] {
@@ -748,41 +774,65 @@ pub fn read_document(
             };
             let interpolation = ch.sampler().interpolation();
             let cubic = interpolation == ::gltf::animation::Interpolation::CubicSpline;
-            let times: Vec<f32> = r.read_inputs().map(|t| t.collect()).unwrap_or_default();
-            let mut values = Vec::new();
-            let kind = match r.read_outputs() {
-                Some(ReadOutputs::Rotations(rot)) => {
-                    for (i, q) in rot.into_f32().enumerate() {
-                        if cubic && i % 3 != 1 {
-                            continue;
-                        }
-                        let q = nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]);
-                        if q.norm() > 1e-6 && q.coords.iter().all(|v| v.is_finite()) {
-                            clip_rotations[b].push(UnitQuaternion::from_quaternion(q));
-                        }
-                        values.push([q.coords.x, q.coords.y, q.coords.z, q.coords.w]);
-                    }
-                    TrackKind::Rotation
-                }
+            let mut times: Vec<f32> = r.read_inputs().map(|t| t.collect()).unwrap_or_default();
+            // Keyframe values (a cubic spline's tangents skipped).
+            let (kind, mut values): (TrackKind, Vec<[f32; 4]>) = match r.read_outputs() {
+                Some(ReadOutputs::Rotations(rot)) => (TrackKind::Rotation, rot.into_f32().collect()),
                 Some(ReadOutputs::Translations(tr)) => {
-                    for (i, v) in tr.enumerate() {
-                        if !(cubic && i % 3 != 1) {
-                            values.push([v[0], v[1], v[2], 0.0]);
-                        }
-                    }
-                    TrackKind::Translation
+                    (TrackKind::Translation, tr.map(|[x, y, z]| [x, y, z, 0.0]).collect())
                 }
                 _ => continue,
             };
-            if times.len() == values.len() && !times.is_empty() {
-                tracks.push(Track {
-                    bone: b,
-                    kind,
-                    step: interpolation == ::gltf::animation::Interpolation::Step,
-                    times,
-                    values,
-                });
+            if cubic {
+                values = values.into_iter().skip(1).step_by(3).collect();
             }
+            let what = if kind == TrackKind::Rotation { "rotation" } else { "translation" };
+            let at = format!("animation {} (`{name}`), the {what} of `{}`", a.index(), names[ch.target().node().index()]);
+            if times.len() != values.len() {
+                warnings.push(format!(
+                    "{at}: {} keyframe times for {} values; the channel is left out",
+                    times.len(),
+                    values.len()
+                ));
+                continue;
+            }
+            // glTF asks for unit quaternions and finite values: keyframes without them are left out
+            // (the neighbours' interpolation spans them), never turned into NaN poses.
+            let usable = |v: &[f32; 4]| match kind {
+                TrackKind::Rotation => usable_rotation(*v),
+                TrackKind::Translation => v.iter().all(|x| x.is_finite()),
+            };
+            let bad = values.iter().filter(|v| !usable(v)).count();
+            if bad > 0 {
+                warnings.push(format!(
+                    "{at}: {bad} of {} keyframes are {}; they are left out",
+                    values.len(),
+                    if kind == TrackKind::Rotation { "no rotation (zero or not finite)" } else { "not finite" }
+                ));
+                (times, values) = times.into_iter().zip(values).filter(|(_, v)| usable(v)).unzip();
+            }
+            if times.is_empty() {
+                continue;
+            }
+            if times.windows(2).any(|w| w[1] < w[0]) {
+                // Sampling searches the times, so they must be in order (glTF asks for it).
+                warnings.push(format!("{at}: its keyframe times are out of order; they are read sorted"));
+                let mut keys: Vec<(f32, [f32; 4])> = times.into_iter().zip(values).collect();
+                keys.sort_by(|x, y| x.0.total_cmp(&y.0));
+                (times, values) = keys.into_iter().unzip();
+            }
+            if kind == TrackKind::Rotation {
+                clip_rotations[b].extend(
+                    values.iter().map(|q| UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[3], q[0], q[1], q[2]))),
+                );
+            }
+            tracks.push(Track {
+                bone: b,
+                kind,
+                step: interpolation == ::gltf::animation::Interpolation::Step,
+                times,
+                values,
+            });
         }
         animations.push(AnimationInfo {
             name,
