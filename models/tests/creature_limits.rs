@@ -22,6 +22,11 @@ fn clip_limits_widen_the_keyed_range_by_its_margin_and_hold_the_rest_pose() {
     let (lo, hi) = pitch.unwrap();
     assert!(lo == 0.0 && (hi - (0.3 + m)).abs() < 1e-6, "{pitch:?}");
     assert_eq!(roll, None, "an axis the clips barely turn is not a DoF");
+    // An axis held still away from rest reaches where it is held (the default range once took over).
+    let [yaw, pitch, _] = clip_limits(&[[0.5, -0.6 * MIN_CLIP_RANGE, 0.0]; 3]);
+    let (lo, hi) = yaw.unwrap();
+    assert!(lo == 0.0 && (hi - (0.5 + deg(3.0))).abs() < 1e-6, "{yaw:?}");
+    assert_eq!(pitch, None, "held still near rest");
     // Never beyond a half turn.
     let [yaw, ..] = clip_limits(&[[-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]]);
     assert_eq!(yaw, Some((-std::f32::consts::PI, std::f32::consts::PI)));

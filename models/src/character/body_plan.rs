@@ -57,7 +57,8 @@ use crate::morphology::Morphology;
 /// Largest radius of a foot's contact sphere, as a fraction of the creature's height at rest.
 pub const FOOT_RADIUS: f32 = 0.01;
 
-/// Smallest range (rad) over a file's clips for which an axis becomes a DoF (5°).
+/// Smallest span (rad) of an axis' keyframes over a file's clips, the rest pose included, for which
+/// the clips set its range ([`clip_limits`]; 5°).
 pub const MIN_CLIP_RANGE: f32 = 0.0873;
 
 /// What a moving bone is part of.
@@ -102,18 +103,18 @@ pub fn default_limits(role: Role) -> [Option<(f32, f32)>; 3] {
     }
 }
 
-/// Limits from keyframe angles: axes whose range exceeds [`MIN_CLIP_RANGE`], widened by 15 % + 3°
-/// on each side and always containing the rest pose (0).
+/// Limits from keyframe angles: axes whose keyframes span more than [`MIN_CLIP_RANGE`] with the rest
+/// pose (0) among them, their range widened by 15 % + 3° on each side and always containing the rest
+/// pose.
 pub fn clip_limits(angles: &[[f32; 3]]) -> [Option<(f32, f32)>; 3] {
     let mut out = [None; 3];
     for (k, o) in out.iter_mut().enumerate() {
         let lo = angles.iter().map(|a| a[k]).fold(f32::INFINITY, f32::min);
-        let hi = angles
-            .iter()
-            .map(|a| a[k])
-            .fold(f32::NEG_INFINITY, f32::max);
+        let hi = angles.iter().map(|a| a[k]).fold(f32::NEG_INFINITY, f32::max);
         let range = hi - lo;
-        if range.is_finite() && range > MIN_CLIP_RANGE {
+        // Measured from the rest pose too: a bone the clips hold away from rest, however still,
+        // must reach where they hold it.
+        if range.is_finite() && hi.max(0.0) - lo.min(0.0) > MIN_CLIP_RANGE {
             let m = 0.15 * range + 3f32.to_radians();
             let pi = std::f32::consts::PI;
             *o = Some(((lo - m).min(0.0).max(-pi), (hi + m).max(0.0).min(pi)));
