@@ -134,6 +134,8 @@ pub enum GltfProblem {
          at most {MAX_ANIMATION_SECONDS} s (2 hours)"
     )]
     AnimationTooLong { index: usize, name: String, time: f32 },
+    #[error("the file requires the glTF extension `{name}`: {what}; export the model again without it")]
+    RequiredExtension { name: String, what: &'static str },
 }
 
 impl GltfProblem {
@@ -892,10 +894,8 @@ pub(crate) fn read_beside(gltf: &Path, uri: &str) -> Result<Vec<u8>, String> {
 /// The files a glTF file's buffers name (their URIs percent-decoded, relative to the file), in buffer
 /// order: what [`open_bytes`] will ask for. Data URIs and the GLB chunk are not files.
 pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<String>, GltfError> {
-    let gltf = ::gltf::Gltf::from_slice(bytes)
-        .map_err(|e| GltfProblem::Parse(e.to_string()).in_file(path))?;
-    Ok(gltf
-        .document
+    let (document, _) = parse(bytes, path)?;
+    Ok(document
         .buffers()
         .filter_map(|b| match b.source() {
             ::gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => Some(percent_decode(uri)),
@@ -909,15 +909,13 @@ pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<String>, GltfEr
 /// beside it). Empty for a self-contained file. Commands register them as inputs, never to be written
 /// over.
 pub fn external_files(path: &Path) -> Result<Vec<PathBuf>, GltfError> {
-    let fail = |p: GltfProblem| p.in_file(path);
-    let bytes = read_file(path)?;
-    let gltf = ::gltf::Gltf::from_slice(&bytes).map_err(|e| fail(GltfProblem::Parse(e.to_string())))?;
+    let (document, _) = parse(&read_file(path)?, path)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf.document.buffers().filter_map(|b| match b.source() {
+    let buffers = document.buffers().filter_map(|b| match b.source() {
         ::gltf::buffer::Source::Uri(uri) => Some(uri),
         ::gltf::buffer::Source::Bin => None,
     });
-    let images = gltf.document.images().filter_map(|i| match i.source() {
+    let images = document.images().filter_map(|i| match i.source() {
         ::gltf::image::Source::Uri { uri, .. } => Some(uri),
         ::gltf::image::Source::View { .. } => None,
     });
@@ -936,11 +934,20 @@ pub fn open_bytes(
     path: &Path,
     file: &dyn Fn(&str) -> Result<Vec<u8>, String>,
 ) -> Result<(::gltf::Document, Vec<Vec<u8>>), GltfError> {
+    let (document, blob) = parse(bytes, path)?;
+    let buffers = read_buffers(&document, path, blob, file)?;
+    Ok((document, buffers))
+}
+
+/// The document of a glTF file's bytes (JSON or GLB), checked, and the GLB's binary chunk: every
+/// reading of a file ([`open_bytes`], [`external_buffers`], [`external_files`]) goes through it.
+fn parse(bytes: &[u8], path: &Path) -> Result<(::gltf::Document, Option<Vec<u8>>), GltfError> {
     let fail = |p: GltfProblem| p.in_file(path);
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(fail(GltfProblem::TooLarge(bytes.len() as u64)));
     }
-    // The `gltf` crate subtracts the header's 12 bytes from the length a GLB declares before it checks it.
+    // The `gltf` crate subtracts the header's 12 bytes from the length a GLB declares before it checks
+    // it (a panic in a debug build).
     if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
         let declared = u32::from_le_bytes(declared.try_into().expect("four bytes"));
         if declared < 12 {
@@ -951,11 +958,38 @@ pub fn open_bytes(
     }
     let parse = |e: ::gltf::Error| fail(GltfProblem::Parse(e.to_string()));
     let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
-    check_what_validation_misses(unchecked.document.as_json()).map_err(fail)?;
-    let document = ::gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    let json = unchecked.document.into_json();
+    check_required_extensions(&json.extensions_required).map_err(fail)?;
+    check_what_validation_misses(&json).map_err(fail)?;
+    // The crate's validation refuses every required extension it was not built for (which depends
+    // on the features other crates enable); those left are ones the import reads through. The
+    // document keeps them, so that a model exported from it still requires them.
+    let mut checked = json.clone();
+    checked.extensions_required.clear();
+    ::gltf::Document::from_json(checked).map_err(parse)?;
+    let document = ::gltf::Document::from_json_without_validation(json);
     check_accessor_types(&document).map_err(fail)?;
-    let buffers = read_buffers(&document, path, unchecked.blob, file)?;
-    Ok((document, buffers))
+    Ok((document, unchecked.blob))
+}
+
+/// Refuses a file that requires an extension the import cannot read through: one that may change
+/// the skeleton, the skin, the clips or how their data is stored (compressed or quantized
+/// geometry). Extensions of materials, textures and lights are read through: the import reads none
+/// of those.
+fn check_required_extensions(required: &[String]) -> Result<(), GltfProblem> {
+    const LOOKS_ONLY: [&str; 4] = ["KHR_materials_", "KHR_texture_", "EXT_texture_", "MSFT_texture_"];
+    let Some(name) = required
+        .iter()
+        .find(|e| !(LOOKS_ONLY.iter().any(|p| e.starts_with(p)) || matches!(e.as_str(), "KHR_lights_punctual" | "KHR_xmp_json_ld")))
+    else {
+        return Ok(());
+    };
+    let what = match name.as_str() {
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => "compressed geometry, which the import does not decode",
+        "KHR_mesh_quantization" => "quantized vertex data, which the import does not read",
+        _ => "an extension the import does not know; it may change the skeleton, the skin or the clips",
+    };
+    Err(GltfProblem::RequiredExtension { name: name.clone(), what })
 }
 
 /// The accessors a creature is read from have the types the glTF specification gives them (a vertex
@@ -1309,21 +1343,70 @@ mod tests {
         );
     }
 
+    /// Every reading of a file's bytes: [`open_bytes`], [`external_buffers`] (which the plugin's loader
+    /// calls first) and [`external_files`] (through a file written in the test's folder); the errors,
+    /// each naming the file, must agree.
+    fn every_reading(bytes: &[u8], name: &str) -> String {
+        let e = open_bytes(bytes, Path::new(name), &|_| Err("no files".into())).unwrap_err().to_string();
+        assert_eq!(external_buffers(bytes, Path::new(name)).unwrap_err().to_string(), e);
+        let dir = std::env::temp_dir().join(format!("ace-gltf-reading-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join(name);
+        std::fs::write(&file, bytes).unwrap();
+        let from_file = external_files(&file).unwrap_err().to_string();
+        assert_eq!(from_file.replacen(&file.display().to_string(), name, 1), e);
+        e
+    }
+
     #[test]
     fn malformed_files_the_gltf_crate_would_panic_on_are_refused() {
         // Found by fuzzing: the `gltf` crate's validation indexed the accessor and panicked.
         let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":3}}]}]}"#;
-        let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
+        let e = every_reading(text, "bad.gltf");
         assert!(
             e.starts_with("bad.gltf: ") && e.contains("meshes[0].primitives[0].attributes.POSITION names accessor 3, but the file has 0"),
             "{e}"
         );
+        // The plugin's loader once handed such a GLB to the crate as it was (a panic in a debug build).
         let glb = [b"glTF".as_slice(), &2u32.to_le_bytes(), &4u32.to_le_bytes()].concat();
-        let e = open_bytes(&glb, Path::new("bad.glb"), &|_| Err("no files".into())).unwrap_err().to_string();
+        let e = every_reading(&glb, "bad.glb");
         assert!(e.contains("the GLB header declares a length of 4 bytes, less than its own 12"), "{e}");
         let text = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"WOBBLE":0}}]}]}"#;
-        let e = open_bytes(text, Path::new("bad.gltf"), &|_| Err("no files".into())).unwrap_err().to_string();
+        let e = every_reading(text, "bad.gltf");
         assert!(e.contains("meshes[0].primitives[0].attributes names an attribute glTF does not know"), "{e}");
+    }
+
+    /// A file that requires compressed or quantized geometry, or an extension nobody knows, is refused
+    /// naming it (the crate's "malformed glTF: … Unsupported extension" called a valid file broken);
+    /// one that requires extensions of materials, textures or lights reads as without them, and keeps
+    /// requiring them.
+    #[test]
+    fn required_extensions_are_refused_by_name_or_read_through() {
+        let with = |required: &[&str]| {
+            let text = format!(r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":{0:?},"extensionsRequired":{0:?},"buffers":[{{"byteLength":4,"uri":"b.bin"}}]}}"#, required);
+            text.into_bytes()
+        };
+        for (ext, what) in [
+            ("KHR_draco_mesh_compression", "compressed geometry, which the import does not decode"),
+            ("EXT_meshopt_compression", "compressed geometry, which the import does not decode"),
+            ("KHR_mesh_quantization", "quantized vertex data, which the import does not read"),
+            ("EXT_mesh_gpu_instancing", "an extension the import does not know"),
+        ] {
+            let e = every_reading(&with(&["KHR_texture_basisu", ext]), "packed.gltf");
+            assert!(
+                e.starts_with(&format!("packed.gltf: the file requires the glTF extension `{ext}`: {what}"))
+                    && e.ends_with("; export the model again without it"),
+                "{e}"
+            );
+        }
+        let looks = ["KHR_texture_basisu", "KHR_materials_variants", "EXT_texture_webp", "MSFT_texture_dds", "KHR_lights_punctual", "KHR_xmp_json_ld"];
+        assert_eq!(external_buffers(&with(&looks), Path::new("looks.gltf")).unwrap(), ["b.bin"]);
+        let (doc, buffers) = open_bytes(&with(&looks), Path::new("looks.gltf"), &|uri| {
+            assert_eq!(uri, "b.bin");
+            Ok(vec![1, 2, 3, 4])
+        })
+        .unwrap();
+        assert_eq!((buffers, &doc.as_json().extensions_required[..]), (vec![vec![1, 2, 3, 4]], &looks.map(String::from)[..]));
     }
 
     /// The capsule's axis in the frame of the points.
