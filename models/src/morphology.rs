@@ -527,11 +527,16 @@ impl<'a> Analysis<'a> {
         out
     }
 
+    /// The lowest point of `links`' geometry; the lowest origin when none of them has any. A link
+    /// without geometry beside ones with some is a frame, not a point of the body (ROS's
+    /// `base_footprint` at the ground under a robot's body once made every robot with one rest on
+    /// its body, without feet).
     fn lowest(&self, links: &[usize]) -> f32 {
-        links
-            .iter()
-            .map(|&l| self.boxes[l].map_or(self.poses[l].translation.vector.z, |b| b.min.z))
-            .fold(f32::INFINITY, f32::min)
+        let shapes = links.iter().filter_map(|&l| self.boxes[l]).map(|b| b.min.z).fold(f32::INFINITY, f32::min);
+        if shapes.is_finite() {
+            return shapes;
+        }
+        links.iter().map(|&l| self.poses[l].translation.vector.z).fold(f32::INFINITY, f32::min)
     }
 
     /// Path length from the joint of `from` to the farthest point below it, counting prismatic

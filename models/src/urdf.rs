@@ -11,6 +11,8 @@
 //!   [`crate::kinematics::CharacterPose::root`]). Anywhere else freezing them would change the robot,
 //!   so they are errors, as are `spherical` and any other type. Inverted limits (lower > upper) are
 //!   errors.
+//! - A root link without geometry holding its only child by a fixed or free joint (ROS's
+//!   `base_footprint`, a `world` link) is dropped with a warning: the character's root is the body.
 //! - `<mimic>` joints get no DoF of their own: their position is `multiplier · q[target] + offset`.
 //!   A mimic whose target is fixed or itself a mimic joint is an error.
 //! - The axis of fixed joints is ignored (files often write `0 0 0` there); a movable joint with a zero
@@ -91,6 +93,11 @@ pub enum UrdfProblem {
     FreeJointInBody { joint: String, kind: String, parent: String, child: String },
     #[error("joint `{joint}` mimics `{target}`, which is not a movable joint with its own DoF")]
     BadMimic { joint: String, target: String },
+    #[error(
+        "line {line}: `{what}` is xacro, not URDF: expand the file into a URDF first (`xacro FILE > robot.urdf`, \
+         which ROS installs)"
+    )]
+    Xacro { line: usize, what: String },
 }
 
 impl UrdfProblem {
@@ -109,6 +116,9 @@ pub const STRING_SOURCE: &str = "<string>";
 /// Parses URDF text and converts it. `file` only names the source in errors and `base_dir` (when
 /// given) is where relative and `package://` mesh paths are looked for to read mesh bounds.
 pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<KinematicTree, UrdfError> {
+    if let Some((line, what)) = xacro_use(xml) {
+        return Err(UrdfProblem::Xacro { line, what }.in_file(file));
+    }
     if let Some((joint, kind)) = scan_joint_types(xml)
         .into_iter()
         .find(|(_, k)| !KNOWN_TYPES.contains(&k.as_str()))
@@ -149,13 +159,7 @@ const KNOWN_TYPES: [&str; 7] = [
 /// `(name, type)` of every `<joint … type="…">` tag outside comments (transmission `<joint>` tags have
 /// no type and are skipped). urdf-rs would otherwise only say "unknown variant".
 fn scan_joint_types(xml: &str) -> Vec<(String, String)> {
-    let mut text = String::with_capacity(xml.len());
-    let mut rest = xml;
-    while let Some(start) = rest.find("<!--") {
-        text.push_str(&rest[..start]);
-        rest = rest[start..].find("-->").map_or("", |end| &rest[start + end + 3..]);
-    }
-    text.push_str(rest);
+    let text = without_comments(xml);
     let mut out = Vec::new();
     let mut rest = text.as_str();
     while let Some(start) = rest.find("<joint") {
@@ -169,6 +173,31 @@ fn scan_joint_types(xml: &str) -> Vec<(String, String)> {
         }
     }
     out
+}
+
+/// `xml` with its comments blanked out, line breaks kept (so that lines keep their numbers).
+fn without_comments(xml: &str) -> String {
+    let mut text = String::with_capacity(xml.len());
+    let mut rest = xml;
+    while let Some(start) = rest.find("<!--") {
+        text.push_str(&rest[..start]);
+        let end = rest[start..].find("-->").map_or(rest.len(), |end| start + end + 3);
+        text.extend(rest[start..end].chars().filter(|&c| c == '\n'));
+        rest = &rest[end..];
+    }
+    text.push_str(rest);
+    text
+}
+
+/// The line and text of the first xacro construct in `xml` outside comments: a `<xacro:…>` element, a
+/// `${…}` expression or a `$(…)` substitution. urdf-rs skips unknown elements, so an unexpanded xacro
+/// file read as a URDF became a robot of one link.
+fn xacro_use(xml: &str) -> Option<(usize, String)> {
+    let text = without_comments(xml);
+    let at = ["<xacro:", "${", "$("].iter().filter_map(|k| text.find(k)).min()?;
+    let line = text[..at].matches('\n').count() + 1;
+    let what: String = text[at..].chars().take_while(|&c| c != '\n').take(40).collect();
+    Some((line, what.trim_end().to_string()))
 }
 
 /// Where the tags of `xml` stop balancing, when they do: an end tag that closes nothing or another
@@ -573,18 +602,57 @@ pub fn robot_to_tree(robot: &urdf_rs::Robot) -> Result<KinematicTree, UrdfProble
         }
         return Err(UrdfProblem::NoRoot);
     }
+    // Frames above the body: root links without geometry, each holding only the next by a fixed
+    // joint (or a free one, frozen), down to a link with geometry, as ROS's `base_footprint` and
+    // `world` links do. The character's root is that body: the controllers move the root and the
+    // state holds its pose, so a frame at the ground made the body pitch about the ground and scaled
+    // its crouch by a standing height of zero. (Without geometry below, the links' origins are all the
+    // robot has: none is dropped.)
+    let shapeless = |l: usize| robot.links[l].visual.is_empty() && robot.links[l].collision.is_empty();
+    let mut frames = 0;
+    while let [l, c, ..] = order[frames..] {
+        let joint = &robot.joints[parent_joint[c].expect("a child")];
+        use urdf_rs::JointType as T;
+        if !(shapeless(l) && children[l].len() == 1 && matches!(joint.joint_type, T::Fixed | T::Floating | T::Planar)) {
+            break;
+        }
+        // Checked as if kept: a value the file gets wrong is an error wherever it is.
+        Link::try_from(&robot.links[l])?;
+        convert_joint(joint)?;
+        frames += 1;
+    }
+    if order.get(frames).is_some_and(|&body| shapeless(body)) {
+        frames = 0;
+    }
+    let root = &robot.links[order[frames]].name;
+    let warnings: Vec<String> = order[..=frames]
+        .windows(2)
+        .map(|w| {
+            let (l, c) = (w[0], w[1]);
+            let joint = &robot.joints[parent_joint[c].expect("a child")];
+            format!(
+                "root link `{}` has no geometry and holds `{}` by its {} joint `{}`: it is a frame, and the \
+                 character's root is `{root}`",
+                robot.links[l].name,
+                robot.links[c].name,
+                format!("{:?}", joint.joint_type).to_lowercase(),
+                joint.name,
+            )
+        })
+        .collect();
+    let order = &order[frames..];
 
     let mut new_ix = vec![0usize; robot.links.len()];
     for (n, &l) in order.iter().enumerate() {
         new_ix[l] = n;
     }
     let mut links = Vec::with_capacity(order.len());
-    let mut warnings = Vec::new();
+    let mut warnings = warnings;
     let mut dof_links = Vec::new();
     let mut mimics: Vec<(usize, &urdf_rs::Mimic)> = Vec::new();
-    for &l in &order {
+    for &l in order {
         let mut link = Link::try_from(&robot.links[l])?;
-        if let Some(ji) = parent_joint[l] {
+        if let Some(ji) = parent_joint[l].filter(|_| l != order[0]) {
             let j = &robot.joints[ji];
             if matches!(j.joint_type, urdf_rs::JointType::Floating | urdf_rs::JointType::Planar) {
                 // Only an anchor from a root link without geometry (a `world` link) may be frozen: below
@@ -927,8 +995,14 @@ mod tests {
             )
         };
         for kind in ["floating", "planar"] {
+            // A `world` link holding only the body is a frame above the root.
             let tree = parse_urdf(&robot("", kind), STRING_SOURCE, None).unwrap();
-            assert_eq!((tree.links.len(), tree.dof()), (2, 0), "a `world` anchor is frozen");
+            assert_eq!((tree.links.len(), tree.dof(), tree.links[0].name.as_str()), (1, 0, "body"));
+            // Holding a camera's frame too, it stays the root and its anchor is frozen.
+            let camera = r#"<link name="camera"/><joint name="c" type="fixed"><parent link="root"/><child link="camera"/></joint></robot>"#;
+            let tree = parse_urdf(&robot("", kind).replace("</robot>", camera), STRING_SOURCE, None).unwrap();
+            assert_eq!((tree.links.len(), tree.dof()), (3, 0), "a `world` anchor is frozen");
+            assert!(tree.warnings.iter().any(|w| w.contains("joint `free` is")), "{:?}", tree.warnings);
             // A root link with a shape is part of the robot: freezing its free joint would weld two bodies.
             for root in [format!("<visual>{shape}</visual>"), format!("<collision>{shape}</collision>")] {
                 let want = UrdfProblem::FreeJointInBody {

@@ -152,8 +152,9 @@ fn mimic_and_continuous_joints() {
 
 #[test]
 fn floating_joint_is_fixed_with_a_warning() {
-    let xml = r#"<robot name="f"><link name="world"/><link name="base"/>
-      <joint name="float" type="floating"><origin xyz="0 0 1"/><parent link="world"/><child link="base"/></joint></robot>"#;
+    let xml = r#"<robot name="f"><link name="world"/><link name="base"/><link name="imu"/>
+      <joint name="float" type="floating"><origin xyz="0 0 1"/><parent link="world"/><child link="base"/></joint>
+      <joint name="imu" type="fixed"><parent link="world"/><child link="imu"/></joint></robot>"#;
     let t = KinematicTree::from_urdf_str(xml).unwrap();
     assert_eq!(t.dof(), 0);
     assert_eq!(t.links[1].joint.as_ref().unwrap().kind, JointKind::Fixed);
@@ -468,6 +469,105 @@ fn real_stretch() {
     let names = m.names(&t);
     assert_eq!(names.manipulators, ["link_grasp_center"]);
     assert_eq!(names.head.as_deref(), Some("link_head_tilt"));
+}
+
+/// `urdf` with a root link without geometry added above its root, holding it by a joint of type
+/// `kind` as ROS's `base_footprint` (at the ground under the body) or a `world` link (at the body) do,
+/// and with `sensor` also a frame without geometry on it (a laser's); written in a fresh folder
+/// beside links to everything in the folder `top`, so that its meshes are found.
+fn with_frame_root(urdf: &Path, top: &Path, frame: &str, kind: &str, sensor: bool) -> PathBuf {
+    let (t, _) = load(urdf);
+    let xml = std::fs::read_to_string(urdf).unwrap();
+    // The file's root: the first link that is no joint's child (the tree's may be below it).
+    let name_after = |text: &str, key: &str| text.split(key).skip(1).map(|r| r.split('"').next().unwrap().to_string()).collect::<Vec<_>>();
+    let children = name_after(&xml, "<child link=\"");
+    let root = name_after(&xml, "<link name=\"").into_iter().find(|l| !children.contains(l)).unwrap();
+    let z = if frame == "base_footprint" { t.standing_root_height() } else { 0.0 };
+    let open = xml.find("<robot").unwrap();
+    let at = open + xml[open..].find('>').unwrap() + 1;
+    let mut added = format!(
+        r#"<link name="{frame}"/><joint name="{frame}_joint" type="{kind}"><parent link="{frame}"/><child link="{root}"/><origin xyz="0 0 {z}"/></joint>"#
+    );
+    if sensor {
+        added += &format!(r#"<link name="test_laser"/><joint name="test_laser_joint" type="fixed"><parent link="{frame}"/><child link="test_laser"/><origin xyz="0.2 0 {z}"/></joint>"#);
+    }
+    let dir = std::env::temp_dir().join(format!("ace-frame-root-{}-{frame}-{}", std::process::id(), urdf.file_stem().unwrap().to_string_lossy()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for e in std::fs::read_dir(top).unwrap() {
+        let e = e.unwrap();
+        let link = dir.join(e.file_name());
+        if !link.exists() && e.path().extension().is_none_or(|x| x != "urdf") {
+            std::os::unix::fs::symlink(e.path(), link).unwrap();
+        }
+    }
+    let out = dir.join(urdf.file_name().unwrap());
+    std::fs::write(&out, format!("{}{added}{}", &xml[..at], &xml[at..])).unwrap();
+    out
+}
+
+/// ROS's robots hang from a link without geometry: `base_footprint` at the ground under the body, or
+/// a `world` link. Every robot once rested on its body at such a frame, its feet taken for
+/// manipulators, and its standing height was the frame's (zero), by which the controllers scale a
+/// crouch. The frame is no longer the root: the tree, standing height and body plan are the robot's
+/// own, with a warning. Where the frame holds other frames too (a laser's) it stays the root, and
+/// the body plan still ignores it.
+#[test]
+fn a_root_frame_without_geometry_leaves_the_body_plan_as_it_is() {
+    let mut urdfs: Vec<(PathBuf, PathBuf)> = ["spot", "crab", "stretch"].iter().map(|c| (characters().join(format!("{c}.urdf")), characters())).collect();
+    if let Some(dir) = robots() {
+        for (top, file) in [
+            ("spot_arm", "spot_with_arm.urdf"),
+            ("phantomx_hexapod", "phantomx_description/urdf/phantomx.urdf"),
+            ("stretch_re1", "stretch_description_RE1V0_tool_stretch_gripper.urdf"),
+        ] {
+            urdfs.push((dir.join(top).join(file), dir.join(top)));
+        }
+    }
+    for (urdf, top) in &urdfs {
+        let (t, m) = load(urdf);
+        let want = m.names(&t);
+        for (frame, kind, sensor) in [("base_footprint", "fixed", false), ("world", "floating", false), ("base_footprint", "fixed", true)] {
+            let (tf, mf) = load(&with_frame_root(urdf, top, frame, kind, sensor));
+            if sensor {
+                assert_eq!(tf.links[0].name, frame);
+            } else {
+                assert_eq!((tf.links.len(), &tf.links[0].name), (t.links.len(), &t.links[0].name));
+                assert!((tf.standing_root_height() - t.standing_root_height()).abs() < 1e-6);
+                let held = tf.warnings.iter().find_map(|w| w.strip_prefix(&format!("root link `{frame}` has no geometry and holds `")));
+                let tail = format!("by its {kind} joint `{frame}_joint`: it is a frame, and the character's root is `{}`", t.links[0].name);
+                assert!(held.is_some_and(|w| w.ends_with(&tail)), "{:?}", tf.warnings);
+            }
+            let got = mf.names(&tf);
+            assert_eq!(
+                (&got.feet, &got.manipulators, &got.wheels, &got.head),
+                (&want.feet, &want.manipulators, &want.wheels, &want.head),
+                "{} under `{frame}`",
+                urdf.display()
+            );
+        }
+    }
+}
+
+/// An unexpanded xacro file (real ones ship as `.xacro` and as `.urdf`) is refused at its first
+/// xacro construct, saying how to expand it; it once read as a robot of one link and no DoF. A URDF
+/// xacro wrote, which keeps the `xmlns:xacro` declaration, reads.
+#[test]
+fn an_unexpanded_xacro_file_is_refused_at_its_first_xacro_line() {
+    let Some(dir) = robots() else { return };
+    for (file, line, what) in [
+        ("phantomx_hexapod/phantomx_description/urdf/phantomx.xacro", 4, "<xacro:include filename=\"$(find phantomx"),
+        ("spot_arm/spot_description/urdf/spot_arm_macro.urdf", 3, "<xacro:macro name=\"load_arm\" params=\""),
+    ] {
+        let path = dir.join(file);
+        let e = KinematicTree::from_urdf_file(&path).unwrap_err();
+        assert_eq!(e.problem, UrdfProblem::Xacro { line, what: what.into() }, "{file}");
+        assert!(e.to_string().starts_with(&format!("{}: line {line}: `{what}` is xacro, not URDF: expand the file into a URDF first", path.display())), "{e}");
+    }
+    // Inside a comment it is not used; a `${…}` in a value is.
+    let xml = |value: &str| format!("<robot name=\"r\">\n<!-- <xacro:macro name=\"m\"/> ${{x}} -->\n<link name=\"{value}\"/></robot>");
+    assert_eq!(KinematicTree::from_urdf_str(&xml("body")).unwrap().links.len(), 1);
+    assert_eq!(problem(&xml("${prefix}body")), UrdfProblem::Xacro { line: 3, what: "${prefix}body\"/></robot>".into() });
+    load(&dir.join("phantomx_hexapod/phantomx_description/urdf/phantomx.urdf"));
 }
 
 #[test]
