@@ -15,14 +15,17 @@ pub const BUNDLED: [&str; 4] = ["spot", "crab", "stretch", "hound"];
 /// The bundled characters' files under `assets/`, in [`BUNDLED`] order.
 const BUNDLED_FILES: [&str; 4] = ["characters/spot.urdf", "characters/crab.urdf", "characters/stretch.urdf", "creatures/hound.glb"];
 
-/// The project's `assets/` folder: `./assets` when run from the repository root, else the one beside
-/// the sources this binary was built from.
+/// The project's `assets/` folder: the one beside the sources this binary was built from, named
+/// `./assets` when run from the repository root (so that reports keep relative paths). A game
+/// project's own `assets/` is not it (it took over the bundled names); `./assets` stands in only when
+/// the sources are gone (a binary moved elsewhere).
 pub fn assets_dir() -> PathBuf {
-    let here = Path::new("assets");
-    if here.join("characters").is_dir() {
-        here.to_path_buf()
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+    let (here, built) = (Path::new("assets"), Path::new(env!("CARGO_MANIFEST_DIR")).join("assets"));
+    match (here.canonicalize(), built.canonicalize()) {
+        (Ok(a), Ok(b)) if a == b => here.to_path_buf(),
+        (_, Ok(_)) => built,
+        _ if here.join("characters").is_dir() => here.to_path_buf(),
+        _ => built,
     }
 }
 

@@ -24,6 +24,24 @@ fn names(v: &Value) -> Vec<String> {
     v.as_array().unwrap().iter().map(|x| x.as_str().unwrap().to_string()).collect()
 }
 
+/// Run from a game project, whose `assets/characters/` holds its own files, a bundled name is still
+/// the bundled character (it once became `assets/characters/spot.urdf` of the folder it was run in).
+#[test]
+fn a_bundled_name_is_the_bundled_character_from_a_game_projects_folder() {
+    let game = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-game-project");
+    let _ = std::fs::remove_dir_all(&game);
+    std::fs::create_dir_all(game.join("assets/characters")).unwrap();
+    std::fs::write(game.join("assets/characters/spot.urdf"), "<robot name=\"mine\"><link name=\"box\"/></robot>").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_ace"))
+        .args(["dataset", "--character", "spot", "--frames", "30", "--out", "d.safetensors"])
+        .current_dir(&game)
+        .output()
+        .expect("running ace");
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("character spot (") && out.contains("18 DoF, 4 feet, 1 manipulators"), "{out}");
+}
+
 #[test]
 fn inspect_bvh_reports_the_canonical_mapping() {
     let v = inspect_json(&root().join("assets/motions/walk.bvh"));

@@ -281,6 +281,41 @@ fn rig_clips_of_the_shared_creatures_validate_and_keep_the_model() {
 }
 
 /// The shared Wolf's glTF document as JSON, to be edited into files the shared creatures are not.
+/// An output named `.gltf` (any case) is glTF's JSON form, one file with its data embedded, for the
+/// creature's own model and for a robot alike; it once held the GLB container under that name. Read
+/// back, it is the same document and data as the `.glb`, and Khronos' validator accepts it.
+#[test]
+fn an_output_named_gltf_is_the_json_form_with_the_same_model() {
+    use ace_models::export::{GltfOptions, write_glb};
+    use ace_models::kinematics::KinematicTree;
+    let out = tmp("json-form");
+    let same = |glb: &Path, text: &Path| {
+        let bytes = std::fs::read(text).unwrap();
+        assert!(bytes.starts_with(b"{") && serde_json::from_slice::<serde_json::Value>(&bytes).is_ok(), "{} is JSON", text.display());
+        let ((a, abuf), (b, bbuf)) = (open(glb).unwrap(), open(text).unwrap());
+        let mut b_json = b.as_json().clone();
+        assert!(b_json.buffers[0].uri.as_deref().is_some_and(|u| u.starts_with("data:application/octet-stream;base64,")));
+        b_json.buffers[0].uri = None;
+        assert_eq!(serde_json::to_value(a.as_json()).unwrap(), serde_json::to_value(&b_json).unwrap());
+        assert_eq!(abuf, bbuf);
+        khronos_validate(text);
+    };
+    if let Some(dir) = creatures() {
+        let c = load(&dir.join("Fox/Fox.glb"));
+        let poses = turning_clip(&c);
+        for name in ["fox.glb", "fox.GLTF"] {
+            write_rig_clip(&out.join(name), &c, &poses, FPS, &RigClipOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        }
+        same(&out.join("fox.glb"), &out.join("fox.GLTF"));
+    }
+    let spot = KinematicTree::from_urdf_file(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/characters/spot.urdf")).unwrap();
+    let poses = vec![spot.standing_pose(); 3];
+    for name in ["spot.glb", "spot.gltf"] {
+        write_glb(&out.join(name), &spot, &poses, FPS, &GltfOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    }
+    same(&out.join("spot.glb"), &out.join("spot.gltf"));
+}
+
 fn wolf_json(dir: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(dir.join("Quaternius_Wolf/Wolf.gltf")).unwrap()).unwrap()
 }

@@ -35,7 +35,7 @@ use json::animation::Property;
 
 use super::tessellate::{box_mesh, cylinder_mesh, shape_mesh, sphere_mesh};
 use super::writer::{Builder, glb, quat_values, vec3_values};
-use super::{ExportError, ExportProblem, check_poses, write_atomic};
+use super::{ExportError, ExportProblem, check_poses, write_model};
 use crate::geometry::{Aabb, Geometry, Shape};
 use crate::human::{HumanFrame, Joint};
 use crate::kinematics::{CharacterPose, JointKind, KinematicTree, Link};
@@ -171,7 +171,7 @@ pub fn character_glb(
     })
 }
 
-/// [`character_glb`] written atomically to `path` (see [`write_atomic`]); returns what it wrote and
+/// [`character_glb`] written atomically to `path` (see [`write_model`]: JSON for a `.gltf` name); returns what it wrote and
 /// its warnings. Errors name `path`.
 pub fn write_glb(
     path: &Path,
@@ -182,7 +182,7 @@ pub fn write_glb(
 ) -> Result<GlbOutput, ExportError> {
     let out =
         character_glb(tree, poses, fps, opts).map_err(|e| e.problem.in_file(path.display().to_string()))?;
-    write_atomic(path, &out.bytes)?;
+    write_model(path, &out.bytes)?;
     Ok(out)
 }
 

@@ -121,6 +121,19 @@ pub fn check_poses(tree: &KinematicTree, poses: &[CharacterPose], fps: f32) -> R
     Ok(())
 }
 
+/// Writes the model `glb` (a GLB container) to `path` atomically (see [`write_atomic`]): as it is, or,
+/// when `path` ends in `.gltf` (any case), in glTF's JSON form with the binary data embedded
+/// ([`writer::gltf_text`]), as the name promises.
+pub fn write_model(path: &Path, glb: &[u8]) -> Result<(), ExportError> {
+    let text = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf"));
+    if text {
+        let json = writer::gltf_text(glb).map_err(|p| p.in_file(path.display().to_string()))?;
+        write_atomic(path, &json)
+    } else {
+        write_atomic(path, glb)
+    }
+}
+
 /// Writes `bytes` to `path` atomically: into a temporary file in the same directory, flushed to disk,
 /// then renamed over `path`. On failure the temporary file is removed and `path` is left as it was.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {

@@ -29,7 +29,7 @@ use json::validation::USize64;
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::writer::{Builder, glb, quat_values, vec3_values};
-use super::{ExportError, ExportProblem, check_poses, write_atomic};
+use super::{ExportError, ExportProblem, check_poses, write_model};
 use crate::character::Creature;
 use crate::character::gltf::{decode_base64, open, percent_decode, read_beside};
 use crate::character::rig_pose::{NodeTransform, RigMismatch, RigPose, RigScratch};
@@ -72,7 +72,7 @@ pub fn rig_clip_glb(
     build(creature, poses, fps, opts).map_err(|p| p.in_file(format!("<rig clip of {} in memory>", creature.tree.name)))
 }
 
-/// [`rig_clip_glb`] written atomically to `path` (see [`write_atomic`]). Errors name `path`.
+/// [`rig_clip_glb`] written atomically to `path` (see [`write_model`]: JSON for a `.gltf` name). Errors name `path`.
 pub fn write_rig_clip(
     path: &Path,
     creature: &Creature,
@@ -81,7 +81,7 @@ pub fn write_rig_clip(
     opts: &RigClipOptions,
 ) -> Result<RigClipOutput, ExportError> {
     let out = build(creature, poses, fps, opts).map_err(|p| p.in_file(path.display().to_string()))?;
-    write_atomic(path, &out.bytes)?;
+    write_model(path, &out.bytes)?;
     Ok(out)
 }
 

@@ -232,6 +232,19 @@ pub fn glb(root: &Root, bin: &[u8]) -> Result<Vec<u8>, ExportProblem> {
     Ok(out)
 }
 
+/// The glTF JSON form of a GLB that [`glb`] wrote: its document with buffer 0 holding the binary
+/// chunk as a base64 data URI (for an output named `.gltf`: one self-contained file).
+pub fn gltf_text(glb_bytes: &[u8]) -> Result<Vec<u8>, ExportProblem> {
+    let bad = |e: &dyn std::fmt::Display| ExportProblem::Io(std::io::Error::other(format!("the model just built does not read back: {e}")));
+    let g = ::gltf::Glb::from_slice(glb_bytes).map_err(|e| bad(&e))?;
+    let mut root = Root::from_slice(&g.json).map_err(|e| bad(&e))?;
+    if let (Some(bin), Some(buffer)) = (g.bin, root.buffers.first_mut()) {
+        let data = bin.get(..buffer.byte_length.0 as usize).unwrap_or(&bin);
+        buffer.uri = Some(format!("data:application/octet-stream;base64,{}", base64::Engine::encode(&base64::engine::general_purpose::STANDARD, data)));
+    }
+    root.to_vec_pretty().map_err(|e| bad(&e))
+}
+
 impl Default for Builder {
     /// An empty document (glTF 2.0) and no binary data.
     fn default() -> Self {
