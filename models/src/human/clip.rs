@@ -7,6 +7,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::error::HumanImportError;
 use super::mapping::JointMapping;
 use super::skeleton::{JOINT_COUNT, Joint};
+use super::units::{NORMALISED_HEIGHT_M, PLAUSIBLE_HEIGHT_M};
 
 /// The fastest a person's pelvis moves between two frames in a capture (m/s). A sprinter peaks at about
 /// 12 m/s after some 40 m, farther than any capture volume; the shared clips stay under 8 m/s but for
@@ -189,10 +190,27 @@ impl HumanClip {
         })
     }
 
-    /// Every warning about the clip's content ([`HumanClip::posture_warning`],
-    /// [`HumanClip::root_jump_warning`]).
+    /// A warning when no length unit made the performer an adult's height, so that the skeleton was
+    /// scaled to [`NORMALISED_HEIGHT_M`] ([`HumanClip::unit`] says `unknown`): a child, a very tall
+    /// performer or a file rescaled by hand then has the steps and reach of someone 1.70 m tall.
+    pub fn unit_warning(&self) -> Option<String> {
+        self.unit.starts_with("unknown").then(|| {
+            let stem = Path::new(&self.name).file_stem().map_or(self.name.clone(), |s| s.to_string_lossy().into_owned());
+            let (lo, hi) = PLAUSIBLE_HEIGHT_M;
+            format!(
+                "{}: no length unit (CMU's, cm, m, inch, mm) makes the performer {lo} to {hi} m tall, so the skeleton is \
+                 scaled to {NORMALISED_HEIGHT_M:.2} m, and the character follows steps and reaches of that size; for a \
+                 child, a very tall performer or a file rescaled by hand, give its `unit` (e.g. `unit = \"m\"`) in a \
+                 joint-mapping file (--mapping FILE or {stem}.mapping.toml)",
+                self.name
+            )
+        })
+    }
+
+    /// Every warning about the clip's content ([`HumanClip::unit_warning`],
+    /// [`HumanClip::posture_warning`], [`HumanClip::root_jump_warning`]).
     pub fn warnings(&self) -> Vec<String> {
-        self.posture_warning().into_iter().chain(self.root_jump_warning()).collect()
+        self.unit_warning().into_iter().chain(self.posture_warning()).chain(self.root_jump_warning()).collect()
     }
 
     /// Seconds from the first to the last frame.
@@ -324,6 +342,17 @@ mod tests {
 
     fn still(n: usize) -> Vec<[f32; 3]> {
         vec![[0.0; 3]; n]
+    }
+
+    #[test]
+    fn a_clip_scaled_to_the_normalised_height_says_how_to_give_its_unit() {
+        let mut c = clip(30.0, &still(2), &[0.0, 0.0]);
+        assert_eq!(c.unit_warning(), None);
+        c.unit = "unknown (normalised to 1.70 m)".into();
+        let w = c.unit_warning().unwrap();
+        assert!(w.starts_with("dir/take.bvh: no length unit (CMU's, cm, m, inch, mm) makes the performer 1.4 to 2 m tall, so the skeleton is scaled to 1.70 m"), "{w}");
+        assert!(w.ends_with("joint-mapping file (--mapping FILE or take.mapping.toml)"), "{w}");
+        assert_eq!(c.warnings(), [w]);
     }
 
     #[test]
