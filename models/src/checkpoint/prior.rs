@@ -386,11 +386,28 @@ impl CharacterInfo {
                 c.layout.dim()
             )
         };
+        let same_body = self.layout == expected.layout
+            && self.dof_names == expected.dof_names
+            && self.end_effector_links == expected.end_effector_links;
+        if same_body && self.name != expected.name {
+            return Some(format!(
+                "it was trained for `{}`, and this character, with the same joints and end effectors, is named `{}`; \
+                 a checkpoint runs only on the character it names (a URDF's `<robot name>`, a glTF creature's file \
+                 name): give the character that name, or train for it",
+                self.name, expected.name
+            ));
+        }
         if self.layout != expected.layout || self.name != expected.name {
             return Some(format!(
-                "it was trained for {}, expected {}",
+                "it was trained for {}, expected {}{}",
                 describe(self),
-                describe(expected)
+                describe(expected),
+                if self.layout.dof != expected.layout.dof || self.layout.end_effectors != expected.layout.end_effectors {
+                    " (a profile beside the character file, `<name>.profile.toml`, sets its DoFs and end effectors: \
+                     is the one it was trained with there?)"
+                } else {
+                    ""
+                }
             ));
         }
         if let Some((a, b)) = self
@@ -577,5 +594,34 @@ impl PriorRecord {
         }
         record.config.check().map_err(|e| corrupt(e.to_string()))?;
         Ok(record)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::morphology::load_character;
+
+    fn bundled(name: &str) -> CharacterInfo {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../assets/characters/{name}.urdf"));
+        let (tree, morph) = load_character(&path).unwrap();
+        CharacterInfo::of_character(&tree, &morph)
+    }
+
+    #[test]
+    fn a_difference_says_what_differs_and_where_it_comes_from() {
+        let spot = bundled("spot");
+        assert_eq!(spot.difference(&spot.clone()), None);
+        // Only the name: said as such (it read like two characters of the same size).
+        let renamed = CharacterInfo { name: "my_spot".into(), ..spot.clone() };
+        let d = spot.difference(&renamed).unwrap();
+        assert!(d.starts_with("it was trained for `spot`, and this character, with the same joints and end effectors, is named `my_spot`"), "{d}");
+        // Other joints: the profile, which sets them, is named.
+        let d = spot.difference(&bundled("crab")).unwrap();
+        assert!(d.starts_with("it was trained for `spot` (18 DoF, 5 end effectors") && d.contains("`<name>.profile.toml`"), "{d}");
+        let mut other_joint = spot.clone();
+        other_joint.dof_names[0] = "hip".into();
+        let d = spot.difference(&other_joint).unwrap();
+        assert!(d.starts_with(&format!("`spot`: stored DoF `{}` where the character has `hip`", spot.dof_names[0])), "{d}");
     }
 }
