@@ -87,6 +87,14 @@ impl Bvh {
     /// Parse BVH text; `file` names the source in error messages.
     pub fn parse(text: &str, file: &str) -> Result<Bvh, HumanImportError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        // Lines may end in CR alone (old Mac files), which `str::lines` does not split at (CR LF it does).
+        let lone_cr = text.contains('\r') && text.as_bytes().iter().enumerate().any(|(i, &b)| b == b'\r' && text.as_bytes().get(i + 1) != Some(&b'\n'));
+        let text: std::borrow::Cow<str> = if lone_cr {
+            text.replace("\r\n", "\n").replace('\r', "\n").into()
+        } else {
+            text.into()
+        };
+        let text = &*text;
         let err = |line: usize, message: String| HumanImportError::Parse {
             file: file.to_string(),
             line,
@@ -399,6 +407,8 @@ impl<'a> HierarchyParser<'_, 'a> {
                 self.parse_joint(None, l, end_line)?;
             } else if t == "}" {
                 return Err(self.err(l, "unbalanced braces: `}` without a matching `{`".into()));
+            } else if t.eq_ignore_ascii_case("MOTION") {
+                return Err(self.err(l, "`MOTION` must begin a line of its own".into()));
             } else {
                 return Err(self.err(l, format!("expected `ROOT` or `MOTION`, found `{t}`")));
             }
@@ -638,6 +648,22 @@ mod tests {
 
     fn parse_err(text: &str) -> String {
         Bvh::parse(text, "bad.bvh").unwrap_err().to_string()
+    }
+
+    /// Lines ending in CR LF or CR alone (old Mac files) read as with LF; CR alone once made the file
+    /// one line, refused as "expected `ROOT` or `MOTION`, found `MOTION`".
+    #[test]
+    fn lines_may_end_in_cr_lf_or_cr_alone() {
+        let want = Bvh::parse(SMALL, "small.bvh").unwrap();
+        for end in ["\r\n", "\r"] {
+            let b = Bvh::parse(&SMALL.replace('\n', end), "small.bvh").unwrap();
+            assert_eq!((b.joints.len(), b.frame_count, &b.values), (want.joints.len(), want.frame_count, &want.values), "{end:?}");
+            // Errors keep their lines.
+            let e = parse_err(&SMALL.replace("OFFSET 0 -0.4 0", "OFFSET 0 inf 0").replace('\n', end));
+            assert!(e.contains("line 11: expected an OFFSET coordinate, found `inf`"), "{e}");
+        }
+        let e = parse_err(&SMALL.replace("}\nMOTION", "} MOTION"));
+        assert!(e.contains("line 14: `MOTION` must begin a line of its own"), "{e}");
     }
 
     #[test]
