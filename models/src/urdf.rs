@@ -98,6 +98,11 @@ pub enum UrdfProblem {
          which ROS installs)"
     )]
     Xacro { line: usize, what: String },
+    #[error(
+        "line {line}: the `<limit>` of joint `{joint}` has no `velocity`, which URDF requires (`velocity=\"0\"` \
+         says it is not known)"
+    )]
+    LimitWithoutVelocity { line: usize, joint: String },
 }
 
 impl UrdfProblem {
@@ -118,6 +123,9 @@ pub const STRING_SOURCE: &str = "<string>";
 pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<KinematicTree, UrdfError> {
     if let Some((line, what)) = xacro_use(xml) {
         return Err(UrdfProblem::Xacro { line, what }.in_file(file));
+    }
+    if let Some((line, joint)) = limit_without_velocity(xml) {
+        return Err(UrdfProblem::LimitWithoutVelocity { line, joint }.in_file(file));
     }
     if let Some((joint, kind)) = scan_joint_types(xml)
         .into_iter()
@@ -198,6 +206,26 @@ fn xacro_use(xml: &str) -> Option<(usize, String)> {
     let line = text[..at].matches('\n').count() + 1;
     let what: String = text[at..].chars().take_while(|&c| c != '\n').take(40).collect();
     Some((line, what.trim_end().to_string()))
+}
+
+/// The line and joint of the first `<limit>` without a `velocity`, which URDF requires (urdf-rs says
+/// only "missing field `velocity`", naming neither).
+fn limit_without_velocity(xml: &str) -> Option<(usize, String)> {
+    let text = without_comments(xml);
+    let mut at = 0;
+    while let Some(i) = text[at..].find("<joint") {
+        let start = at + i;
+        let end = text[start..].find("</joint>").map_or(text.len(), |e| start + e);
+        let body = &text[start..end];
+        at = end.max(start + 6);
+        let Some(l) = body.find("<limit") else { continue };
+        let tag = &body[l..body[l..].find('>').map_or(body.len(), |e| l + e)];
+        if attribute(tag, "velocity").is_none() {
+            let name = attribute(&body[..body.find('>').unwrap_or(body.len())], "name").unwrap_or_default();
+            return Some((text[..start + l].matches('\n').count() + 1, name));
+        }
+    }
+    None
 }
 
 /// Where the tags of `xml` stop balancing, when they do: an end tag that closes nothing or another

@@ -322,6 +322,13 @@ fn value_errors() {
     ));
     // The axis of a fixed joint is ignored (real files write 0 0 0 there).
     KinematicTree::from_urdf_str(&joint(r#"type="fixed"><axis xyz="0 0 0"/>"#)).unwrap();
+    // A limit without its velocity names the joint and the line (urdf-rs named neither).
+    let no_velocity = joint(r#"type="revolute"><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="1"/>"#);
+    assert_eq!(problem(&no_velocity), UrdfProblem::LimitWithoutVelocity { line: 2, joint: "j".into() });
+    assert!(problem(&no_velocity).to_string().starts_with("line 2: the `<limit>` of joint `j` has no `velocity`, which URDF requires"));
+    let commented = joint(r#"type="revolute"><axis xyz="0 0 1"/><!-- <limit lower="-1"/> --><limit lower="-1" upper="1" velocity="2"/>"#);
+    assert_eq!(KinematicTree::from_urdf_str(&commented).unwrap().dof(), 1);
 }
 
 // ---------------------------------------------------------------------------------------------
