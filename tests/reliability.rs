@@ -576,14 +576,14 @@ fn urdf_warnings_are_surfaced() {
         warnings.iter().any(|w| w
             .as_str()
             .unwrap()
-            .contains("`world_anchor` is Floating; it is treated as fixed")),
+            .contains(&format!("root link `world` has no geometry and holds `{base}` by its floating joint `world_anchor`: it is a frame"))),
         "{v}"
     );
     let missing = "not found or not readable as STL, OBJ or Collada (they have no extent): missing_part.stl";
     assert!(warnings.iter().any(|w| w.as_str().unwrap().contains(missing)), "{v}");
     let e = stderr(&o);
     assert!(
-        e.contains(&format!("warning: {}: joint `world_anchor`", urdf.display())),
+        e.contains(&format!("warning: {}: root link `world` has no geometry", urdf.display())),
         "{e}"
     );
     assert!(

@@ -410,13 +410,15 @@ fn urdf_inverted_limits_and_free_joints_in_the_body_are_errors() {
         e,
         "inv.urdf: joint `hip` has inverted limits: lower 1 > upper -1; the lower limit must not exceed the upper"
     );
-    // A floating anchor from a geometry-less root link is frozen with a warning the CLI prints.
+    // A floating anchor from a geometry-less root link to the body: the link is a frame, dropped with a
+    // warning the CLI prints.
     for kind in ["floating", "planar"] {
         let tree: KinematicTree = parse_urdf(&robot(kind, "-1", "1"), "anchor.urdf", None).unwrap();
+        assert_eq!(tree.links[0].name, "base");
         assert!(
             tree.warnings
                 .iter()
-                .any(|w| w.contains("`anchor`") && w.contains("treated as fixed")),
+                .any(|w| w.contains(&format!("by its {kind} joint `anchor`: it is a frame"))),
             "{:?}",
             tree.warnings
         );
