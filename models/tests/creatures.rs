@@ -703,6 +703,18 @@ fn broken_keyframes_of_a_clip_are_left_out_with_a_warning_not_played_as_nan() {
     assert!(clip_poses(&c, 0, 30.0).iter().all(|p| p.q.iter().all(|v| v.abs() < 1e-4)));
 }
 
+/// A mirrored armature (a negative scale above the bones) is refused saying so and what to do; it was
+/// "a degenerate or mirrored rotation", as for a zero scale.
+#[test]
+fn a_mirrored_armature_is_refused_saying_how_to_apply_the_mirror() {
+    let d = tmp("mirrored");
+    let with = |name: &str, s: [f32; 3]| rig(&d, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| v["nodes"][0]["scale"] = serde_json::json!(s));
+    let (msg, p) = problem(&with("mirrored.gltf", [-1.0, 1.0, 1.0]));
+    assert!(matches!(p, GltfProblem::BadTransform(_)) && msg.contains("node 1 (`bone0`) stands mirrored (a negative scale on it or above it)") && msg.ends_with("(in Blender, Apply › Scale) and export again"), "{msg}");
+    let (msg, _) = problem(&with("flat.gltf", [0.0, 1.0, 1.0]));
+    assert!(!msg.contains("stands mirrored") && msg.contains("node 1 (`bone0`) has a degenerate rotation (a zero scale on it or above it)"), "{msg}");
+}
+
 /// A node's rotation is read as one rotation everywhere: normalised when it is not of unit length
 /// (the bind pose once took such a quaternion as a scale and shear, the clips as a rotation), and
 /// refused, naming the node, when it is zero.

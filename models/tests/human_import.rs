@@ -516,6 +516,16 @@ fn mixamo_fixture_maps_with_and_without_prefix() {
         expect.map(String::from).to_vec()
     );
     check_walk_fixture(&clip, (1.6, 1.8));
+
+    // A prefix nobody listed, shared by every joint (an armature's, an exporter's), is dropped: the
+    // same joints map, the same frames come out (every joint was left unmapped).
+    for prefix in ["Armature_", "Ch01_", "Skeleton_", "Hero_Rig_", "Genesis8_"] {
+        let text = std::fs::read_to_string(&path).unwrap().replace("mixamorig:", prefix);
+        let c = HumanClip::from_bvh_str(&text, "prefixed", &ImportOptions::default()).unwrap_or_else(|e| panic!("{prefix}: {e}"));
+        let named: Vec<String> = expect.iter().map(|n| format!("{prefix}{n}")).collect();
+        assert_eq!(c.source_joints.to_vec(), named, "{prefix}");
+        assert!(c.frames.iter().zip(&clip.frames).all(|(a, b)| a.positions == b.positions), "{prefix}");
+    }
 }
 
 #[test]

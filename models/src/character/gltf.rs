@@ -721,10 +721,16 @@ pub fn read_document(
             p = parent[a];
         }
         let rest = to_char_iso(&rest_world[node]).ok_or_else(|| {
-            fail(GltfProblem::BadTransform(format!(
-                "node {node} (`{}`) has a degenerate or mirrored rotation",
-                names[node]
-            )))
+            let det = rest_world[node].fixed_view::<3, 3>(0, 0).determinant();
+            fail(GltfProblem::BadTransform(if det < 0.0 {
+                format!(
+                    "node {node} (`{}`) stands mirrored (a negative scale on it or above it); mirrored armatures \
+                     are not read: apply the scale in the modelling tool (in Blender, Apply › Scale) and export again",
+                    names[node]
+                )
+            } else {
+                format!("node {node} (`{}`) has a degenerate rotation (a zero scale on it or above it)", names[node])
+            }))
         })?;
         bones.push(Bone {
             name: names[node].clone(),

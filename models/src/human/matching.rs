@@ -13,7 +13,7 @@ use super::bvh::Bvh;
 use super::error::HumanImportError;
 use super::fk::Pose;
 use super::mapping::JointMapping;
-use super::names::{NameInfo, Part, Side, classify};
+use super::names::{NameInfo, Part, Side, classify_all};
 use super::skeleton::{JOINT_COUNT, Joint};
 
 /// Where a canonical joint's position comes from.
@@ -84,7 +84,7 @@ struct Matcher<'a> {
 
 impl<'a> Matcher<'a> {
     fn new(bvh: &'a Bvh) -> Self {
-        let info: Vec<NameInfo> = bvh.joints.iter().map(|j| classify(&j.name)).collect();
+        let info: Vec<NameInfo> = classify_all(&bvh.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>());
         let mut depth = vec![0; bvh.joints.len()];
         let mut reach = vec![0.0f32; bvh.joints.len()];
         for (i, j) in bvh.joints.iter().enumerate() {

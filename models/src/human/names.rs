@@ -158,9 +158,31 @@ pub fn words(name: &str) -> Vec<String> {
 
 /// Classify a BVH joint name.
 pub fn classify(name: &str) -> NameInfo {
+    classify_words(words(name))
+}
+
+/// Classify every joint name of a skeleton, without the leading words they all share (a rig's or an
+/// exporter's prefix: `Armature_`, `Hero_`, `Ch01_`), which are no part of any joint's name.
+pub fn classify_all(names: &[&str]) -> Vec<NameInfo> {
+    let mut all: Vec<Vec<String>> = names.iter().map(|n| words(n)).collect();
+    // A side is kept even when every name begins with it (a limb's joints alone).
+    let meaningless = |w: &str| !matches!(w, "left" | "right" | "l" | "r" | "lft" | "rgt" | "rt");
+    while all.len() > 1 {
+        // The shared word; a name that is that word alone (a root named `Armature`) keeps it.
+        let Some(first) = all.iter().find(|w| w.len() > 1).map(|w| w[0].clone()) else { break };
+        if !(meaningless(&first) && all.iter().all(|w| w.first() == Some(&first))) {
+            break;
+        }
+        all.iter_mut().filter(|w| w.len() > 1).for_each(|w| {
+            w.remove(0);
+        });
+    }
+    all.into_iter().map(classify_words).collect()
+}
+
+fn classify_words(all: Vec<String>) -> NameInfo {
     let mut side = Side::Centre;
     let mut body: Vec<String> = Vec::new();
-    let all = words(name);
     let n = all.len();
     for (i, w) in all.into_iter().enumerate() {
         let set_side = |s: Side, side: &mut Side| {
@@ -258,6 +280,26 @@ mod tests {
     fn c(name: &str) -> (Side, Part) {
         let i = classify(name);
         (i.side, i.part())
+    }
+
+    /// A prefix every joint shares is no part of their names (the matcher once left every joint of an
+    /// `Armature_` skeleton unmapped); a word only some share stays.
+    #[test]
+    fn the_words_every_joint_name_begins_with_are_dropped() {
+        let names = ["Hips", "LeftUpLeg", "LeftLeg", "RightForeArm", "Spine1", "Head"];
+        let want: Vec<(Side, Part)> = names.iter().map(|n| c(n)).collect();
+        for prefix in ["Armature_", "Armature_Hero_", "Ch01_", "Skeleton:", "Genesis8 "] {
+            let named: Vec<String> = names.iter().map(|n| format!("{prefix}{n}")).collect();
+            let got: Vec<(Side, Part)> = classify_all(&named.iter().map(String::as_str).collect::<Vec<_>>()).iter().map(|i| (i.side, i.part())).collect();
+            assert_eq!(got, want, "{prefix}");
+        }
+        // A root named as the prefix alone keeps its name.
+        let rooted = classify_all(&["Armature", "Armature_Hips", "Armature_LeftFoot"]);
+        assert_eq!(rooted.iter().map(|i| (i.side, i.part())).collect::<Vec<_>>(), [(Side::Centre, Part::Other), (Side::Centre, Part::Hips), (Side::Left, Part::Foot)]);
+        // A side that begins every name is kept; a lone joint keeps its words.
+        let some = classify_all(&["LeftFoot", "LeftHand"]);
+        assert_eq!((some[0].side, some[0].part()), (Side::Left, Part::Foot));
+        assert_eq!(classify_all(&["Hips"])[0].part(), Part::Hips);
     }
 
     #[test]
