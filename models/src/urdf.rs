@@ -134,8 +134,12 @@ pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<Kine
         return Err(UrdfProblem::UnknownJointType { joint, kind }.in_file(file));
     }
     let robot = urdf_rs::read_from_string(xml).map_err(|e| {
+        let message = e.to_string();
+        if let Some(said) = bad_vector(xml, &message) {
+            return UrdfProblem::Parse(said).in_file(file);
+        }
         let where_ = unbalanced_tag(xml).map_or(String::new(), |w| format!(" ({w})"));
-        UrdfProblem::Parse(format!("{e}{where_}")).in_file(file)
+        UrdfProblem::Parse(format!("{message}{where_}")).in_file(file)
     })?;
     let mut tree = robot_to_tree(&robot).map_err(|p| p.in_file(file))?;
     if let Some(dir) = base_dir {
@@ -206,6 +210,21 @@ fn xacro_use(xml: &str) -> Option<(usize, String)> {
     let line = text[..at].matches('\n').count() + 1;
     let what: String = text[at..].chars().take_while(|&c| c != '\n').take(40).collect();
     Some((line, what.trim_end().to_string()))
+}
+
+/// urdf-rs's "Wrong vector element count, expected 3 found 0 for [0.3,0.06,0]" said again with the
+/// line of the value and what is wrong with it (commas, a xacro expression, a missing number).
+fn bad_vector(xml: &str, message: &str) -> Option<String> {
+    let rest = message.split("Wrong vector element count, expected ").nth(1)?;
+    let (want, rest) = rest.split_once(" found ")?;
+    let (found, value) = rest.split_once(" for [")?;
+    let value = value.rsplit_once(']')?.0;
+    let line = ["\"", "'"]
+        .iter()
+        .find_map(|q| xml.find(&format!("{q}{value}{q}")))
+        .map(|at| xml[..at].matches('\n').count() + 1)?;
+    let hint = if value.contains(',') { "; URDF separates numbers by spaces, not commas" } else { "" };
+    Some(format!("line {line}: `{value}` is not {want} numbers separated by spaces ({found} read as numbers){hint}"))
 }
 
 /// The line and joint of the first `<limit>` without a `velocity`, which URDF requires (urdf-rs says

@@ -322,6 +322,11 @@ fn value_errors() {
     ));
     // The axis of a fixed joint is ignored (real files write 0 0 0 there).
     KinematicTree::from_urdf_str(&joint(r#"type="fixed"><axis xyz="0 0 0"/>"#)).unwrap();
+    // A vector of another length, or written with commas, names its line (urdf-rs named none).
+    let commas = joint("type=\"fixed\">\n<origin xyz=\"0.3,0.06,0\"/>");
+    assert_eq!(problem(&commas), UrdfProblem::Parse("line 2: `0.3,0.06,0` is not 3 numbers separated by spaces (0 read as numbers); URDF separates numbers by spaces, not commas".into()));
+    let short = joint("type=\"fixed\"><origin rpy='0 1'/>");
+    assert_eq!(problem(&short), UrdfProblem::Parse("line 1: `0 1` is not 3 numbers separated by spaces (2 read as numbers)".into()));
     // A limit without its velocity names the joint and the line (urdf-rs named neither).
     let no_velocity = joint(r#"type="revolute"><axis xyz="0 0 1"/>
         <limit lower="-1" upper="1" effort="1"/>"#);
