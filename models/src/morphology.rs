@@ -1022,6 +1022,14 @@ mod tests {
         let n = Morphology::analyze(&t).names(&t);
         assert_eq!((n.feet.len(), n.head.as_deref()), (0, None), "{n:?}");
         assert_eq!(n.manipulators, ["fore"]);
+        // Exactly a quarter (0.1875 m against 0.75, both exact in binary) is not under it: a manipulator.
+        let quarter = x
+            .replace(r#"<sphere radius="0.03"/>"#, r#"<sphere radius="0.25"/>"#)
+            .replace("-0.01 0 0", "-0.125 0 0")
+            .replace(r#"<sphere radius="0.005"/>"#, r#"<sphere radius="0.0625"/>"#);
+        let t = KinematicTree::from_urdf_str(&quarter).unwrap();
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!(n.manipulators, ["fore", "nubtip"], "{n:?}");
     }
 
     #[test]
