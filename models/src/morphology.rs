@@ -1112,6 +1112,31 @@ mod tests {
         assert!((l.z - r.z).abs() < 1e-5 && (l.x - -0.03).abs() < 1e-5 && (r.x - 0.05).abs() < 1e-5, "{l} {r}");
     }
 
+    /// A short branch of turning joints high on a robot (above 70 % of its height) is its head, on a
+    /// robot under a metre tall too; with a sliding joint in it, it is an arm.
+    #[test]
+    fn a_short_turning_branch_high_on_a_small_robot_is_its_head() {
+        // A 0.4 m box on the ground (0.3 m tall), a neck of two joints from its top to a 3 cm skull:
+        // 0.38 m tall, the skull 0.35 m up.
+        let robot = |second: &str| {
+            let mut x = String::from(r#"<robot name="small">"#);
+            x += &link("base", r#"<box size="0.4 0.4 0.3"/>"#);
+            x += &joint("n1", "revolute", "base", "neck", "0.15 0 0.15", "0 0 1");
+            x += &link("neck", r#"<box size="0.02 0.02 0.02"/>"#);
+            // A slide of ±1 cm, so that its reach keeps the branch short.
+            x += &joint("n2", second, "neck", "skull", "0 0 0.05", "0 1 0").replace(r#"lower="-1" upper="1""#, r#"lower="-0.01" upper="0.01""#);
+            x += &link("skull", r#"<sphere radius="0.03"/>"#);
+            x += "</robot>";
+            KinematicTree::from_urdf_str(&x).unwrap()
+        };
+        let t = robot("revolute");
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!((n.head.as_deref(), n.manipulators.len()), (Some("skull"), 0), "{n:?}");
+        let t = robot("prismatic");
+        let n = Morphology::analyze(&t).names(&t);
+        assert_eq!((n.head.as_deref(), &n.manipulators[..]), (None, &["skull".to_string()][..]), "{n:?}");
+    }
+
     #[test]
     fn a_robot_resting_on_its_body_has_no_feet() {
         // A single arm on a box lying on the ground, with its tip touching the ground too.
