@@ -179,7 +179,11 @@ pub fn run(b: &BatchArgs) -> Result<()> {
                             d.clip = rel.clone();
                             d
                         })
-                        .map_err(|e| ClipFailed { clip: rel.clone(), error: format!("{}: {e:#}", file.display()) });
+                        .map_err(|e| {
+                            // Named once: the import's errors begin with the clip's path already.
+                            let (e, f) = (format!("{e:#}"), file.display().to_string());
+                            ClipFailed { clip: rel.clone(), error: if e.starts_with(&f) { e } else { format!("{f}: {e}") } }
+                        });
                     slots.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
                     if tx.send(i).is_err() {
                         break;
