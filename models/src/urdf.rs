@@ -121,13 +121,15 @@ pub const STRING_SOURCE: &str = "<string>";
 /// Parses URDF text and converts it. `file` only names the source in errors and `base_dir` (when
 /// given) is where relative and `package://` mesh paths are looked for to read mesh bounds.
 pub fn parse_urdf(xml: &str, file: &str, base_dir: Option<&Path>) -> Result<KinematicTree, UrdfError> {
-    if let Some((line, what)) = xacro_use(xml) {
+    // The scans read the file once without its comments (its lines kept).
+    let text = without_comments(xml);
+    if let Some((line, what)) = xacro_use(&text) {
         return Err(UrdfProblem::Xacro { line, what }.in_file(file));
     }
-    if let Some((line, joint)) = limit_without_velocity(xml) {
+    if let Some((line, joint)) = limit_without_velocity(&text) {
         return Err(UrdfProblem::LimitWithoutVelocity { line, joint }.in_file(file));
     }
-    if let Some((joint, kind)) = scan_joint_types(xml)
+    if let Some((joint, kind)) = scan_joint_types(&text)
         .into_iter()
         .find(|(_, k)| !KNOWN_TYPES.contains(&k.as_str()))
     {
@@ -168,12 +170,12 @@ const KNOWN_TYPES: [&str; 7] = [
     "spherical",
 ];
 
-/// `(name, type)` of every `<joint … type="…">` tag outside comments (transmission `<joint>` tags have
-/// no type and are skipped). urdf-rs would otherwise only say "unknown variant".
-fn scan_joint_types(xml: &str) -> Vec<(String, String)> {
-    let text = without_comments(xml);
+/// `(name, type)` of every `<joint … type="…">` tag of `text`, a file [`without_comments`]
+/// (transmission `<joint>` tags have no type and are skipped). urdf-rs would otherwise only say
+/// "unknown variant".
+fn scan_joint_types(text: &str) -> Vec<(String, String)> {
     let mut out = Vec::new();
-    let mut rest = text.as_str();
+    let mut rest = text;
     while let Some(start) = rest.find("<joint") {
         rest = &rest[start + 6..];
         if !rest.starts_with(|c: char| c.is_whitespace()) {
@@ -201,11 +203,10 @@ fn without_comments(xml: &str) -> String {
     text
 }
 
-/// The line and text of the first xacro construct in `xml` outside comments: a `<xacro:…>` element, a
-/// `${…}` expression or a `$(…)` substitution. urdf-rs skips unknown elements, so an unexpanded xacro
-/// file read as a URDF became a robot of one link.
-fn xacro_use(xml: &str) -> Option<(usize, String)> {
-    let text = without_comments(xml);
+/// The line and text of the first xacro construct in `text`, a file [`without_comments`]: a
+/// `<xacro:…>` element, a `${…}` expression or a `$(…)` substitution. urdf-rs skips unknown elements,
+/// so an unexpanded xacro file read as a URDF became a robot of one link.
+fn xacro_use(text: &str) -> Option<(usize, String)> {
     let at = ["<xacro:", "${", "$("].iter().filter_map(|k| text.find(k)).min()?;
     let line = text[..at].matches('\n').count() + 1;
     let what: String = text[at..].chars().take_while(|&c| c != '\n').take(40).collect();
@@ -227,10 +228,10 @@ fn bad_vector(xml: &str, message: &str) -> Option<String> {
     Some(format!("line {line}: `{value}` is not {want} numbers separated by spaces ({found} read as numbers){hint}"))
 }
 
-/// The line and joint of the first `<limit>` without a `velocity`, which URDF requires (urdf-rs says
-/// only "missing field `velocity`", naming neither).
-fn limit_without_velocity(xml: &str) -> Option<(usize, String)> {
-    let text = without_comments(xml);
+/// The line and joint of the first `<limit>` without a `velocity` in `text`, a file
+/// [`without_comments`], which URDF requires (urdf-rs says only "missing field `velocity`", naming
+/// neither).
+fn limit_without_velocity(text: &str) -> Option<(usize, String)> {
     let mut at = 0;
     while let Some(i) = text[at..].find("<joint") {
         let start = at + i;
@@ -888,7 +889,7 @@ mod tests {
             <transmission><joint name="a"><hardwareInterface/></joint></transmission>
             <joint  type="ball"   name="b"/></robot>"#;
         assert_eq!(
-            scan_joint_types(xml),
+            scan_joint_types(&without_comments(xml)),
             vec![
                 ("a".to_string(), "revolute".to_string()),
                 ("b".to_string(), "ball".to_string())

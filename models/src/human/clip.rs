@@ -143,13 +143,13 @@ impl HumanClip {
     /// ([`HumanClip::skeleton_up`]).
     pub fn posture_warning(&self) -> Option<String> {
         if let Some((skeleton, taken)) = &self.skeleton_up {
-            let stem = Path::new(&self.name).file_stem().map_or(self.name.clone(), |s| s.to_string_lossy().into_owned());
+            let beside = self.mapping_file_name();
             return Some(format!(
                 "{}: the person seems to lie or crawl through most of the clip: the skeleton stands along the \
                  file's {skeleton} axis in its rest pose, but the frames' feet-to-head direction is along its {taken} \
                  axis, which was taken as up. ACE is trained on upright humans, so a lying or crawling clip may drive \
                  the character in unintended ways (e.g. walking backwards); to import it as lying, give \
-                 `up = \"{skeleton}\"` in a joint-mapping file (--mapping FILE or {stem}.mapping.toml)",
+                 `up = \"{skeleton}\"` in a joint-mapping file (--mapping FILE or {beside})",
                 self.name
             ));
         }
@@ -190,18 +190,23 @@ impl HumanClip {
         })
     }
 
+    /// The name of the joint-mapping file read beside the clip ([`mapping_path_beside`]), for warnings.
+    fn mapping_file_name(&self) -> String {
+        mapping_path_beside(Path::new(&self.name)).file_name().map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+    }
+
     /// A warning when no length unit made the performer an adult's height, so that the skeleton was
     /// scaled to [`NORMALISED_HEIGHT_M`] ([`HumanClip::unit`] says `unknown`): a child, a very tall
     /// performer or a file rescaled by hand then has the steps and reach of someone 1.70 m tall.
     pub fn unit_warning(&self) -> Option<String> {
         self.unit.starts_with("unknown").then(|| {
-            let stem = Path::new(&self.name).file_stem().map_or(self.name.clone(), |s| s.to_string_lossy().into_owned());
+            let beside = self.mapping_file_name();
             let (lo, hi) = PLAUSIBLE_HEIGHT_M;
             format!(
                 "{}: no length unit (CMU's, cm, m, inch, mm) makes the performer {lo} to {hi} m tall, so the skeleton is \
                  scaled to {NORMALISED_HEIGHT_M:.2} m, and the character follows steps and reaches of that size; for a \
                  child, a very tall performer or a file rescaled by hand, give its `unit` (e.g. `unit = \"m\"`) in a \
-                 joint-mapping file (--mapping FILE or {stem}.mapping.toml)",
+                 joint-mapping file (--mapping FILE or {beside})",
                 self.name
             )
         })
