@@ -23,6 +23,19 @@ pub fn run(file: &Path, character: Option<&str>, reference: Option<&Path>, json:
         Some(r) => {
             let other = MotionSet::load(r)?;
             characters::check_dataset(&other, r, &tree, &urdf)?;
+            // FID compares the two sets' covariances of Ψ: with fewer frames than Ψ has entries, one
+            // of them is singular and the distance says more about the frame count than the motion.
+            let dim = FeatureLayout::new(&EndEffectorMapping::by_side(&tree, &morph)).dim();
+            for (path, frames) in [(r, other.len()), (file, set.len())] {
+                if frames <= dim {
+                    bail!(
+                        "{}: {frames} frame(s) cannot give an FID: it compares covariances of {dim} features, \
+                         which needs at least {} frames in each set (leave out --reference for the other metrics)",
+                        path.display(),
+                        dim + 1
+                    );
+                }
+            }
             Some(other)
         }
         None => None,

@@ -395,6 +395,31 @@ fn dataset_and_metrics_reject_bad_input_naming_it() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("junk.safetensors"));
 }
 
+/// FID against a reference dataset: zero against itself, positive against another seed, and refused
+/// (naming the file) for a set with no more frames than Ψ has entries (Spot's 28), whose covariance is
+/// singular: a 1-frame reference scored an FID, the same whichever set it was.
+#[test]
+fn metrics_fid_against_a_reference_needs_more_frames_than_features() {
+    let (a, b, short) = (tmp("fid-a.safetensors"), tmp("fid-b.safetensors"), tmp("fid-short.safetensors"));
+    for (file, frames, seed) in [(&a, 300, 0), (&b, 300, 1), (&short, 28, 0)] {
+        assert!(dataset("spot", frames, seed, file, &[]).status.success());
+    }
+    let fid = |motion: &Path, reference: &Path| {
+        let out = ace(&["metrics", motion.to_str().unwrap(), "--reference", reference.to_str().unwrap(), "--json"]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["fid"].as_f64().unwrap()
+    };
+    assert!(fid(&a, &a).abs() < 1e-3, "a set against itself");
+    assert!(fid(&a, &b) > 0.01, "two seeds' walks differ");
+    for (motion, reference) in [(&a, &short), (&short, &a)] {
+        let out = ace(&["metrics", motion.to_str().unwrap(), "--reference", reference.to_str().unwrap()]);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("fid-short.safetensors: 28 frame(s) cannot give an FID") && err.contains("at least 29"), "{err}");
+    }
+}
+
 /// Tiny networks and step counts: the whole pipeline in seconds, not a useful model.
 #[test]
 fn retarget_warns_when_a_joint_of_the_trajectory_is_faster_than_its_limit() {
