@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use ace::models::human::HumanClip;
-use ace::models::metrics::MetricsReport;
+use ace::models::metrics::{MetricsReport, percent};
 use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
 use serde_json::json;
@@ -172,8 +172,8 @@ fn report_markdown(rows: &[(String, String, MetricsReport, PathBuf)]) -> String 
             100.0 * u.sliding,
             r.div,
             opt(r.fid),
-            r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} % of {}", 100.0 * g.pop_rate(), g.swings)),
-            r.gait.as_ref().map_or("n/a".into(), |g| format!("{:.1} %", 100.0 * g.micro_step_rate())),
+            r.gait.as_ref().map_or("n/a".into(), |g| format!("{} of {}", percent(g.pop_rate()), g.swings)),
+            r.gait.as_ref().map_or("n/a".into(), |g| percent(g.micro_step_rate())),
             crate::eval::velocity_limits(r),
         );
     }

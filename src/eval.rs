@@ -33,7 +33,7 @@ use ace::models::human_set::{HumanRow, HumanSet, HumanSetClip, PROJECT_FPS};
 use ace::models::kinematics::{CharacterPose, KinematicTree};
 use ace::models::learn::nkn::NknCheckpoint;
 use ace::models::learn::retarget::{RetargetedMotion, Retargeter};
-use ace::models::metrics::MetricsReport;
+use ace::models::metrics::{MetricsReport, percent};
 use ace::models::metrics::following::MOVING_VERTICAL_M;
 use ace::models::morphology::Morphology;
 use ace::plot::{BarChart, Figure};
@@ -517,12 +517,12 @@ pub fn markdown(e: &Evaluation) -> String {
             if let Some(g) = &r.metrics.gait {
                 let _ = writeln!(
                     s,
-                    "| {} | {} | {:.1} | {:.1} % | {:.1} % | {:.2} | {} |",
+                    "| {} | {} | {:.1} | {} | {} | {:.2} | {} |",
                     r.system,
                     g.swings,
                     g.median_swing_frames,
-                    100.0 * g.pop_rate(),
-                    100.0 * g.micro_step_rate(),
+                    percent(g.pop_rate()),
+                    percent(g.micro_step_rate()),
                     g.median_duty,
                     g.median_ratio.map_or("n/a".into(), |x| format!("{x:.2}×"))
                 );

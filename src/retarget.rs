@@ -18,7 +18,7 @@ use ace::models::checkpoint::ace::AceRecord;
 use ace::models::checkpoint::{CharacterInfo, FileRecord, LearnError};
 use ace::models::learn::retarget::Retargeter as TchRetargeter;
 use ace::models::runtime::{RetargetedMotion, Retargeter};
-use ace::models::metrics::MetricsReport;
+use ace::models::metrics::{MetricsReport, percent};
 use ace::models::morphology::Morphology;
 use ace::models::nalgebra::Vector3;
 use anyhow::{Context, Result, bail};
@@ -248,16 +248,16 @@ pub fn joint_limit_warning(report: &MetricsReport, trajectory: &Path) -> Option<
             .map(|u| format!("{} at up to {:.2} times its limit", u.joint, u.peak_ratio().unwrap_or(0.0)))
             .collect();
         problems.push(format!(
-            "{:.1} % of the frames move a joint faster than its velocity limit ({})",
-            100.0 * j.over_velocity,
+            "{} of the frames move a joint faster than its velocity limit ({})",
+            percent(j.over_velocity),
             fastest.join(", ")
         ));
     }
     if j.outside_position > 0.0 {
         let outside: Vec<&str> = j.joints.iter().filter(|u| u.frames_outside > 0).map(|u| u.joint.as_str()).collect();
         problems.push(format!(
-            "{:.1} % of the frames put a joint outside its position limits ({})",
-            100.0 * j.outside_position,
+            "{} of the frames put a joint outside its position limits ({})",
+            percent(j.outside_position),
             outside.join(", ")
         ));
     }

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use ace::models::features::FeatureBlock;
+use ace::models::metrics::percent;
 use ace::models::human::EndEffector;
 use ace::models::human_set::PROJECT_FPS;
 use ace::models::character::is_gltf;
@@ -324,8 +325,8 @@ pub(crate) fn metrics_and_export(ui: &mut egui::Ui, preview: &Preview, state: &m
         .chain(r.gait.iter().flat_map(|g| {
             [
                 ("steps", format!("{} swings, median {:.0} frames", g.swings, g.median_swing_frames)),
-                ("  pops (a foot up 1–2 frames)", format!("{:.1} %", 100.0 * g.pop_rate())),
-                ("  micro-steps (under 0.1 body lengths)", format!("{:.1} %", 100.0 * g.micro_step_rate())),
+                ("  pops (a foot up 1–2 frames)", percent(g.pop_rate())),
+                ("  micro-steps (under 0.1 body lengths)", percent(g.micro_step_rate())),
                 ("  stride frequency ÷ Alexander's law", g.median_ratio.map_or("n/a".into(), |x| format!("{x:.2}×"))),
             ]
         })) {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use ace_models::dataset::{DatasetConfig, generate};
 use ace_models::kinematics::{CharacterPose, KinematicTree};
-use ace_models::metrics::joint_limits;
+use ace_models::metrics::{joint_limits, percent};
 use ace_models::metrics::joint_limits::{POSITION_TOLERANCE, VELOCITY_TOLERANCE};
 use ace_models::morphology::{Morphology, load_character};
 use ace_models::nalgebra::Isometry3;
@@ -85,6 +85,11 @@ fn a_joint_faster_than_its_limit_is_caught_frame_by_frame() {
     assert_eq!(r.over_velocity, 1.0 / 60.0, "{r}");
     // Only the episodes' frames count.
     assert_eq!(joint_limits(&tree, &jump, FPS, &[0..10]).unwrap().frames, 10);
+    // One frame in 3,000 is not "0.0 % of frames" (what `ace retarget`'s warning said of it).
+    let rare = stretch_poses(&tree, 3000, |k, q| q[lift] = if k < 1500 { 0.1 } else { 0.8 });
+    let r = joint_limits(&tree, &rare, FPS, &all(3000)).unwrap();
+    assert!(r.to_string().starts_with("joint limits: < 0.1 % of frames over a velocity limit, 0.0 % outside"), "{r}");
+    assert_eq!((percent(0.0), percent(0.0004), percent(0.0006), percent(1.0)), ("0.0 %".into(), "< 0.1 %".into(), "0.1 %".into(), "100.0 %".into()));
 }
 
 #[test]

@@ -472,14 +472,14 @@ impl fmt::Display for GaitSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "gait    {} swings (median {:.1} frames), {} strides (median duty {:.2}); pops {:.1} % ({:.1} % of 1–2 frames), micro-steps {:.1} %, short walking swings {}",
+            "gait    {} swings (median {:.1} frames), {} strides (median duty {:.2}); pops {} ({} of 1–2 frames), micro-steps {}, short walking swings {}",
             self.swings,
             self.median_swing_frames,
             self.strides,
             self.median_duty,
-            100.0 * self.pop_rate(),
-            100.0 * self.one_or_two_frame_rate(),
-            100.0 * self.micro_step_rate(),
+            super::percent(self.pop_rate()),
+            super::percent(self.one_or_two_frame_rate()),
+            super::percent(self.micro_step_rate()),
             self.short_walking_swings
         )?;
         if let Some(r) = self.median_ratio {

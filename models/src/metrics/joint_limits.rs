@@ -87,11 +87,11 @@ impl JointLimitsReport {
 impl std::fmt::Display for JointLimitsReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         if self.has_velocity_limits() {
-            write!(f, "joint limits: {:.1} % of frames over a velocity limit, ", 100.0 * self.over_velocity)?;
+            write!(f, "joint limits: {} of frames over a velocity limit, ", super::percent(self.over_velocity))?;
         } else {
             write!(f, "joint limits: no velocity limits given, ")?;
         }
-        write!(f, "{:.1} % outside a position limit", 100.0 * self.outside_position)?;
+        write!(f, "{} outside a position limit", super::percent(self.outside_position))?;
         for j in self.over() {
             write!(
                 f,

@@ -49,6 +49,13 @@ use std::ops::Range;
 use nalgebra::{Isometry3, Translation3};
 use serde::{Deserialize, Serialize};
 
+/// A fraction of frames (or swings) as a percentage with one decimal, where a share that rounds to
+/// 0.0 % but is not zero reads "< 0.1 %" (a warning of "0.0 % of the frames" was one real frame).
+pub fn percent(fraction: f32) -> String {
+    let shown = format!("{:.1} %", 100.0 * fraction);
+    if fraction > 0.0 && shown == "0.0 %" { "< 0.1 %".into() } else { shown }
+}
+
 pub use distribution::{DivConfig, GaussianFit, diversity, fid, frechet_distance};
 pub use following::{FollowingConfig, FollowingReport, FollowingSummary, PairFollowing, PairSummary, following, turned_degrees};
 pub use gait::{FootTracks, GaitConfig, GaitReport, GaitSummary, gait_of_labelled_poses, gait_of_poses, gait_quality};
