@@ -157,10 +157,12 @@ impl Default for DatasetConfig {
 #[derive(Debug, Clone, Error, PartialEq)]
 pub enum DatasetError {
     /// The controllers cannot drive the character.
-    #[error("character `{character}`: {problem}")]
+    #[error("character `{character}`{}: {problem}", file.as_ref().map(|f| format!(" ({})", f.display())).unwrap_or_default())]
     Controller {
         /// Robot name.
         character: String,
+        /// The file it was read from, when it came from one.
+        file: Option<PathBuf>,
         /// What the controllers report.
         problem: ControllerError,
     },
@@ -233,6 +235,7 @@ pub fn speed_scale(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig
 fn rig(tree: &KinematicTree, morph: &Morphology, cfg: &DatasetConfig) -> Result<Rig, DatasetError> {
     Rig::new(tree, morph, &cfg.controller, cfg.fps).map_err(|problem| DatasetError::Controller {
         character: tree.name.clone(),
+        file: tree.source.clone(),
         problem,
     })
 }

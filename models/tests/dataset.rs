@@ -257,6 +257,33 @@ fn bad_configurations_are_refused() {
     );
 }
 
+/// A character none of whose joints moves (a box with a lid) has no motion to learn: `ace dataset`
+/// wrote a dataset of it, root only, and training followed.
+#[test]
+fn a_character_without_a_movable_joint_is_refused() {
+    let dir = temp_dir("rigid");
+    let urdf = dir.join("box.urdf");
+    let shape = |size: &str| format!("<visual><geometry><box size=\"{size}\"/></geometry></visual>");
+    let text = format!(
+        "<robot name=\"box\"><link name=\"base\">{}</link><link name=\"lid\">{}</link>\
+         <joint name=\"hinge\" type=\"fixed\"><parent link=\"base\"/><child link=\"lid\"/><origin xyz=\"0 0 0.11\"/></joint></robot>",
+        shape("0.5 0.3 0.2"),
+        shape("0.5 0.3 0.02")
+    );
+    std::fs::write(&urdf, &text).unwrap();
+    let (tree, morph) = load_character(&urdf).unwrap();
+    let e = generate(&tree, &morph, &small(10, 0), &mut |_| {}).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!("character `box` ({}): it has no movable joint (every joint is fixed), so there is no motion to generate or learn", urdf.display())
+    );
+    assert!(speed_scale(&tree, &morph, &small(10, 0)).is_err());
+    // One revolute joint is enough.
+    std::fs::write(&urdf, text.replace("type=\"fixed\"", "type=\"revolute\"").replace("</joint>", "<axis xyz=\"0 1 0\"/><limit lower=\"0\" upper=\"1.5\" effort=\"1\" velocity=\"1\"/></joint>")).unwrap();
+    let (tree, morph) = load_character(&urdf).unwrap();
+    assert_eq!(generate(&tree, &morph, &small(10, 0), &mut |_| {}).unwrap().len(), 10);
+}
+
 /// Issue 20's walking swings: judged by the feet's speed `|v| + |ω|·R`, which a turn raises, the
 /// shared long-legged spider took trotting swings (3 frames in the air) at walking Froude numbers, 10
 /// in its default dataset; judged by the body's speed (`walks_by_body_speed`, the default), as the

@@ -235,6 +235,9 @@ pub enum ControllerError {
     /// A legless creature that cannot crawl: what is missing.
     #[error("cannot crawl: {0}")]
     Crawl(String),
+    /// A character without a joint that moves: no motion to generate or to learn.
+    #[error("it has no movable joint (every joint is fixed), so there is no motion to generate or learn")]
+    Rigid,
 }
 
 /// Counters that tell how clean an episode was.

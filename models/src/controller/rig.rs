@@ -239,6 +239,9 @@ impl Rig {
         cfg: &ControllerConfig,
         fps: f32,
     ) -> Result<Rig, ControllerError> {
+        if tree.dof() == 0 {
+            return Err(ControllerError::Rigid);
+        }
         let mut standing = tree.standing_pose();
         let h_stand = standing.root.translation.vector.z;
         let mut proxies = Proxies::new(tree, &standing);
