@@ -290,7 +290,8 @@ impl Outputs {
         let name = out
             .file_name()
             .with_context(|| format!("{}: not a file name", out.display()))?;
-        let tmp = ace::models::temporary::beside(&parent.join(name), None);
+        // The temporary keeps the output's extension: writers pick the format by it (`.gltf` is JSON).
+        let tmp = ace::models::temporary::beside(&parent.join(name), out.extension().and_then(|e| e.to_str()));
         LIVE.lock().unwrap_or_else(|e| e.into_inner()).insert(tmp.clone());
         if tmp.is_dir() {
             let _ = fs::remove_dir_all(&tmp);

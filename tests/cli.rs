@@ -153,6 +153,27 @@ fn validate_gltf(glb: &Path) -> Option<Value> {
     Some(report)
 }
 
+/// `--out NAME.gltf` writes glTF's JSON form, data embedded, for a robot and a rigged creature: the
+/// CLI wrote the GLB under that name, since the export picked the format from its staged temporary's
+/// name, which ended in `.ace-tmp-<pid>`.
+#[test]
+fn retarget_to_a_gltf_name_writes_gltf_json() {
+    let dir = tmp("gltf-out");
+    let clip = root().join("assets/motions/wave.bvh");
+    for character in ["spot", "hound"] {
+        for name in [format!("{character}.gltf"), format!("{character}-upper.GLTF")] {
+            let out = dir.join(&name);
+            run_ok(&["retarget", clip.to_str().unwrap(), "--character", character, "--out", out.to_str().unwrap()]);
+            let doc: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap_or_else(|e| panic!("{name} is not JSON: {e}"));
+            assert_eq!(doc["asset"]["version"], "2.0", "{name}");
+            assert!(doc["buffers"][0]["uri"].as_str().unwrap().starts_with("data:application/octet-stream;base64,"), "{name}");
+            assert_eq!(doc["animations"].as_array().unwrap().len(), 1, "{name}");
+            validate_gltf(&out);
+        }
+    }
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().contains("ace-tmp")));
+}
+
 #[test]
 fn demo_retargets_every_bundled_clip_onto_every_bundled_character() {
     let out_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-demo");
