@@ -750,6 +750,28 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
     assert!(!dir.join("x.glb").exists(), "nothing written on error");
 }
 
+/// A profile that makes one of Spot's feet an arm keeps its list of end effectors, so the shipped
+/// checkpoint ran on it (the foot lock let that foot slide: UFR 12 %). The checkpoint records its feet.
+#[test]
+fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
+    let dir = tmp("profile-roles");
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = dir.join("spot.urdf");
+    std::fs::copy(root().join("assets/characters/spot.urdf"), &urdf).unwrap();
+    std::fs::write(dir.join("spot.profile.toml"), "feet = [\"fl_foot\", \"fr_foot\", \"rl_foot\"]\nmanipulators = [\"rr_foot\", \"gripper_tip\"]\n").unwrap();
+    let ck = root().join("assets/checkpoints/spot");
+    let glb = dir.join("walk.glb");
+    for backend in ["rust", "tch"] {
+        let out = ace(&["retarget", "assets/motions/walk.bvh", "--character", urdf.to_str().unwrap(), "--checkpoint", ck.to_str().unwrap(), "--backend", backend, "--out", glb.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(ck.to_str().unwrap()) && err.contains("trained with 4 feet (fl_foot, fr_foot, rl_foot, rr_foot), and the character has 3"), "{backend}: {err}");
+        assert!(!glb.exists());
+    }
+    // As the checkpoint was trained, it runs.
+    std::fs::write(dir.join("spot.profile.toml"), "feet = [\"fl_foot\", \"fr_foot\", \"rl_foot\", \"rr_foot\"]\n").unwrap();
+    run_ok(&["retarget", "assets/motions/walk.bvh", "--character", urdf.to_str().unwrap(), "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
+}
+
 #[test]
 fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
     let Some(dir) = shared("creatures") else { return };

@@ -132,12 +132,66 @@ impl Morphology {
         if let Some(h) = &profile.head {
             m.head = if h.is_empty() { None } else { Some(find(h)?) };
         }
+        m.check_roles(tree).map_err(err)?;
         let ees = m.end_effectors();
         m.tip_offsets.retain(|l, _| ees.contains(l));
+        // An end-effector point farther from its link than the whole body is big is a mistake (a
+        // value in millimetres, or a typo), and the state and L_fea would carry it.
+        let size = Analysis::new(tree).size;
         for (name, o) in &profile.tip_offsets {
-            m.tip_offsets.insert(find(name)?, Vector3::from(*o));
+            let link = find(name)?;
+            let bad = |valid: String| err(ProfileProblem::BadValue { key: format!("tip_offsets.\"{name}\""), value: format!("{o:?}"), valid });
+            if !ees.contains(&link) {
+                return Err(bad(format!("`{name}` is not an end effector (a foot, a manipulator or the head), so it has no tip")));
+            }
+            let o = Vector3::from(*o);
+            if o.norm() > size {
+                return Err(bad(format!(
+                    "the tip would lie {:.3} m from its link, farther than the character is big ({size:.3} m): a tip offset is in metres, in the link's frame",
+                    o.norm()
+                )));
+            }
+            m.tip_offsets.insert(link, o);
         }
         Ok(m)
+    }
+
+    /// Checks the roles a profile may have mixed up: an end effector has one role, once, and no foot
+    /// hangs below another (a leg has one foot).
+    fn check_roles(&self, tree: &KinematicTree) -> Result<(), ProfileProblem> {
+        let bad = |key: &str, link: usize, valid: String| ProfileProblem::BadValue {
+            key: key.into(),
+            value: format!("\"{}\"", tree.links[link].name),
+            valid,
+        };
+        let mut seen: Vec<(usize, &str)> = Vec::new();
+        let roles = [("feet", &self.feet[..]), ("manipulators", &self.manipulators[..]), ("head", self.head.as_slice())];
+        for (role, links) in roles {
+            for &l in links {
+                if let Some((_, other)) = seen.iter().find(|(s, _)| *s == l) {
+                    let valid = if *other == role {
+                        format!("it is listed twice in `{role}`")
+                    } else {
+                        format!(
+                            "it is also in `{other}`: an end effector has one role (the roles a profile leaves out are the \
+                             analysis' own, which `ace inspect` lists)"
+                        )
+                    };
+                    return Err(bad(role, l, valid));
+                }
+                seen.push((l, role));
+            }
+        }
+        for &a in &self.feet {
+            if let Some(&b) = self.feet.iter().find(|&&b| b != a && tree.is_descendant(b, a)) {
+                return Err(bad(
+                    "feet",
+                    b,
+                    format!("it hangs below `{}`, also a foot: a leg has one foot, at its end", tree.links[a].name),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// End-effector links in the order the character state uses: feet, then manipulators, then the head.
@@ -378,10 +432,22 @@ impl Profile {
         }
         let mut q = vec![0.0; tree.dof()];
         for (name, v) in &self.rest_pose {
-            let d = tree.dof_index(name).ok_or_else(|| ProfileError {
-                file: self.source.clone().unwrap_or_else(|| "<profile>".into()),
-                problem: ProfileProblem::UnknownJoint(name.clone()),
-            })?;
+            let err = |problem| ProfileError { file: self.source.clone().unwrap_or_else(|| "<profile>".into()), problem };
+            let d = tree.dof_index(name).ok_or_else(|| err(ProfileProblem::UnknownJoint(name.clone())))?;
+            // Clamped into the limits, a value in degrees (or out of range) became another pose silently.
+            if let Some(l) = tree.limits(d) {
+                let tol = 1e-4 * (1.0 + l.upper.abs().max(l.lower.abs()));
+                if *v < l.lower - tol || *v > l.upper + tol {
+                    return Err(err(ProfileProblem::BadValue {
+                        key: format!("rest_pose.\"{name}\""),
+                        value: v.to_string(),
+                        valid: format!(
+                            "outside the joint's limits [{}, {}] (radians, or metres for a sliding joint)",
+                            l.lower, l.upper
+                        ),
+                    }));
+                }
+            }
             q[d] = *v;
         }
         tree.set_rest_q(q);

@@ -635,6 +635,44 @@ fn profile_overrides_and_rest_pose() {
     assert_eq!(Profile::path_beside(&path), characters().join("spot.profile.toml"));
 }
 
+/// Profile values that read but make no sense for the body: each was accepted, and the dataset or the
+/// retarget went on with another body than the one meant (a foot also an arm, two feet on one leg, a
+/// knee clamped from 100 "degrees" to its limit, a gripper's tip 50 m off).
+#[test]
+fn profile_mistakes_are_refused_naming_the_key() {
+    let path = characters().join("spot.urdf");
+    let refused = |toml: &str, key: &str, value: &str, why: &str| {
+        let p = Profile::from_toml(toml, "spot.profile.toml").unwrap();
+        let mut t = KinematicTree::from_urdf_file(&path).unwrap();
+        let e = p.apply_rest_pose(&mut t).and_then(|()| Morphology::with_profile(&t, &p).map(|_| ())).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.starts_with(&format!("spot.profile.toml: `{key}` = {value}: ")) && msg.contains(why), "{toml}: {msg}");
+    };
+    refused(r#"feet = ["fl_foot", "fr_foot", "fl_foot", "rr_foot"]"#, "feet", "\"fl_foot\"", "listed twice in `feet`");
+    refused(r#"manipulators = ["fl_foot", "gripper_tip"]"#, "manipulators", "\"fl_foot\"", "also in `feet`");
+    refused(r#"head = "gripper_tip""#, "head", "\"gripper_tip\"", "also in `manipulators`");
+    refused(r#"feet = ["fl_shank", "fl_foot", "fr_foot", "rr_foot"]"#, "feet", "\"fl_foot\"", "hangs below `fl_shank`");
+    refused("[tip_offsets]\ngripper_tip = [0.0, 0.0, 50.0]", "tip_offsets.\"gripper_tip\"", "[0.0, 0.0, 50.0]", "farther than the character is big");
+    refused("[tip_offsets]\nfl_foot = [1e30, 0.0, 0.0]", "tip_offsets.\"fl_foot\"", "[1e30, 0.0, 0.0]", "farther than the character is big");
+    refused("[tip_offsets]\nfl_shank = [0.0, 0.0, -0.1]", "tip_offsets.\"fl_shank\"", "[0.0, 0.0, -0.1]", "not an end effector");
+    refused("[rest_pose]\nfl_knee = 100.0", "rest_pose.\"fl_knee\"", "100", "outside the joint's limits [-1.39, 1.15]");
+    refused("[rest_pose]\nfl_knee = -1.4", "rest_pose.\"fl_knee\"", "-1.4", "outside the joint's limits");
+
+    // At the limits, and roles given consistently, they are read.
+    for toml in [
+        "[rest_pose]\nfl_knee = 1.15\nfr_knee = -1.39",
+        r#"feet = ["fl_foot", "fr_foot", "rl_foot"]
+           manipulators = ["rr_foot", "gripper_tip"]
+           [tip_offsets]
+           gripper_tip = [0.0, 0.0, 0.05]"#,
+    ] {
+        let p = Profile::from_toml(toml, "spot.profile.toml").unwrap();
+        let mut t = KinematicTree::from_urdf_file(&path).unwrap();
+        p.apply_rest_pose(&mut t).unwrap();
+        Morphology::with_profile(&t, &p).unwrap_or_else(|e| panic!("{toml}: {e}"));
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Character state
 

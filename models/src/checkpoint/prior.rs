@@ -352,6 +352,9 @@ pub struct CharacterInfo {
     pub dof_names: Vec<String>,
     /// End-effector link names, in state order.
     pub end_effector_links: Vec<String>,
+    /// How many of `end_effector_links` (the first) are feet; `None` in checkpoints written before it
+    /// was recorded. A profile can make a foot an arm and keep the list as it was.
+    pub feet: Option<usize>,
 }
 
 impl CharacterInfo {
@@ -362,6 +365,7 @@ impl CharacterInfo {
             layout: set.layout,
             dof_names: set.dof_names.clone(),
             end_effector_links: set.end_effector_links.clone(),
+            feet: Some(set.n_feet),
         }
     }
 
@@ -372,6 +376,7 @@ impl CharacterInfo {
             layout: CharacterLayout::new(tree, morph),
             dof_names: tree.dof_names().into_iter().map(String::from).collect(),
             end_effector_links: morph.end_effector_links(tree),
+            feet: Some(morph.feet.len()),
         }
     }
 
@@ -432,6 +437,18 @@ impl CharacterInfo {
                 self.name
             ));
         }
+        if let (Some(a), Some(b)) = (self.feet, expected.feet)
+            && a != b
+        {
+            let feet = |n: usize| self.end_effector_links[..n.min(self.end_effector_links.len())].join(", ");
+            return Some(format!(
+                "`{}`: it was trained with {a} feet ({}), and the character has {b} ({}): its profile \
+                 (`<name>.profile.toml`) gives the end effectors other roles",
+                self.name,
+                feet(a),
+                feet(b)
+            ));
+        }
         None
     }
 }
@@ -460,6 +477,8 @@ struct CharacterFile {
     layout: LayoutFile,
     dof_names: Vec<String>,
     end_effector_links: Vec<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    feet: Option<usize>,
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -480,6 +499,7 @@ impl From<CharacterInfo> for CharacterFile {
             },
             dof_names: c.dof_names,
             end_effector_links: c.end_effector_links,
+            feet: c.feet,
         }
     }
 }
@@ -512,11 +532,15 @@ impl TryFrom<CharacterFile> for CharacterInfo {
                 layout.end_effectors
             ));
         }
+        if f.feet.is_some_and(|n| n > layout.end_effectors) {
+            return Err(format!("character `{}`: {:?} feet among {} end effectors", f.name, f.feet, layout.end_effectors));
+        }
         Ok(CharacterInfo {
             name: f.name,
             layout,
             dof_names: f.dof_names,
             end_effector_links: f.end_effector_links,
+            feet: f.feet,
         })
     }
 }
@@ -623,5 +647,15 @@ mod tests {
         other_joint.dof_names[0] = "hip".into();
         let d = spot.difference(&other_joint).unwrap();
         assert!(d.starts_with(&format!("`spot`: stored DoF `{}` where the character has `hip`", spot.dof_names[0])), "{d}");
+        // A foot made an arm by a profile keeps the end-effector list: the feet say it.
+        let three_feet = CharacterInfo { feet: Some(3), ..spot.clone() };
+        let d = spot.difference(&three_feet).unwrap();
+        assert_eq!(
+            d,
+            "`spot`: it was trained with 4 feet (fl_foot, fr_foot, rl_foot, rr_foot), and the character has 3 (fl_foot, \
+             fr_foot, rl_foot): its profile (`<name>.profile.toml`) gives the end effectors other roles"
+        );
+        // A checkpoint from before the feet were recorded is read as it was.
+        assert_eq!(CharacterInfo { feet: None, ..spot.clone() }.difference(&three_feet), None);
     }
 }
