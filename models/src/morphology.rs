@@ -135,24 +135,7 @@ impl Morphology {
         m.check_roles(tree).map_err(err)?;
         let ees = m.end_effectors();
         m.tip_offsets.retain(|l, _| ees.contains(l));
-        // An end-effector point farther from its link than the whole body is big is a mistake (a
-        // value in millimetres, or a typo), and the state and L_fea would carry it.
-        let size = Analysis::new(tree).size;
-        for (name, o) in &profile.tip_offsets {
-            let link = find(name)?;
-            let bad = |valid: String| err(ProfileProblem::BadValue { key: format!("tip_offsets.\"{name}\""), value: format!("{o:?}"), valid });
-            if !ees.contains(&link) {
-                return Err(bad(format!("`{name}` is not an end effector (a foot, a manipulator or the head), so it has no tip")));
-            }
-            let o = Vector3::from(*o);
-            if o.norm() > size {
-                return Err(bad(format!(
-                    "the tip would lie {:.3} m from its link, farther than the character is big ({size:.3} m): a tip offset is in metres, in the link's frame",
-                    o.norm()
-                )));
-            }
-            m.tip_offsets.insert(link, o);
-        }
+        profile.apply_tip_offsets(tree, &mut m)?;
         Ok(m)
     }
 
@@ -299,6 +282,9 @@ pub enum ProfileProblem {
     Io(String),
     #[error("malformed profile TOML: {0}")]
     Parse(String),
+    /// A creature's profile that names what its rig does not have.
+    #[error("{0}")]
+    Body(String),
     #[error("no link named `{0}`")]
     UnknownLink(String),
     #[error("no movable joint with its own DoF named `{0}`")]
@@ -423,6 +409,34 @@ impl Profile {
             }),
             None => Ok(()),
         }
+    }
+
+    /// Sets the end-effector points of `m` that the profile gives (`tip_offsets`). An offset on a link
+    /// that is no end effector, or farther from its link than the whole body is big (a value in
+    /// millimetres, a typo), is refused: the state and L_fea would carry it.
+    pub fn apply_tip_offsets(&self, tree: &KinematicTree, m: &mut Morphology) -> Result<(), ProfileError> {
+        let err = |problem| ProfileError { file: self.source.clone().unwrap_or_else(|| "<profile>".into()), problem };
+        if self.tip_offsets.is_empty() {
+            return Ok(());
+        }
+        let ees = m.end_effectors();
+        let size = Analysis::new(tree).size;
+        for (name, o) in &self.tip_offsets {
+            let link = tree.link_index(name).ok_or_else(|| err(ProfileProblem::UnknownLink(name.clone())))?;
+            let bad = |valid: String| err(ProfileProblem::BadValue { key: format!("tip_offsets.\"{name}\""), value: format!("{o:?}"), valid });
+            if !ees.contains(&link) {
+                return Err(bad(format!("`{name}` is not an end effector (a foot, a manipulator or the head), so it has no tip")));
+            }
+            let o = Vector3::from(*o);
+            if o.norm() > size {
+                return Err(bad(format!(
+                    "the tip would lie {:.3} m from its link, farther than the character is big ({size:.3} m): a tip offset is in metres, in the link's frame",
+                    o.norm()
+                )));
+            }
+            m.tip_offsets.insert(link, o);
+        }
+        Ok(())
     }
 
     /// Sets the tree's rest pose (its `neutral_q`) from `rest_pose`, if the profile has one.

@@ -482,9 +482,27 @@ b_Tail01_012 = ["yaw"]
     moving.sort();
     assert_eq!(moving, ["b_Head_05", "b_Spine01_02"]);
 
-    std::fs::write(&profile, "feet = [\"b_Paw_99\"]\n").unwrap();
-    let e = load_creature(&fox).unwrap_err().to_string();
-    assert!(e.contains("Fox.profile.toml") && e.contains("b_Paw_99"), "{e}");
+    // What it names that the rig lacks is refused with the key, never skipped (a `[dofs]` axis spelled
+    // `Yaw` took every DoF from the head; a limit on a bone the rig lacks did nothing).
+    for (toml, says) in [
+        ("feet = [\"b_Paw_99\"]", "`feet`: no body bone named `b_Paw_99`"),
+        ("translate = [\"Nope\"]", "`translate`: no body bone named `Nope`"),
+        ("[dofs]\nb_Head_05 = [\"Yaw\"]", "`dofs.\"b_Head_05\"`: `Yaw` is not an axis (they are yaw, pitch, roll)"),
+        ("[dofs]\nNope = [\"yaw\"]", "`dofs.\"Nope\"`: no body bone named `Nope`"),
+        ("[limits]\n\"Nope:yaw\" = [-0.5, 0.5]", "`limits.\"Nope:yaw\"`: no body bone named `Nope`"),
+        ("[limits]\n\"b_Head_05\" = [-0.5, 0.5]", "`limits.\"b_Head_05\"`: a limit is keyed `bone:axis`"),
+        ("[limits]\n\"b_Head_05:twist\" = [-0.5, 0.5]", "`limits.\"b_Head_05:twist\"`: `twist` is not an axis"),
+        ("[dofs]\nb_Head_05 = [\"yaw\"]\n[limits]\n\"b_Head_05:roll\" = [-0.5, 0.5]", "`limits.\"b_Head_05:roll\"`: `dofs.\"b_Head_05\"` leaves the roll axis out"),
+        ("[tip_offsets]\nb_Head_05 = [0.0, 0.0, 100.0]", "farther than the character is big"),
+        ("[tip_offsets]\nb_Spine01_02 = [0.0, 0.0, 0.01]", "`b_Spine01_02` is not an end effector"),
+    ] {
+        std::fs::write(&profile, toml).unwrap();
+        let e = load_creature(&fox).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: ", profile.display())) && e.contains(says) && !e.contains("TOML"), "{toml}: {e}");
+    }
+    std::fs::write(&profile, "[tip_offsets]\nb_Head_05 = [0.0, 0.0, 0.05]").unwrap();
+    let c = load(&fox);
+    assert_eq!(c.morphology.tip_offset(c.morphology.head.unwrap()).z, 0.05);
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -189,6 +189,37 @@ struct Limb {
     from: usize,
 }
 
+/// Checks what the overrides name before any is used: bones of the body, axes among [`AXES`], limits
+/// keyed `bone:axis` on an axis the bone keeps. Each was skipped without a word (a `[dofs]` axis
+/// spelled `Yaw` took every DoF from its bone; a limit on an axis `[dofs]` leaves out put it back).
+fn check_overrides(ov: &Overrides, by_name: &dyn Fn(&str) -> Result<usize, String>) -> Result<(), String> {
+    let axis = |key: &str, a: &str| {
+        if AXES.contains(&a) { Ok(()) } else { Err(format!("{key}: `{a}` is not an axis (they are {})", AXES.join(", "))) }
+    };
+    for (bone, axes) in &ov.dofs {
+        let key = format!("`dofs.\"{bone}\"`");
+        by_name(bone).map_err(|e| format!("{key}: {e}"))?;
+        for a in axes {
+            axis(&key, a)?;
+        }
+    }
+    for joint in ov.limits.keys() {
+        let key = format!("`limits.\"{joint}\"`");
+        let Some((bone, a)) = joint.rsplit_once(':') else {
+            return Err(format!("{key}: a limit is keyed `bone:axis`, the axis one of {}", AXES.join(", ")));
+        };
+        by_name(bone).map_err(|e| format!("{key}: {e}"))?;
+        axis(&key, a)?;
+        if ov.dofs.get(bone).is_some_and(|kept| !kept.iter().any(|k| k == a)) {
+            return Err(format!("{key}: `dofs.\"{bone}\"` leaves the {a} axis out"));
+        }
+    }
+    for bone in &ov.translate {
+        by_name(bone).map_err(|e| format!("`translate`: {e}"))?;
+    }
+    Ok(())
+}
+
 /// Builds the tree and morphology of a creature (see the module docs). `name` names the tree.
 pub fn build(
     rig: &Rig,
@@ -411,6 +442,7 @@ pub fn build(
             .find(|&b| rig.bones[b].name == n)
             .ok_or_else(|| format!("no body bone named `{n}`"))
     };
+    check_overrides(ov, &by_name)?;
     let mid_y = pos(root).y;
     let tip_of = |l: &Limb| *l.path.last().expect("non-empty");
     let midline = |l: &Limb| (pos(tip_of(l)).y - mid_y).abs() < 0.1 * width;
@@ -432,7 +464,7 @@ pub fn build(
         feet.clear();
         foot_limbs.clear();
         for n in names {
-            let b = by_name(n)?;
+            let b = by_name(n).map_err(|e| format!("`feet`: {e}"))?;
             let p = lowest_point(&[b]).unwrap_or_else(|| Point3::from(pos(b)));
             feet.push((b, p));
             if let Some(i) = limbs.iter().position(|l| l.path.contains(&b)) {
@@ -500,7 +532,7 @@ pub fn build(
         head = if h.is_empty() {
             None
         } else {
-            Some(by_name(h)?)
+            Some(by_name(h).map_err(|e| format!("`head`: {e}"))?)
         };
     }
     // Tails and arms.
@@ -543,7 +575,7 @@ pub fn build(
     }
     let mut manipulators: Vec<usize> = arms.iter().map(|a| a.1).collect();
     if let Some(names) = &ov.manipulators {
-        manipulators = names.iter().map(|n| by_name(n)).collect::<Result<_, _>>()?;
+        manipulators = names.iter().map(|n| by_name(n).map_err(|e| format!("`manipulators`: {e}"))).collect::<Result<_, _>>()?;
     }
 
     // Roles of moving bones.
@@ -598,14 +630,14 @@ pub fn build(
     }
     role.remove(&root);
     if let Some(names) = &ov.animated {
-        let keep: Vec<usize> = names.iter().map(|n| by_name(n)).collect::<Result<_, _>>()?;
+        let keep: Vec<usize> = names.iter().map(|n| by_name(n).map_err(|e| format!("`animated`: {e}"))).collect::<Result<_, _>>()?;
         role.retain(|b, _| keep.contains(b));
         for b in keep {
             role.entry(b).or_insert(Role::Spine);
         }
     }
     for n in &ov.at_rest {
-        role.remove(&by_name(n)?);
+        role.remove(&by_name(n).map_err(|e| format!("`at_rest`: {e}"))?);
     }
 
     // Axes per moving bone: leg axes for legs, the character frame's elsewhere.

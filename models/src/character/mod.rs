@@ -80,19 +80,11 @@ pub fn creature_from_document(
                 .source
                 .clone()
                 .unwrap_or_else(|| path.display().to_string()),
-            problem: ProfileProblem::Parse(p),
+            problem: ProfileProblem::Body(p),
         })?;
     tree.source = Some(path.to_path_buf());
     profile.apply_rest_pose(&mut tree)?;
-    for (name, o) in &profile.tip_offsets {
-        let l = tree.link_index(name).ok_or_else(|| ProfileError {
-            file: profile.source.clone().unwrap_or_default(),
-            problem: ProfileProblem::UnknownLink(name.clone()),
-        })?;
-        morphology
-            .tip_offsets
-            .insert(l, nalgebra::Vector3::from(*o));
-    }
+    profile.apply_tip_offsets(&tree, &mut morphology)?;
     Ok(Creature {
         tree,
         morphology,
