@@ -121,12 +121,12 @@ pub fn run(
             files.commit()?;
             let glb = out.join(&rel);
             println!(
-                "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  following {:5.2}  UFR {:5.2} %  → {}",
+                "{:>8} ← {:<8} {:>4} frames  L_fea {:.3}  following {:>5}  UFR {:5.2} %  → {}",
                 tree.name,
                 clip.name,
                 w.report.frames,
                 w.report.feature_loss.unwrap_or(f32::NAN),
-                crate::eval::following_score(&w.report).unwrap_or(f32::NAN),
+                crate::eval::following_score(&w.report).map_or("n/a".into(), |v| format!("{v:.2}")),
                 100.0 * w.report.ufr.rates.ufr,
                 glb.display()
             );

@@ -170,6 +170,30 @@ fn a_gripper_that_moves_with_the_hand_follows_it() {
     assert_eq!(r.score, p.combined);
 }
 
+/// A clip shorter than one window (1 s) is scored n/a: over two frames a correlation is ±1 ("following
+/// 1.00" for a 2-frame clip), and one frame counted as a second of standing.
+#[test]
+fn a_clip_shorter_than_a_window_is_not_scored() {
+    let mut f = fixture();
+    // The 30 frames of the reach over which the hand moves most.
+    let h = f.hand_height();
+    let range = |w: &[f32]| w.iter().cloned().fold(f32::MIN, f32::max) - w.iter().cloned().fold(f32::MAX, f32::min);
+    let start = (0..h.len() - 30).max_by(|&a, &b| range(&h[a..a + 30]).total_cmp(&range(&h[b..b + 30]))).unwrap();
+    assert!(range(&h[start..start + 30]) > 0.1);
+    let all = f.human.clone();
+    for (frames, scored) in [(2, false), (29, false), (30, true)] {
+        f.human = all[start..start + frames].to_vec();
+        let lift = f.mirroring(1.0);
+        let r = f.score(lift);
+        let p = &r.pairs[0];
+        assert_eq!(p.correlation.vertical.is_some(), scored, "{frames} frames: {p:?}");
+        assert_eq!((p.amplitude_ratio.is_some(), r.score.is_some()), (scored, scored), "{frames} frames: {r:?}");
+        f.human = vec![all[0].clone(); frames];
+        let r = f.score(|_| 0.4);
+        assert_eq!((r.standing_travel.is_some(), r.pairs[0].stillness.is_some()), (scored, scored), "{frames} frames: {r:?}");
+    }
+}
+
 #[test]
 fn a_gripper_moving_against_the_hand_scores_minus_one_and_a_parked_one_zero() {
     let f = fixture();

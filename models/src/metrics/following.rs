@@ -10,13 +10,15 @@
 //!   offset between the bodies (their rest poses differ) drops out.
 //! - **Correlation per axis**: Pearson's correlation of the character's coordinate with the human's over
 //!   the clip's frames. It is left out (`None`) where the human's range on that axis is below
-//!   [`FollowingConfig::min_motion`] (there is nothing to follow); a character that stays still there
-//!   scores 0. 1 is perfect following, −1 is moving against the human.
+//!   [`FollowingConfig::min_motion`] (there is nothing to follow), and on a clip shorter than one
+//!   window ([`FollowingConfig::window_s`]: over two frames it is ±1); a character that stays still
+//!   there scores 0. 1 is perfect following, −1 is moving against the human.
 //! - **Combined score**: the per-axis correlations averaged with the human's range on each axis as
 //!   weights, so the axes the human actually moves along count most.
 //! - **Amplitude ratio**: the character's extent (length of the per-axis ranges) over the human's, both in
 //!   their own body lengths, i.e. the character's range against the human's range scaled to the
-//!   character. Left out when the human's extent is below `min_motion`. 1 is the same relative size.
+//!   character. Left out when the human's extent is below `min_motion`, and on a clip shorter than a
+//!   window. 1 is the same relative size.
 //! - **Stillness**: the character's extent (body lengths) within windows of
 //!   [`FollowingConfig::window_s`] where the human's end effector stays within
 //!   [`FollowingConfig::still_extent_m`] metres, median over those windows (`None` when there is no
@@ -194,8 +196,10 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
             let h: [Vec<f32>; 3] = std::array::from_fn(|a| track(&h_rows, k, a));
             let h_range: [f32; 3] = std::array::from_fn(|a| range(&h[a]));
             let c_range: [f32; 3] = std::array::from_fn(|a| range(&c[a]));
+            // Over fewer frames than a window a correlation says little (over two it is ±1).
+            let long_enough = c_rows.len() >= window;
             let corr: [Option<f32>; 3] =
-                std::array::from_fn(|a| (h_range[a] >= config.min_motion).then(|| correlation(&c[a], &h[a])));
+                std::array::from_fn(|a| (long_enough && h_range[a] >= config.min_motion).then(|| correlation(&c[a], &h[a])));
             let (mut sum, mut weight) = (0.0, 0.0);
             for a in 0..3 {
                 if let Some(r) = corr[a] {
@@ -215,7 +219,7 @@ pub fn following<R: AsRef<[f32]>, S: AsRef<[f32]>>(
                 combined: (weight > 0.0).then(|| sum / weight),
                 human_range: Axes::from_array(h_range),
                 character_range: Axes::from_array(c_range),
-                amplitude_ratio: (h_extent >= config.min_motion).then(|| norm(c_range) / h_extent),
+                amplitude_ratio: (long_enough && h_extent >= config.min_motion).then(|| norm(c_range) / h_extent),
                 stillness: (!stills.is_empty()).then(|| median(&mut stills)),
             }
         })
@@ -291,10 +295,11 @@ fn cut_rows<S: AsRef<[f32]>>(rows: &[S], start: usize, n: usize) -> Vec<Vec<f32>
     rows.iter().map(|r| r.as_ref()[start..start + 3 * n].to_vec()).collect()
 }
 
-/// Windows of `len` frames every `len / 2` frames over `n` frames (the whole clip when shorter).
+/// Windows of `len` frames every `len / 2` frames over `n` frames; none when the clip is shorter than
+/// one (a clip of one frame is no second of standing).
 fn windows(n: usize, len: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     let hop = (len / 2).max(1);
-    let count = if n <= len { usize::from(n > 0) } else { (n - len) / hop + 1 };
+    let count = if n < len { 0 } else { (n - len) / hop + 1 };
     (0..count).map(move |i| {
         let start = i * hop;
         start..(start + len).min(n)
@@ -519,12 +524,13 @@ mod tests {
     }
 
     #[test]
-    fn windows_overlap_by_half_and_a_short_clip_is_one_window() {
+    fn windows_overlap_by_half_and_a_clip_shorter_than_one_has_none() {
         let all = |n: usize, len: usize| windows(n, len).collect::<Vec<std::ops::Range<usize>>>();
         assert_eq!(all(100, 30), [0..30, 15..45, 30..60, 45..75, 60..90]);
         assert_eq!(all(31, 30), [0..30]);
         assert_eq!(all(30, 30), [0..30]);
-        assert_eq!(all(20, 30), [0..20]);
+        // A clip of one frame was a "second" of standing.
+        assert!(all(29, 30).is_empty() && all(1, 30).is_empty());
         assert!(all(0, 30).is_empty());
         assert_eq!(all(3, 2), [0..2, 1..3]);
     }
