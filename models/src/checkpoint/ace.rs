@@ -12,7 +12,7 @@ use super::LearnError;
 use super::files::{CheckpointFiles, FileRecord, read_json};
 use super::prior::{CONFIG_FILE as PRIOR_CONFIG_FILE, CharacterInfo, DeviceChoice, WEIGHTS_FILE as PRIOR_WEIGHTS_FILE};
 use crate::correspondence::Correspondence;
-use crate::features::FeatureWeights;
+use crate::features::{FeatureBlock, FeatureWeights};
 use crate::human::{EndEffector, layout as human_layout};
 use crate::human_set::{HumanSplit, HumanStats};
 
@@ -175,6 +175,10 @@ impl AceConfig {
         }
         if self.w_adv == 0.0 && self.w_fea == 0.0 {
             return bad("w_adv and w_fea are both zero: the generator would have nothing to learn".into());
+        }
+        let weights = &self.feature_weights;
+        if self.w_adv == 0.0 && FeatureBlock::ALL.iter().all(|&b| weights.weight(b) == 0.0) {
+            return bad("w_adv is zero and every `feature_weights` entry too: the generator would have nothing to learn".into());
         }
         if !(0.0..1.0).contains(&self.adam_beta1) {
             return bad(format!("`adam_beta1` = {} is out of range: expected 0 to less than 1", self.adam_beta1));
@@ -490,6 +494,22 @@ mod tests {
 
     fn root() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    }
+
+    #[test]
+    fn a_configuration_that_leaves_the_generator_nothing_to_learn_is_refused() {
+        let mut c = AceConfig { w_adv: 0.0, ..AceConfig::default() };
+        c.check().unwrap();
+        c.feature_weights = FeatureWeights { root_height: 0.0, root_orientation: 0.0, root_linear_velocity: 0.0, root_angular_velocity: 0.0, ee_positions: 0.0 };
+        // g_loss was 0 at every step of such a run.
+        assert!(c.check().unwrap_err().to_string().contains("w_adv is zero and every `feature_weights` entry too"));
+        c.feature_weights.ee_positions = 1.0;
+        c.check().unwrap();
+        // The discriminator alone is the ablation without L_fea: it learns.
+        let mut c = AceConfig { w_fea: 1.0, ..c };
+        c.feature_weights.ee_positions = 0.0;
+        c.w_adv = 1.0;
+        c.check().unwrap();
     }
 
     #[test]
