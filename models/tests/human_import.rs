@@ -613,9 +613,9 @@ fn unknown_skeleton_errors_and_a_mapping_file_fixes_it() {
         e.contains("unknown_rig.bvh") && e.contains("Bone.99") && e.contains("left_hand"),
         "{e}"
     );
-    // A mapping that contradicts the hierarchy is refused.
+    // A mapping that contradicts the hierarchy is refused: a shin on the arm.
     let swapped = JointMapping::from_toml_str(
-        "left_hand = \"Bone.43\"\nright_hand = \"Bone.53\"\nleft_foot = \"Bone.12\"\nright_foot = \"Bone.22\"\nhead = \"Bone.34\"\nleft_shin = \"Bone.43\"",
+        "left_hand = \"Bone.43\"\nright_hand = \"Bone.53\"\nleft_foot = \"Bone.12\"\nright_foot = \"Bone.22\"\nhead = \"Bone.34\"\nleft_shin = \"Bone.42\"",
     )
     .unwrap();
     let e = HumanClip::from_bvh_file(
@@ -657,6 +657,16 @@ fn mapping_files_are_validated() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("/nonexistent/map.toml"), "{e}");
+    // A joint given twice was settled by the keys' alphabetical order; one BVH joint for two canonical
+    // joints was "could not map canonical joint(s) spine, chest, …", with no word of the duplicate.
+    for (text, says) in [
+        ("head = \"Neck\"\n[joints]\nhead = \"Head\"", "`head` is given twice, at the top level and in `[joints]`"),
+        ("left_foot = \"LeftToe\"\n[joints]\nleft_foot = \"LeftFoot\"", "`left_foot` is given twice"),
+        ("left_hand = \"RightHand\"\nright_hand = \"RightHand\"", "`left_hand` and `right_hand` both name the BVH joint `RightHand`"),
+    ] {
+        let e = JointMapping::parse(text, "walk.mapping.toml").unwrap_err().to_string();
+        assert!(e.starts_with("walk.mapping.toml") && e.contains(says), "{text}: {e}");
+    }
 }
 
 #[test]

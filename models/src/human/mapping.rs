@@ -117,7 +117,17 @@ impl TryFrom<BTreeMap<String, toml::Value>> for JointMapping {
                             valid.join(", ")
                         )
                     })?;
-                    m.joints[joint.index()] = Some(string(&k, &v)?);
+                    let bvh = string(&k, &v)?;
+                    if m.joints[joint.index()].is_some() {
+                        return Err(format!("`{name}` is given twice, at the top level and in `[joints]`"));
+                    }
+                    if let Some(other) = Joint::ALL.iter().find(|j| m.joints[j.index()].as_deref() == Some(bvh.as_str())) {
+                        return Err(format!(
+                            "`{}` and `{name}` both name the BVH joint `{bvh}`: each canonical joint is a joint of its own",
+                            other.name()
+                        ));
+                    }
+                    m.joints[joint.index()] = Some(bvh);
                 }
             }
         }
