@@ -14,6 +14,10 @@ use super::units::{NORMALISED_HEIGHT_M, PLAUSIBLE_HEIGHT_M};
 /// one glitch of 14 m/s (a salsa clip whose root jumps 12 cm in one 120 fps frame).
 pub const MAX_ROOT_SPEED: f32 = 10.0;
 
+/// The lowest frame rate (frames per second) taken for motion capture without a warning
+/// ([`HumanClip::frame_rate_warning`]).
+pub const SLOWEST_MOCAP_FPS: f32 = 10.0;
+
 /// One frame: world positions of the 17 canonical joints (metres, z up) and the pelvis' world
 /// orientation (its local x = facing direction, z = up when standing upright).
 #[derive(Clone, Debug, PartialEq)]
@@ -212,10 +216,32 @@ impl HumanClip {
         })
     }
 
+    /// A warning when the file's frame rate is below [`SLOWEST_MOCAP_FPS`]: most often a `Frame Time`
+    /// written in milliseconds (8.333333 for 120 fps made a 10-second clip last 20 minutes).
+    pub fn frame_rate_warning(&self) -> Option<String> {
+        (self.source_fps < SLOWEST_MOCAP_FPS).then(|| {
+            let seconds = 1.0 / self.source_fps;
+            format!(
+                "{}: a `Frame Time` of {seconds:.4} s is {:.3} frames per second, where motion capture runs at 24 to 240, \
+                 so the clip lasts {:.0} s; a frame time in milliseconds must be written in seconds ({:.6})",
+                self.name,
+                self.source_fps,
+                self.duration(),
+                seconds / 1000.0
+            )
+        })
+    }
+
     /// Every warning about the clip's content ([`HumanClip::unit_warning`],
-    /// [`HumanClip::posture_warning`], [`HumanClip::root_jump_warning`]).
+    /// [`HumanClip::frame_rate_warning`], [`HumanClip::posture_warning`],
+    /// [`HumanClip::root_jump_warning`]).
     pub fn warnings(&self) -> Vec<String> {
-        self.unit_warning().into_iter().chain(self.posture_warning()).chain(self.root_jump_warning()).collect()
+        self.unit_warning()
+            .into_iter()
+            .chain(self.frame_rate_warning())
+            .chain(self.posture_warning())
+            .chain(self.root_jump_warning())
+            .collect()
     }
 
     /// Seconds from the first to the last frame.
@@ -358,6 +384,18 @@ mod tests {
         assert!(w.starts_with("dir/take.bvh: no length unit (CMU's, cm, m, inch, mm) makes the performer 1.4 to 2 m tall, so the skeleton is scaled to 1.70 m"), "{w}");
         assert!(w.ends_with("joint-mapping file (--mapping FILE or take.mapping.toml)"), "{w}");
         assert_eq!(c.warnings(), [w]);
+    }
+
+    #[test]
+    fn a_frame_time_in_milliseconds_is_warned_of() {
+        // `Frame Time: 8.333333` (120 fps written in ms), 37 frames: 5 minutes.
+        let c = clip(0.12, &still(37), &[0.0; 37]);
+        let w = c.frame_rate_warning().unwrap();
+        assert!(w.starts_with("dir/take.bvh: a `Frame Time` of 8.3333 s is 0.120 frames per second"), "{w}");
+        assert!(w.contains("so the clip lasts 300 s") && w.ends_with("written in seconds (0.008333)"), "{w}");
+        assert_eq!(c.warnings(), [w]);
+        assert_eq!(clip(SLOWEST_MOCAP_FPS, &still(2), &[0.0; 2]).frame_rate_warning(), None);
+        assert!(clip(9.9, &still(2), &[0.0; 2]).frame_rate_warning().is_some());
     }
 
     #[test]
