@@ -226,6 +226,10 @@ impl Outputs {
                 out.display()
             );
         }
+        // `out/` names a folder, which the rename into place at the end could not make a file of.
+        if out.as_os_str().to_string_lossy().ends_with(std::path::MAIN_SEPARATOR) {
+            bail!("{}: a folder's name (it ends in `{}`), and this output is a file: give a file name", out.display(), std::path::MAIN_SEPARATOR);
+        }
         Ok(())
     }
 
@@ -461,6 +465,20 @@ pub fn remove_stale_temporaries(dir: &Path) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--out trail/` failed only at the end, when the rename into place could not make a file of it.
+    #[test]
+    fn an_output_named_like_a_folder_is_refused_before_any_work() {
+        let dir = std::env::temp_dir().join(format!("ace-output-slash-{}", std::process::id()));
+        let outputs = Outputs::new();
+        for name in ["trail/", "x.gltf/"] {
+            let out = PathBuf::from(format!("{}/{name}", dir.display()));
+            let e = outputs.check(&out).unwrap_err().to_string();
+            assert!(e.starts_with(&out.display().to_string()) && e.contains("a folder's name (it ends in `/`)"), "{e}");
+        }
+        outputs.check(&dir.join("trail")).unwrap();
+        assert!(!dir.exists(), "checking writes nothing");
+    }
 
     #[test]
     fn a_commit_onto_a_directory_renames_nothing() {
