@@ -39,6 +39,9 @@ fn library(name: &str) -> Option<PathBuf> {
     let whole = std::fs::read_to_string(lib.join("run.bvh")).unwrap();
     std::fs::write(lib.join("gestures/broken.bvh"), &whole[..whole.len() / 50]).unwrap();
     std::fs::write(lib.join("notes.txt"), "not a clip").unwrap();
+    // A clip whose link leads nowhere fails; the metadata a Mac leaves beside each clip is skipped.
+    std::os::unix::fs::symlink(lib.join("moved-away.bvh"), lib.join("walks/gone.bvh")).unwrap();
+    std::fs::write(lib.join("gestures/._wave.bvh"), b"\0\x05\x16\x07\0\x02\0\0Mac OS X").unwrap();
     Some(lib)
 }
 
@@ -50,7 +53,7 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     // The broken clip fails the command, naming the file; the others are written.
     assert!(!o.status.success());
-    assert!(stderr.contains("broken.bvh") && stderr.contains("1 of 5 clips failed"), "{stderr}");
+    assert!(stderr.contains("broken.bvh") && stderr.contains("2 of 6 clips failed"), "{stderr}");
     for rel in ["walks/bandai/walk", "gestures/wave", "walks/xia/neutral", "run"] {
         for ext in ["glb", "json", "csv", "metrics.json"] {
             let p = out.join(format!("{rel}.{ext}"));
@@ -59,15 +62,20 @@ fn a_folder_of_clips_is_retargeted_clip_by_clip_and_a_broken_one_is_listed() {
     }
     assert!(!out.join("gestures/broken.glb").exists());
     let summary: Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["clips"], 5);
+    assert_eq!(summary["clips"], 6);
     let done = summary["done"].as_array().unwrap();
     assert_eq!(done.len(), 4);
     let failed = summary["failed"].as_array().unwrap();
-    assert_eq!(failed.len(), 1);
+    assert_eq!(failed.len(), 2);
     assert_eq!(failed[0]["clip"], "gestures/broken.bvh");
     // Named once (it was "…/broken.bvh: …/broken.bvh, line …").
     let error = failed[0]["error"].as_str().unwrap();
     assert_eq!(error.matches("broken.bvh").count(), 1, "{error}");
+    // The system's reason once (it was "…: cannot read: No such file or directory (os error 2): No such
+    // file or directory (os error 2)").
+    assert_eq!(failed[1]["clip"], "walks/gone.bvh");
+    let error = failed[1]["error"].as_str().unwrap();
+    assert_eq!(error.matches("No such file or directory").count(), 1, "{error}");
     // Each clip's frames and metrics are those its own .metrics.json holds.
     let frames: u64 = done.iter().map(|d| d["frames"].as_u64().unwrap()).sum();
     assert_eq!(summary["frames"].as_u64().unwrap(), frames);

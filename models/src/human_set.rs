@@ -162,12 +162,12 @@ pub struct HumanSetProgress<'a> {
 #[derive(Debug, Error)]
 pub enum HumanSetError {
     /// The folder is missing or cannot be listed.
-    #[error("{}: cannot list the human clip folder: {source}", path.display())]
+    #[error("{}: cannot list the human clip folder: {error}", path.display())]
     Folder {
         /// The folder (or a subfolder).
         path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
+        /// The I/O error (in the message, not a source, which `{:#}` would print again).
+        error: std::io::Error,
     },
     /// Not one file could be used.
     #[error(
@@ -385,14 +385,16 @@ pub fn find_bvh_files(folder: &Path) -> Result<Vec<PathBuf>, HumanSetError> {
 }
 
 /// Every `.bvh` file (any case) below `dir`, in every subfolder. Iterative, and each folder is
-/// visited once: a symlink loop must neither recurse forever nor list the same clip twice.
+/// visited once: a symlink loop must neither recurse forever nor list the same clip twice. The
+/// metadata macOS leaves in copied and zipped folders (`._walk.bvh` beside each clip, `__MACOSX/`)
+/// are not clips.
 fn find_bvh(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), HumanSetError> {
     let mut pending = vec![dir.to_path_buf()];
     let mut seen = std::collections::HashSet::new();
     while let Some(dir) = pending.pop() {
-        let err = |source| HumanSetError::Folder {
+        let err = |error| HumanSetError::Folder {
             path: dir.clone(),
-            source,
+            error,
         };
         if !seen.insert(fs::canonicalize(&dir).map_err(err)?) {
             continue;
@@ -400,6 +402,10 @@ fn find_bvh(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), HumanSetError> {
         let mut subdirs = Vec::new();
         for entry in fs::read_dir(&dir).map_err(err)? {
             let path = entry.map_err(err)?.path();
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            if name.starts_with("._") || name == "__MACOSX" {
+                continue;
+            }
             if path.is_dir() {
                 subdirs.push(path);
             } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")) {
@@ -432,6 +438,21 @@ mod tests {
 
     fn repo() -> PathBuf {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+    }
+
+    /// A folder copied from a Mac holds `._<clip>.bvh` metadata beside each clip and a `__MACOSX`
+    /// folder of them in zip files: they were retargeted, failed and failed the batch.
+    #[test]
+    fn macos_metadata_files_are_not_clips() {
+        let dir = std::env::temp_dir().join(format!("ace-find-bvh-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        for f in ["walk.bvh", "._walk.bvh", "__MACOSX/._walk.bvh", "__MACOSX/run.bvh", "takes/._run.BVH", "takes/run.BVH"] {
+            fs::create_dir_all(dir.join(f).parent().unwrap()).unwrap();
+            fs::write(dir.join(f), b"\0\x05\x16\x07").unwrap();
+        }
+        let found = find_bvh_files(&dir).unwrap();
+        assert_eq!(found, [dir.join("takes/run.BVH"), dir.join("walk.bvh")]);
+        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

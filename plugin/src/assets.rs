@@ -54,8 +54,8 @@ pub struct BvhAsset {
 #[derive(Debug, thiserror::Error)]
 pub enum AceAssetError {
     /// The file could not be read.
-    #[error("could not read {path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    #[error("could not read {path}: {error}")]
+    Io { path: String, error: std::io::Error },
     /// The file is not UTF-8 text (UTF-16, or invalid bytes): what it is instead.
     #[error("{path}: {problem}")]
     NotText { path: String, problem: String },
@@ -85,7 +85,7 @@ pub(crate) async fn read_bounded(reader: &mut dyn Reader, path: &str, max: u64) 
     AsyncReadExt::take(&mut *reader, max + 1)
         .read_to_end(&mut bytes)
         .await
-        .map_err(|source| AceAssetError::Io { path: path.to_string(), source })?;
+        .map_err(|error| AceAssetError::Io { path: path.to_string(), error })?;
     if bytes.len() as u64 > max {
         return Err(too_big());
     }

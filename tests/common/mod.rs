@@ -32,10 +32,13 @@ pub fn folder_bytes(dir: &Path) -> Vec<(String, Vec<u8>)> {
     while let Some(d) = pending.pop() {
         for e in std::fs::read_dir(&d).unwrap() {
             let p = e.unwrap().path();
-            if p.is_dir() {
+            let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
+            if p.is_symlink() {
+                // A link by where it leads (it may lead nowhere).
+                out.push((rel, std::fs::read_link(&p).unwrap().into_os_string().into_encoded_bytes()));
+            } else if p.is_dir() {
                 pending.push(p);
             } else {
-                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
                 out.push((rel, std::fs::read(&p).unwrap()));
             }
         }

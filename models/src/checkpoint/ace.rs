@@ -316,7 +316,17 @@ impl AceRecord {
     pub fn read(files: &CheckpointFiles, prior_mask: &[f32]) -> Result<AceRecord, LearnError> {
         let dir = files.dir();
         let path = files.path(ACE_FILE);
-        let record: AceRecord = read_json(files, ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint")?;
+        // Read after the prior: a folder without it holds a prior alone (`ace train-prior`'s output).
+        let record: AceRecord = read_json(files, ACE_FILE, KIND, FORMAT_VERSION, "an ACE checkpoint").map_err(|e| match e {
+            LearnError::MissingFile { path } => LearnError::Format {
+                problem: format!(
+                    "missing file: the checkpoint holds a motion prior only; `ace train --checkpoint {}` trains its generator",
+                    dir.display()
+                ),
+                path,
+            },
+            e => e,
+        })?;
         let corrupt = |problem: String| LearnError::CorruptFile {
             path: path.clone(),
             problem,

@@ -114,6 +114,11 @@ impl CheckpointFiles {
     /// The content of file `name`; a missing one is [`LearnError::MissingFile`].
     pub fn read(&self, name: &str) -> Result<Vec<u8>, LearnError> {
         match &self.memory {
+            // `--checkpoint dir/config.json` read `dir/config.json/config.json`: "Not a directory".
+            None if self.dir.is_file() => Err(LearnError::Format {
+                path: self.dir.clone(),
+                problem: "a file, not a checkpoint folder (the folder that holds config.json, ace.json and their weights)".into(),
+            }),
             None => read_file(&self.path(name)),
             Some(files) => files
                 .get(name)

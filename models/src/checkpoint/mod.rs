@@ -61,12 +61,13 @@ pub enum LearnError {
         problem: String,
     },
     /// A file or directory that cannot be read or written.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file or directory.
         path: PathBuf,
-        /// The operating system's error.
-        source: std::io::Error,
+        /// The operating system's error (in the message, not a source, which `{:#}` would print
+        /// again).
+        error: std::io::Error,
     },
     /// A configuration value out of range, or a run directory that does not fit the configuration.
     #[error("invalid configuration: {0}")]
@@ -85,10 +86,10 @@ pub enum LearnError {
 
 impl LearnError {
     /// An [`LearnError::Io`] for `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> LearnError {
+    pub fn io(path: &Path, error: std::io::Error) -> LearnError {
         LearnError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         }
     }
 }

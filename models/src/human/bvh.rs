@@ -650,6 +650,15 @@ mod tests {
         Bvh::parse(text, "bad.bvh").unwrap_err().to_string()
     }
 
+    /// What an error quotes is printable: macOS's `._walk.bvh` (binary) put NUL bytes on the terminal.
+    #[test]
+    fn a_binary_file_is_quoted_with_its_control_characters_escaped() {
+        let e = parse_err("\0\u{5}\u{16}\u{7}\0\u{2}\0\0Mac OS X  \u{1b}[2J\n");
+        assert_eq!(e, "bad.bvh, line 1: expected `HIERARCHY`, found `\\u{0}\\u{5}\\u{16}\\u{7}\\u{0}\\u{2}\\u{0}\\u{0}Mac`");
+        let e = parse_err("HIERARCHY\nROOT\tHips\u{1b}[2J {\n");
+        assert!(!e.chars().any(char::is_control) && e.contains("\\u{1b}"), "{e}");
+    }
+
     /// Lines ending in CR LF or CR alone (old Mac files) read as with LF; CR alone once made the file
     /// one line, refused as "expected `ROOT` or `MOTION`, found `MOTION`".
     #[test]

@@ -313,9 +313,9 @@ pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, HumanImportError> {
 /// A [`crate::input::ReadError`] of the human-motion file `file` (a clip or a joint mapping).
 pub(crate) fn read_error(file: &str, e: crate::input::ReadError) -> HumanImportError {
     match e {
-        crate::input::ReadError::Io(source) => HumanImportError::Io {
+        crate::input::ReadError::Io(error) => HumanImportError::Io {
             file: file.to_string(),
-            source,
+            error,
         },
         other => HumanImportError::Skeleton {
             file: file.to_string(),

@@ -4,14 +4,14 @@
 #[derive(Debug, thiserror::Error)]
 pub enum HumanImportError {
     /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read: {error}")]
     Io {
         file: String,
-        #[source]
-        source: std::io::Error,
+        /// In the message, not a source, which `{:#}` would print again.
+        error: std::io::Error,
     },
     /// Malformed BVH text: bad keyword, unbalanced braces, non-numeric value, wrong value count, …
-    #[error("{file}, line {line}: {message}")]
+    #[error("{file}, line {line}: {}", printable(message))]
     Parse {
         file: String,
         line: usize,
@@ -61,4 +61,10 @@ pub fn short_list(names: &[String]) -> String {
             names.len() - SHOWN
         )
     }
+}
+
+/// `text` with its control characters escaped (`\u{0}`, `\t`): a message quotes what it found, and a
+/// binary file (macOS's `._walk.bvh`) put NUL bytes and escape sequences on the terminal.
+pub(crate) fn printable(text: &str) -> String {
+    text.chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
 }

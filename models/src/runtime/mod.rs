@@ -309,6 +309,21 @@ mod tests {
         let e = load(files).unwrap_err().to_string();
         assert!(e.contains(&dir) && e.ends_with(&format!("{GENERATOR_FILE}: missing file")), "{e}");
 
+        // A prior alone (what `ace train-prior` writes) says what to run; a file is not a folder.
+        let mut files = spot_files();
+        files.remove(ACE_FILE);
+        let e = load(files).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!("{dir}/{ACE_FILE}: missing file: the checkpoint holds a motion prior only; `ace train --checkpoint {dir}` trains its generator")
+        );
+        let config = spot_dir().join(CONFIG_FILE);
+        let e = Retargeter::load_files(&CheckpointFiles::on_disk(&config)).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!("{}: a file, not a checkpoint folder (the folder that holds config.json, ace.json and their weights)", config.display())
+        );
+
         let mut files = spot_files();
         let half = files[WEIGHTS_FILE].len() / 2;
         files.get_mut(WEIGHTS_FILE).unwrap().truncate(half);
