@@ -316,6 +316,73 @@ mod tests {
         assert!(lo < hi);
     }
 
+    fn close(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+    }
+
+    /// Every phase of the quadruped's gallop and bound, and the gallop's duty over its own Froude span
+    /// (2.5 to 5), on a body whose feet are not centred on its origin.
+    #[test]
+    fn a_quadrupeds_gallop_splits_its_pairs_by_a_tenth_and_the_bound_by_front_and_hind() {
+        // fl, fr, rl, rr, the body's origin 0.5 m behind the hind feet.
+        let g = build_gaits(&[[1.1, 0.2], [1.1, -0.2], [0.5, 0.2], [0.5, -0.2]]);
+        let (gallop, bound) = (&g[2], &g[3]);
+        assert!(close(&gallop.offsets, &[0.45, 0.55, 0.0, 0.1]), "{:?}", gallop.offsets);
+        assert_eq!(bound.offsets, [0.5, 0.5, 0.0, 0.0]);
+        assert_eq!(gallop.duty_at(TROT_GALLOP_FROUDE), 0.4);
+        assert!((gallop.duty_at(1.5 * TROT_GALLOP_FROUDE) - 0.325).abs() < 1e-6);
+        assert_eq!(gallop.duty_at(2.0 * TROT_GALLOP_FROUDE), 0.25);
+        assert_eq!((gallop.from_froude, bound.from_froude), (TROT_GALLOP_FROUDE, TROT_GALLOP_FROUDE));
+    }
+
+    /// Two legs walk and run in antiphase, with the walk's and the run's duty factors.
+    #[test]
+    fn a_biped_walks_and_runs_in_antiphase() {
+        let g = build_gaits(&[[0.0, 0.1], [0.0, -0.1]]);
+        let names: Vec<_> = g.iter().map(|g| g.name).collect();
+        assert_eq!(names, ["walk", "run"]);
+        assert_eq!((g[0].offsets.clone(), g[0].duty), (vec![0.0, 0.5], [0.65, 0.55]));
+        assert_eq!((g[1].offsets.clone(), g[1].duty, g[1].from_froude), (vec![0.0, 0.5], [0.42, 0.32], WALK_TROT_FROUDE));
+        // One leg hops.
+        let hop = build_gaits(&[[0.0, 0.0]]);
+        assert_eq!((hop.len(), hop[0].name, hop[0].offsets.clone()), (1, "hop", vec![0.0]));
+    }
+
+    /// The hexapod's wave lifts one leg at a time, back to front on the left, then on the right (duty
+    /// 5/6); its ripple waves each side over a third of the cycle, the sides half a cycle apart.
+    #[test]
+    fn a_hexapods_wave_and_ripple_phases() {
+        // lf, lm, lr, rf, rm, rr
+        let hex = [[0.2, 0.2], [0.0, 0.25], [-0.2, 0.2], [0.2, -0.2], [0.0, -0.25], [-0.2, -0.2]];
+        let g = build_gaits(&hex);
+        let names: Vec<_> = g.iter().map(|g| g.name).collect();
+        assert_eq!(names, ["wave", "ripple", "tripod"]);
+        assert!(close(&g[0].offsets, &[2.0 / 6.0, 1.0 / 6.0, 0.0, 5.0 / 6.0, 4.0 / 6.0, 3.0 / 6.0]), "{:?}", g[0].offsets);
+        assert!(close(&g[0].duty, &[5.0 / 6.0, 5.0 / 6.0]), "{:?}", g[0].duty);
+        assert!(close(&g[1].offsets, &[2.0 / 3.0, 1.0 / 3.0, 0.0, 1.0 / 6.0, 5.0 / 6.0, 0.5]), "{:?}", g[1].offsets);
+        assert_eq!((g[1].duty_froude, g[1].from_froude), ([RIPPLE_FROUDE, WALK_TROT_FROUDE], RIPPLE_FROUDE));
+    }
+
+    /// Feet that do not pair up left and right (three legs here) step in order around their centre.
+    #[test]
+    fn an_irregular_layout_steps_around_its_centre() {
+        // A front foot on the right of the midline, a rear pair; the centre is off the origin.
+        let g = build_gaits(&[[0.3, 0.1], [-0.2, 0.3], [-0.2, -0.1]]);
+        let names: Vec<_> = g.iter().map(|g| g.name).collect();
+        assert_eq!(names, ["wave", "alternating"]);
+        // Around the centre from behind on the right: rear right, front, rear left.
+        assert!(close(&g[0].offsets, &[1.0 / 3.0, 2.0 / 3.0, 0.0]), "{:?}", g[0].offsets);
+        assert_eq!(g[1].offsets, [0.5, 0.0, 0.0]);
+        // A wave lifts one of n legs at a time (duty 1 − 1/n), but stands at least 0.6 of the cycle:
+        // two legs on one side would otherwise spend half of it in the air.
+        assert!(close(&g[0].duty, &[2.0 / 3.0, 2.0 / 3.0]));
+        let two = build_gaits(&[[0.3, -0.1], [-0.3, -0.1]]);
+        assert_eq!((two[0].name, two[0].duty), ("wave", [0.6, 0.6]));
+        let five = build_gaits(&[[0.3, 0.2], [0.0, 0.25], [-0.3, 0.2], [0.3, -0.2], [-0.3, -0.2]]);
+        assert!(close(&five[0].duty, &[0.8, 0.8]));
+        assert_eq!(five[1].duty, [0.55, 0.45]);
+    }
+
     #[test]
     fn quadruped_and_hexapod_patterns() {
         // fl, fr, rl, rr
