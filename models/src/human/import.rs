@@ -253,6 +253,15 @@ fn check_resampling(bvh: &Bvh, fps: f32, file: &str) -> Result<(), HumanImportEr
 
 /// Refuses skeletons without geometry and absurd rotation values, before any inference on them.
 fn check_values(bvh: &Bvh, file: &str) -> Result<(), HumanImportError> {
+    if let [root] = &bvh.joints[..] {
+        return Err(HumanImportError::Skeleton {
+            file: file.to_string(),
+            message: format!(
+                "the skeleton is one joint, `{}`: a person is a hierarchy of joints (pelvis, spine, legs, arms, head)",
+                root.name
+            ),
+        });
+    }
     let no_length = bvh
         .joints
         .iter()
@@ -499,6 +508,12 @@ mod tests {
             .join("\n");
         assert!(flat.contains("OFFSET 0 90 0"));
         assert!(import_error(&flat, &opts).starts_with("t.bvh: every OFFSET below the root is zero: the skeleton (17 joints) has no bone lengths"));
+        // A root alone (its end site a length) is not "every OFFSET zero".
+        let alone = "HIERARCHY\nROOT Hips\n{\nOFFSET 0 90 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\nEnd Site\n{\nOFFSET 0 10 0\n}\n}\nMOTION\nFrames: 1\nFrame Time: 0.0333\n0 90 0 0 0 0\n";
+        assert_eq!(
+            import_error(alone, &opts),
+            "t.bvh: the skeleton is one joint, `Hips`: a person is a hierarchy of joints (pelvis, spine, legs, arms, head)"
+        );
         // Legs of no length (hip, knee and ankle at one place) in a body that has them.
         let mut rig = body(&torso("Head"));
         for joint in rig.iter_mut().filter(|j| matches!(j.0, "LeftLeg" | "LeftFoot" | "RightLeg" | "RightFoot")) {
