@@ -209,6 +209,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         .input_clip(&a.clip, "the input clip", a.mapping.as_deref())
         .input(&dir, "the checkpoint directory")
         .input_character(&urdf);
+    check_model_name(&a.out)?;
     let mut planned = Planned::new();
     for (p, role) in output_paths(&a.out).iter().zip(OUTPUT_ROLES) {
         planned.add(p, role.to_string(), "give --out a name ending in .glb")?;
@@ -269,6 +270,19 @@ pub fn joint_limit_warning(report: &MetricsReport, trajectory: &Path) -> Option<
             if j.over_velocity > 0.0 { " (--limit-velocity holds the joints to their limits)" } else { "" }
         )
     })
+}
+
+/// Fails unless `out` names a glTF file: `x.txt`, `x` or `.glb` got a GLB under that name.
+pub fn check_model_name(out: &Path) -> Result<()> {
+    let gltf = out.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
+    if !gltf {
+        bail!(
+            "{}: --out is the glTF file, a name ending in .glb (binary) or .gltf (JSON); the trajectory and the \
+             metrics are written beside it",
+            out.display()
+        );
+    }
+    Ok(())
 }
 
 /// The files [`write()`] makes for `out`: the glTF binary, the trajectory (`.json`, `.csv`) and the

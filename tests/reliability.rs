@@ -724,15 +724,19 @@ fn refused_up_front(args: &[&str], expected: &str) {
 fn two_outputs_of_one_path_are_refused_before_any_work() {
     let dir = scratch("collisions");
     let walk = root().join("assets/motions/walk.bvh");
-    // `--out x.json`: the glTF binary and the trajectory would be one file.
-    let out = dir.join("x.json");
-    refused_up_front(
-        &["retarget", &s(&walk), "--character", "stretch", "--out", &s(&out)],
-        &format!(
-            "{}: both the glTF binary and the trajectory (JSON) would be written there; give --out a name ending in .glb",
-            out.display()
-        ),
-    );
+    // `--out x.json`: the glTF binary and the trajectory would be one file; `x.txt`, `x` and `.glb` got a
+    // GLB under that name.
+    for name in ["x.json", "x.txt", "x", ".glb"] {
+        let out = dir.join(name);
+        refused_up_front(
+            &["retarget", &s(&walk), "--character", "stretch", "--out", &s(&out)],
+            &format!(
+                "{}: --out is the glTF file, a name ending in .glb (binary) or .gltf (JSON); the trajectory and the metrics \
+                 are written beside it",
+                out.display()
+            ),
+        );
+    }
     // A folder where `walk.bvh` and `walk.BVH` both make `walk.glb` (and the rest).
     let clips = dir.join("clips");
     std::fs::create_dir_all(&clips).unwrap();
