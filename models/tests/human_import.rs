@@ -903,3 +903,38 @@ fn state_layout_is_contiguous_and_has_92_values() {
     assert!((x.root_height() - clip.frames[3].position(Joint::Pelvis).z).abs() < 1e-6);
     assert!(x.root_orientation().quaternion().w >= 0.0);
 }
+
+/// A file of two performers (two `ROOT` skeletons) was retargeted from the first without a word.
+#[test]
+fn a_file_of_two_skeletons_says_which_one_is_retargeted() {
+    let walk = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/motions/walk.bvh")).unwrap();
+    let (hierarchy, motion) = walk.split_once("MOTION").unwrap();
+    let skeleton = hierarchy.trim_start().strip_prefix("HIERARCHY").unwrap();
+    let renamed: String = skeleton
+        .lines()
+        .map(|l| match l.trim_start().split_once(' ') {
+            Some(("ROOT" | "JOINT", name)) => l.replacen(name, &format!("Second{name}"), 1),
+            _ => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let mut lines = motion.lines();
+    let mut doubled = vec![lines.next().unwrap().to_string()];
+    for l in lines {
+        let l = l.trim();
+        doubled.push(if l.starts_with("Frame") || l.is_empty() { l.to_string() } else { format!("{l} {l}") });
+    }
+    let text = format!("HIERARCHY{skeleton}\n{renamed}\nMOTION{}\n", doubled.join("\n"));
+    let clip = HumanClip::from_bvh_str(&text, "pair.bvh", &ImportOptions::default()).unwrap();
+    assert_eq!(clip.other_skeletons, ["SecondHips"]);
+    let w = clip.skeletons_warning().unwrap();
+    assert_eq!(
+        w,
+        "pair.bvh: the file holds 2 skeletons; the one whose pelvis is `Hips` is retargeted, and the one(s) of ROOT `SecondHips` \
+         left out (a joint-mapping file naming another skeleton's joints, --mapping FILE or pair.mapping.toml, selects it)"
+    );
+    assert!(clip.warnings().contains(&w));
+    // One skeleton: no warning.
+    let one = HumanClip::from_bvh_str(&walk, "walk.bvh", &ImportOptions::default()).unwrap();
+    assert!(one.other_skeletons.is_empty() && one.skeletons_warning().is_none());
+}

@@ -93,6 +93,9 @@ pub struct HumanClip {
     /// horizontal axis look like up, and then the frames look upright ([`HumanClip::posture_warning`]
     /// says so). `None` when they agree, or when a joint mapping gives `up`.
     pub skeleton_up: Option<(String, String)>,
+    /// The file's other skeletons (their `ROOT` joints), left out: a file of two performers is
+    /// retargeted from the one the canonical joints were found on ([`HumanClip::skeletons_warning`]).
+    pub other_skeletons: Vec<String>,
 }
 
 impl HumanClip {
@@ -232,13 +235,30 @@ impl HumanClip {
         })
     }
 
+    /// A warning when the file holds other skeletons than the one retargeted (a capture of two people).
+    pub fn skeletons_warning(&self) -> Option<String> {
+        (!self.other_skeletons.is_empty()).then(|| {
+            let others: Vec<String> = self.other_skeletons.iter().map(|r| format!("`{r}`")).collect();
+            format!(
+                "{}: the file holds {} skeletons; the one whose pelvis is `{}` is retargeted, and the one(s) of ROOT {} left \
+                 out (a joint-mapping file naming another skeleton's joints, --mapping FILE or {}, selects it)",
+                self.name,
+                others.len() + 1,
+                self.source_joints[Joint::Pelvis.index()],
+                others.join(", "),
+                self.mapping_file_name()
+            )
+        })
+    }
+
     /// Every warning about the clip's content ([`HumanClip::unit_warning`],
-    /// [`HumanClip::frame_rate_warning`], [`HumanClip::posture_warning`],
-    /// [`HumanClip::root_jump_warning`]).
+    /// [`HumanClip::frame_rate_warning`], [`HumanClip::skeletons_warning`],
+    /// [`HumanClip::posture_warning`], [`HumanClip::root_jump_warning`]).
     pub fn warnings(&self) -> Vec<String> {
         self.unit_warning()
             .into_iter()
             .chain(self.frame_rate_warning())
+            .chain(self.skeletons_warning())
             .chain(self.posture_warning())
             .chain(self.root_jump_warning())
             .collect()
@@ -290,6 +310,7 @@ impl HumanClip {
             mapped_joints: self.mapped_joints,
             source_joints: self.source_joints.clone(),
             skeleton_up: self.skeleton_up.clone(),
+            other_skeletons: self.other_skeletons.clone(),
         }
     }
 }
@@ -368,6 +389,7 @@ mod tests {
             mapped_joints: JOINT_COUNT,
             source_joints: std::array::from_fn(|_| String::new()),
             skeleton_up: None,
+            other_skeletons: Vec::new(),
         }
     }
 

@@ -211,6 +211,7 @@ pub fn import_with_report(
         mapped_joints: JOINT_COUNT,
         source_joints: map.source_names(&bvh),
         skeleton_up,
+        other_skeletons: other_skeletons(&bvh, map.index(Joint::Pelvis)),
     };
     if let Some(fps) = opts.fps {
         clip = clip.resampled(fps);
@@ -249,6 +250,15 @@ fn check_resampling(bvh: &Bvh, fps: f32, file: &str) -> Result<(), HumanImportEr
         ));
     }
     Ok(())
+}
+
+/// The `ROOT` joints of `bvh` other than the one above joint `used`.
+fn other_skeletons(bvh: &Bvh, used: usize) -> Vec<String> {
+    let mut root = used;
+    while let Some(p) = bvh.joints[root].parent {
+        root = p;
+    }
+    bvh.joints.iter().enumerate().filter(|(i, j)| j.parent.is_none() && *i != root).map(|(_, j)| j.name.clone()).collect()
 }
 
 /// Refuses skeletons without geometry and absurd rotation values, before any inference on them.
