@@ -209,11 +209,14 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         .input_clip(&a.clip, "the input clip", a.mapping.as_deref())
         .input(&dir, "the checkpoint directory")
         .input_character(&urdf);
+    // The inputs first: `--out walk.bvh` is refused as the clip, not for its extension.
+    for p in output_paths(&a.out) {
+        outputs.check(&p)?;
+    }
     check_model_name(&a.out)?;
     let mut planned = Planned::new();
     for (p, role) in output_paths(&a.out).iter().zip(OUTPUT_ROLES) {
         planned.add(p, role.to_string(), "give --out a name ending in .glb")?;
-        outputs.check(p)?;
     }
     let mut retargeter = Networks::load(&dir, a.backend)?;
     retargeter.check_character(&tree, &morph)?;

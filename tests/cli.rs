@@ -755,6 +755,7 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
 #[test]
 fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
     let dir = tmp("profile-roles");
+    let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let urdf = dir.join("spot.urdf");
     std::fs::copy(root().join("assets/characters/spot.urdf"), &urdf).unwrap();
