@@ -731,6 +731,18 @@ fn a_mirrored_armature_is_refused_saying_how_to_apply_the_mirror() {
     assert!(matches!(p, GltfProblem::BadTransform(_)) && msg.contains("node 1 (`bone0`) stands mirrored (a negative scale on it or above it)") && msg.ends_with("(in Blender, Apply › Scale) and export again"), "{msg}");
     let (msg, _) = problem(&with("flat.gltf", [0.0, 1.0, 1.0]));
     assert!(!msg.contains("stands mirrored") && msg.contains("node 1 (`bone0`) has a degenerate rotation (a zero scale on it or above it)"), "{msg}");
+    // An armature node stretched along one axis above the skeleton: the exported clip's feet stood in
+    // the air. A uniform scale is a unit.
+    let armature = |name: &str, s: [f32; 3]| {
+        rig(&d, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+            let n = v["nodes"].as_array().unwrap().len();
+            v["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "Armature", "scale": s, "children": [0, 1]}));
+            v["scenes"][0]["nodes"] = serde_json::json!([n]);
+        })
+    };
+    let (msg, p) = problem(&armature("stretched.gltf", [1.0, 2.0, 1.0]));
+    assert!(matches!(p, GltfProblem::BadTransform(_)) && msg.contains("(`Armature`), above the skeleton, scales unevenly (by 2.000, 1.000 and 1.000") && msg.ends_with("(in Blender, Apply › Scale) and export again"), "{msg}");
+    load(&armature("doubled.gltf", [2.0, 2.0, 2.0]));
 }
 
 /// A node's rotation is read as one rotation everywhere: normalised when it is not of unit length

@@ -669,6 +669,25 @@ pub fn read_document(
             bones_nodes.push(i);
         }
     }
+    // A skeleton below an unevenly scaled node: the tree turns its bones rigidly, but the file scales
+    // their turns unevenly, so the clip exported onto the model would not be the motion retargeted
+    // (a Fox under a scale of [1, 2, 1] kept its feet 12 cm in the air in every frame).
+    for &node in &bones_nodes {
+        let mut up = parent[node];
+        while let Some(a) = up.filter(|&a| bone_of[a].is_none()) {
+            up = parent[a];
+        }
+        let (None, Some(q)) = (up, parent[node]) else { continue };
+        let s = rest_world[q].fixed_view::<3, 3>(0, 0).into_owned().svd(false, false).singular_values;
+        if s.max() - s.min() > 1e-3 * s.max() {
+            return Err(fail(GltfProblem::BadTransform(format!(
+                "node {q} (`{}`), above the skeleton, scales unevenly (by {:.3}, {:.3} and {:.3} along its axes); the bones \
+                 would not turn as they do in the file: apply the scale in the modelling tool (in Blender, Apply › Scale) \
+                 and export again",
+                names[q], s[0], s[1], s[2]
+            ))));
+        }
+    }
     let to_character = forward.to_character();
     // Units.
     let mut bb_min = Vector3::repeat(f32::INFINITY);
