@@ -191,6 +191,14 @@ pub fn evaluate(
     if !scorer.has_reference() {
         bail!("{}: no reference.json (the dataset's Ψ fit that FID needs); run `ace train` again", dir.display());
     }
+    // Said before the clips are read (it said none of the "0 held-out clips" was in the folder).
+    if retargeter.ace().record.human_split.held_out.is_empty() {
+        bail!(
+            "{}: the checkpoint holds out no clips (its human folder had too few), so there is nothing to evaluate it on; \
+             train it on a folder of several clips",
+            dir.display()
+        );
+    }
     let folder = humans::folder(args.humans.as_deref())?;
     let set = humans::load(&folder)?;
     let clips = held_out(&set, &retargeter, args.max_clips, &folder)?;

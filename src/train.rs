@@ -277,6 +277,13 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
         humans.held_out_clips().count(),
         humans.frames()
     );
+    if humans.held_out_clips().next().is_none() {
+        eprintln!(
+            "warning: no clip of {} is held out, so `ace eval` will have nothing to score this checkpoint on (a folder \
+             of one clip holds none out)",
+            folder.display()
+        );
+    }
 
     let body = character_body_length(&tree, &morph);
     let correspondence = correspondence(&cfg, &set, &humans, body)?;

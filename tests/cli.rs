@@ -773,6 +773,27 @@ fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
     run_ok(&["retarget", "assets/motions/walk.bvh", "--character", urdf.to_str().unwrap(), "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
 }
 
+/// A checkpoint trained on a folder of one clip holds none out: `ace eval` said none of its "0
+/// held-out clips" was in the folder it was trained on.
+#[test]
+fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
+    let dir = tmp("eval-none-held-out");
+    let _ = std::fs::remove_dir_all(&dir);
+    let ck = dir.join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    for e in std::fs::read_dir(root().join("assets/checkpoints/spot")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), ck.join(e.file_name())).unwrap();
+    }
+    let mut record: Value = serde_json::from_slice(&std::fs::read(ck.join("ace.json")).unwrap()).unwrap();
+    record["human_split"]["held_out"] = serde_json::json!([]);
+    std::fs::write(ck.join("ace.json"), serde_json::to_vec_pretty(&record).unwrap()).unwrap();
+    let out = ace(&["eval", "--character", "spot", "--checkpoint", ck.to_str().unwrap(), "--out", dir.join("eval").to_str().unwrap(), "--seconds", "2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains(&format!("{}: the checkpoint holds out no clips", ck.display())), "{err}");
+    assert!(!dir.join("eval").exists());
+}
+
 #[test]
 fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
     let Some(dir) = shared("creatures") else { return };
