@@ -36,8 +36,7 @@ pub fn write(dir: &Path, tree: &KinematicTree, morph: &Morphology, set: &MotionS
     let mut velocity = Figure::new(1200);
     let mut heights = Figure::new(1200);
     for (label, w) in &windows {
-        let mean = mean_speed(set, w);
-        let title = format!("{} — {label} episode (mean commanded speed {mean:.2} m/s)", set.character);
+        let title = window_title(set, label, w);
         if set.n_feet > 0 {
             let rows = (0..set.n_feet)
                 .map(|f| (set.end_effector_links[f].clone(), w.clone().map(|i| set.contact(i)[f] == 1).collect()))
@@ -113,22 +112,65 @@ pub fn write(dir: &Path, tree: &KinematicTree, morph: &Morphology, set: &MotionS
     Ok(())
 }
 
+/// What a chart of window `w` shows: the episode, its speed, and whether it is the episode's start only.
+fn window_title(set: &MotionSet, label: &str, w: &Range<usize>) -> String {
+    let mean = mean_speed(set, w);
+    let whole = set.episodes.iter().find(|e| e.start == w.start).map_or(w.len(), |e| e.len());
+    let part = if whole > w.len() { format!(", its first {WINDOW_SECONDS:.0} s of {:.0}", whole as f32 / set.fps) } else { String::new() };
+    format!("{} — {label} episode (mean commanded speed {mean:.2} m/s{part})", set.character)
+}
+
 /// Mean commanded planar speed over a frame range.
 fn mean_speed(set: &MotionSet, w: &Range<usize>) -> f32 {
     let n = w.len().max(1) as f32;
     w.clone().map(|i| set.commands[i][0].hypot(set.commands[i][1])).sum::<f32>() / n
 }
 
-/// The slowest and fastest episodes by mean commanded speed, cut to [`WINDOW_SECONDS`].
+/// The slowest and fastest episodes by mean commanded speed, cut to [`WINDOW_SECONDS`], among those
+/// of the configured length at least: the last episode, cut short where the frames ran out (17 frames
+/// of a snake), was the "slowest".
 fn windows(set: &MotionSet) -> Vec<(&'static str, Range<usize>)> {
     let max = (WINDOW_SECONDS * set.fps) as usize;
     let cut = |e: &Range<usize>| e.start..e.end.min(e.start + max);
     let by_speed = |e: &&Range<usize>| mean_speed(set, e);
-    let slow = set.episodes.iter().min_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
-    let fast = set.episodes.iter().max_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
+    let shortest = (set.config.episode_seconds[0] * set.fps).round() as usize;
+    let whole: Vec<&Range<usize>> = set.episodes.iter().filter(|e| e.len() >= shortest).collect();
+    let candidates = if whole.is_empty() { set.episodes.iter().collect() } else { whole };
+    let slow = candidates.iter().copied().min_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
+    let fast = candidates.iter().copied().max_by(|a, b| by_speed(a).total_cmp(&by_speed(b)));
     match (slow, fast) {
         (Some(s), Some(f)) if s != f => vec![("slowest", cut(s)), ("fastest", cut(f))],
         (Some(s), _) => vec![("only", cut(s))],
         _ => Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ace::models::dataset::{DatasetConfig, generate};
+    use ace::models::morphology::load_character;
+
+    /// 1,400 frames of 8–24 s episodes end in a remnant of the last one: never the chart's "slowest"
+    /// or "fastest" (the snake's "slowest" was 17 frames). A long episode's chart says it is its start.
+    #[test]
+    fn the_charted_episodes_are_whole_and_a_cut_one_says_so() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let (tree, morph) = load_character(&root.join("assets/characters/spot.urdf")).unwrap();
+        let cfg = DatasetConfig { frames: 1400, seed: 4, ..DatasetConfig::default() };
+        let set = generate(&tree, &morph, &cfg, &mut |_| {}).unwrap();
+        let shortest = (cfg.episode_seconds[0] * cfg.fps) as usize;
+        let last = set.episodes.last().unwrap().clone();
+        assert!(last.len() < shortest, "seed 4 ends in a remnant: {:?}", set.episodes);
+        let w = windows(&set);
+        assert_eq!(w.len(), 2);
+        for (_, r) in &w {
+            assert_ne!(r.start, last.start, "{w:?}");
+            let episode = set.episodes.iter().find(|e| e.start == r.start).unwrap();
+            assert!(episode.len() >= shortest);
+            let title = window_title(&set, "slowest", r);
+            let cut = episode.len() > r.len();
+            assert_eq!(title.contains(&format!(", its first 12 s of {:.0})", episode.len() as f32 / set.fps)), cut, "{title}");
+        }
     }
 }
