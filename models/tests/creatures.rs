@@ -745,6 +745,27 @@ fn a_mirrored_armature_is_refused_saying_how_to_apply_the_mirror() {
     load(&armature("doubled.gltf", [2.0, 2.0, 2.0]));
 }
 
+/// Two bones of one name (glTF allows it) made two trajectory columns `Leg:yaw` and one profile key
+/// for both; each is named with its node now, and a warning says so.
+#[test]
+fn bones_of_one_name_are_told_apart_by_their_node() {
+    let d = tmp("shared-names");
+    let path = rig(&d, "twins.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+        v["nodes"][2]["name"] = serde_json::json!("Leg");
+        v["nodes"][3]["name"] = serde_json::json!("Leg");
+    });
+    let c = load(&path);
+    for name in ["Leg (node 2)", "Leg (node 3)"] {
+        assert!(c.tree.link_index(name).is_some(), "{:?}", c.tree.links.iter().map(|l| &l.name).collect::<Vec<_>>());
+    }
+    let dofs = c.tree.dof_names();
+    let mut unique = dofs.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), dofs.len(), "{dofs:?}");
+    assert!(c.rig.warnings.iter().any(|w| w == "2 nodes are named `Leg`: they are read as Leg (node 2), Leg (node 3)"), "{:?}", c.rig.warnings);
+}
+
 /// A node's rotation is read as one rotation everywhere: normalised when it is not of unit length
 /// (the bind pose once took such a quaternion as a scale and shear, the clips as a rotation), and
 /// refused, naming the node, when it is zero.

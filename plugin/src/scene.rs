@@ -150,9 +150,14 @@ pub(crate) fn find_joints(
                 by_name.entry(name.as_str()).or_default().push(e);
             }
         }
-        // Unnamed nodes are `node<i>` to the core and `GltfNode<i>` to Bevy's glTF loader.
+        // Unnamed nodes are `node<i>` to the core and `GltfNode<i>` to Bevy's glTF loader; nodes sharing
+        // a name are `<name> (node <i>)` to the core, and several nodes of that name here.
         let lookup = |node: usize, name: &str| {
-            by_name.get(name).or_else(|| (name == format!("node{node}")).then(|| by_name.get(format!("GltfNode{node}").as_str())).flatten())
+            let shared = name.strip_suffix(&format!(" (node {node})"));
+            by_name
+                .get(name)
+                .or_else(|| shared.and_then(|n| by_name.get(n)))
+                .or_else(|| (name == format!("node{node}")).then(|| by_name.get(format!("GltfNode{node}").as_str())).flatten())
         };
         let mut joints = Vec::with_capacity(rig.driven().len());
         let mut problem = None;

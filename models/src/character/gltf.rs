@@ -37,6 +37,7 @@
 //!   [`fit_capsule`]); a foot gets the sphere of its contact instead. UFR, the cleanup and the
 //!   controllers use them as they use URDF geometry.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use ::gltf::animation::util::ReadOutputs;
@@ -345,6 +346,25 @@ fn name_of(node: &::gltf::Node) -> String {
         .unwrap_or_else(|| format!("node{}", node.index()))
 }
 
+/// The nodes' names, each unique: glTF allows two nodes of one name (Blender does not for bones,
+/// other tools do), but the tree, the trajectory's columns and the profile's keys name bones by it.
+/// Every node of a shared name gets its index after it (`Leg (node 18)`), with a warning.
+fn unique_names(doc: &::gltf::Document, warnings: &mut Vec<String>) -> Vec<String> {
+    let mut names: Vec<String> = doc.nodes().map(|nd| name_of(&nd)).collect();
+    let mut by_name: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for (i, n) in names.iter().enumerate() {
+        by_name.entry(n.clone()).or_default().push(i);
+    }
+    for (name, nodes) in by_name.into_iter().filter(|(_, v)| v.len() > 1) {
+        let renamed: Vec<String> = nodes.iter().map(|&i| format!("{name} (node {i})")).collect();
+        warnings.push(format!("{} nodes are named `{name}`: they are read as {}", nodes.len(), renamed.join(", ")));
+        for (&i, r) in nodes.iter().zip(renamed) {
+            names[i] = r;
+        }
+    }
+    names
+}
+
 /// Reads the file and the bones of its main skin. `scale` (metres per file unit) overrides the
 /// unit detection; `forward` says which file axis the creature faces.
 pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, GltfError> {
@@ -366,7 +386,8 @@ pub fn read_document(
 
     // Hierarchy: one parent per node, no cycles; world transforms in parent-first order.
     let n = doc.nodes().count();
-    let names: Vec<String> = doc.nodes().map(|nd| name_of(&nd)).collect();
+    let mut warnings = Vec::new();
+    let names = unique_names(doc, &mut warnings);
     let mut parent = vec![None; n];
     for nd in doc.nodes() {
         for c in nd.children() {
@@ -472,7 +493,6 @@ pub fn read_document(
             used: s.index() == skin_index,
         })
         .collect();
-    let mut warnings = Vec::new();
     if skins.len() > 1 {
         warnings.push(format!(
             "{} skins; the creature is built from `{}` ({} joints), which deforms the most vertices ({})",
