@@ -406,6 +406,9 @@ mod tests {
         assert_eq!(g[sel.current].name, "trot");
         sel.update(&g, 4.0, 1);
         assert_eq!(g[sel.current].name, "bound");
+        // Gallop and bound share a threshold: one tier, the episode's variant picks.
+        sel.update(&g, 4.0, 0);
+        assert_eq!(g[sel.current].name, "gallop");
         // Hysteresis: just under the threshold keeps the faster gait.
         sel.update(&g, 2.4, 1);
         assert_eq!(g[sel.current].name, "bound");
