@@ -745,6 +745,26 @@ fn a_mirrored_armature_is_refused_saying_how_to_apply_the_mirror() {
     load(&armature("doubled.gltf", [2.0, 2.0, 2.0]));
 }
 
+/// A creature no unit makes 1 cm to 20 m across is read with a warning saying its size (a Fox scaled
+/// by 1e-4 was 4 mm tall, its tail a fifth foot, without a word).
+#[test]
+fn a_creature_of_no_plausible_size_is_warned_of() {
+    let d = tmp("sizes");
+    let scaled = |name: &str, s: f32| {
+        rig(&d, name, 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+            let n = v["nodes"].as_array().unwrap().len();
+            v["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "Armature", "scale": [s, s, s], "children": [0, 1]}));
+            v["scenes"][0]["nodes"] = serde_json::json!([n]);
+        })
+    };
+    let size_warning = |c: &Creature| c.rig.warnings.iter().any(|w| w.contains("implausible for a creature (0.01 to 20 m)"));
+    assert!(!size_warning(&load(&scaled("plain.gltf", 1.0))));
+    for (name, s) in [("tiny.gltf", 1e-4), ("huge.gltf", 1e6)] {
+        let c = load(&scaled(name, s));
+        assert!(size_warning(&c), "{name}: {:?}", c.rig.warnings);
+    }
+}
+
 /// Two bones of one name (glTF allows it) made two trajectory columns `Leg:yaw` and one profile key
 /// for both; each is named with its node now, and a warning says so.
 #[test]

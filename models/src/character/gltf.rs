@@ -53,6 +53,8 @@ use crate::geometry::{Geometry, Shape};
 pub const DISTINCT_AXIS: f32 = 1.5;
 /// Largest plausible extent of a creature in metres; larger files are read as centimetres.
 pub const MAX_PLAUSIBLE_SIZE: f32 = 20.0;
+/// Smallest extent of a creature (metres) read without a warning: an insect's.
+pub const MIN_PLAUSIBLE_SIZE: f32 = 0.01;
 /// Most joints a skin may have.
 pub const MAX_JOINTS: usize = 256;
 /// Most bytes a glTF file may have, and its buffers together.
@@ -733,6 +735,15 @@ pub fn read_document(
                 warnings.push(format!(
                     "the model is {extent:.1} units across, implausible in metres; read as {unit} ({:.2} m). \
                      Set `scale` (metres per file unit) in the profile to give its real size",
+                    extent * s
+                ));
+            }
+            // Read as millimetres and still too big, or too small in metres: no unit helps.
+            if extent * s > MAX_PLAUSIBLE_SIZE || extent * s < MIN_PLAUSIBLE_SIZE {
+                warnings.push(format!(
+                    "the model is {:.3e} m across as read, implausible for a creature ({MIN_PLAUSIBLE_SIZE} to \
+                     {MAX_PLAUSIBLE_SIZE} m): its steps, reach and speeds follow that size; set `scale` (metres per \
+                     file unit) in the profile to give its real size",
                     extent * s
                 ));
             }
