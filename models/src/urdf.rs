@@ -862,7 +862,28 @@ fn load_mesh_bounds(tree: &mut KinematicTree, base_dir: &Path) {
             missing.join(", ")
         ));
     }
+    // A mesh in millimetres without `scale="0.001 0.001 0.001"` made an 80 m robot, or hid its feet.
+    let mut huge: Vec<String> = Vec::new();
+    for g in tree.links.iter().flat_map(|l| l.visuals.iter().chain(&l.collisions)) {
+        if let Shape::Mesh { filename, scale, bounds: Some(b) } = &g.shape {
+            let size = (b.max - b.min).component_mul(&scale.abs()).max();
+            let note = format!("{filename} ({size:.0} m)");
+            if size > MAX_MESH_SIZE_M && !huge.contains(&note) {
+                huge.push(note);
+            }
+        }
+    }
+    if !huge.is_empty() {
+        tree.warnings.push(format!(
+            "mesh file(s) larger than {MAX_MESH_SIZE_M} m across with their scale: {}; a mesh in millimetres needs \
+             scale=\"0.001 0.001 0.001\" on its <mesh>",
+            huge.join(", ")
+        ));
+    }
 }
+
+/// The largest extent (metres, after its `scale`) a URDF mesh has without a warning.
+pub const MAX_MESH_SIZE_M: f32 = 20.0;
 
 #[cfg(test)]
 mod tests {
@@ -903,6 +924,25 @@ mod tests {
     /// Empty `<link>` elements named `names`.
     fn links(names: &[&str]) -> String {
         names.iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect()
+    }
+
+    /// A mesh in millimetres without its scale made an 80 m robot without a word.
+    #[test]
+    fn a_mesh_larger_than_a_robot_can_be_is_warned_of() {
+        let dir = std::env::temp_dir().join(format!("ace_urdf_mesh_size_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.stl"), TRIANGLE_STL).unwrap();
+        let with_scale = |s: &str| {
+            let urdf = dir.join(format!("r{s}.urdf"));
+            let mesh = format!(r#"<geometry><mesh filename="a.stl" scale="{s} {s} {s}"/></geometry>"#);
+            std::fs::write(&urdf, format!(r#"<robot name="r"><link name="base"><visual>{mesh}</visual><collision>{mesh}</collision></link></robot>"#)).unwrap();
+            KinematicTree::from_urdf_file(&urdf).unwrap().warnings
+        };
+        // The triangle reaches 3 units up: 3 m, then 30 m.
+        assert!(with_scale("1").iter().all(|w| !w.contains("larger than")), "{:?}", with_scale("1"));
+        let w = with_scale("10");
+        assert!(w.iter().any(|w| w == "mesh file(s) larger than 20 m across with their scale: a.stl (30 m); a mesh in millimetres needs scale=\"0.001 0.001 0.001\" on its <mesh>"), "{w:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
