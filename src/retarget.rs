@@ -41,13 +41,15 @@ pub fn default_checkpoint(character_arg: &str) -> Result<PathBuf> {
     }
 }
 
-/// Which implementation runs the networks (`--backend`).
+/// Which implementation runs the networks (`--backend`): `Rust` is [`ace::models::runtime`], `Tch`
+/// is [`ace::models::learn::retarget`]. (The variants' own comments are the CLI's help, which prints
+/// them as they are written.)
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Backend {
-    /// Pure Rust ([`ace::models::runtime`]): what a game ships.
+    /// Pure Rust: what a game ships.
     #[default]
     Rust,
-    /// libtorch ([`ace::models::learn::retarget`]), for comparison.
+    /// libtorch, for comparison.
     Tch,
 }
 
