@@ -373,6 +373,10 @@ mod tests {
         // Around the centre from behind on the right: rear right, front, rear left.
         assert!(close(&g[0].offsets, &[1.0 / 3.0, 2.0 / 3.0, 0.0]), "{:?}", g[0].offsets);
         assert_eq!(g[1].offsets, [0.5, 0.0, 0.0]);
+        // The same feet far from the body's origin (1 m behind it, 1.1 m to its left): the same order,
+        // around their own centre.
+        let far = build_gaits(&[[-0.7, 1.1], [-1.2, 1.3], [-1.2, 0.9]]);
+        assert!(close(&far[0].offsets, &g[0].offsets), "{:?}", far[0].offsets);
         // A wave lifts one of n legs at a time (duty 1 − 1/n), but stands at least 0.6 of the cycle:
         // two legs on one side would otherwise spend half of it in the air.
         assert!(close(&g[0].duty, &[2.0 / 3.0, 2.0 / 3.0]));
