@@ -212,12 +212,13 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
         .input(&dir, "the checkpoint directory")
         .input_character(&urdf);
     // The inputs first: `--out walk.bvh` is refused as the clip, not for its extension.
-    for p in output_paths(&a.out) {
-        outputs.check(&p)?;
+    let paths = output_paths(&a.out);
+    for p in &paths {
+        outputs.check(p)?;
     }
     check_model_name(&a.out)?;
     let mut planned = Planned::new();
-    for (p, role) in output_paths(&a.out).iter().zip(OUTPUT_ROLES) {
+    for (p, role) in paths.iter().zip(OUTPUT_ROLES) {
         planned.add(p, role.to_string(), "give --out a name ending in .glb")?;
     }
     let mut retargeter = Networks::load(&dir, a.backend)?;

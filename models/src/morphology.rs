@@ -110,11 +110,7 @@ impl Morphology {
     /// profile's tip offsets (the rest pose is applied to the tree by [`Profile::apply_rest_pose`]).
     pub fn with_profile(tree: &KinematicTree, profile: &Profile) -> Result<Morphology, ProfileError> {
         let mut m = Morphology::analyze(tree);
-        let file = profile.source.clone().unwrap_or_else(|| "<profile>".into());
-        let err = |p: ProfileProblem| ProfileError {
-            file: file.clone(),
-            problem: p,
-        };
+        let err = |p: ProfileProblem| profile.error(p);
         let find = |n: &String| {
             tree.link_index(n)
                 .ok_or_else(|| err(ProfileProblem::UnknownLink(n.clone())))
@@ -389,6 +385,11 @@ impl Profile {
         }
     }
 
+    /// `problem` in this profile's file (`<profile>` for one not read from a file).
+    fn error(&self, problem: ProfileProblem) -> ProfileError {
+        ProfileError { file: self.source.clone().unwrap_or_else(|| "<profile>".into()), problem }
+    }
+
     /// Fails if the profile sets a key that only glTF creatures have.
     pub fn check_urdf(&self) -> Result<(), ProfileError> {
         let key = [
@@ -403,10 +404,7 @@ impl Profile {
         .into_iter()
         .find(|k| k.1);
         match key {
-            Some((k, _)) => Err(ProfileError {
-                file: self.source.clone().unwrap_or_else(|| "<profile>".into()),
-                problem: ProfileProblem::GltfOnly(k),
-            }),
+            Some((k, _)) => Err(self.error(ProfileProblem::GltfOnly(k))),
             None => Ok(()),
         }
     }
@@ -415,7 +413,7 @@ impl Profile {
     /// that is no end effector, or farther from its link than the whole body is big (a value in
     /// millimetres, a typo), is refused: the state and L_fea would carry it.
     pub fn apply_tip_offsets(&self, tree: &KinematicTree, m: &mut Morphology) -> Result<(), ProfileError> {
-        let err = |problem| ProfileError { file: self.source.clone().unwrap_or_else(|| "<profile>".into()), problem };
+        let err = |problem| self.error(problem);
         if self.tip_offsets.is_empty() {
             return Ok(());
         }
@@ -445,8 +443,8 @@ impl Profile {
             return Ok(());
         }
         let mut q = vec![0.0; tree.dof()];
+        let err = |problem| self.error(problem);
         for (name, v) in &self.rest_pose {
-            let err = |problem| ProfileError { file: self.source.clone().unwrap_or_else(|| "<profile>".into()), problem };
             let d = tree.dof_index(name).ok_or_else(|| err(ProfileProblem::UnknownJoint(name.clone())))?;
             // Clamped into the limits, a value in degrees (or out of range) became another pose silently.
             if let Some(l) = tree.limits(d) {

@@ -192,30 +192,30 @@ struct Limb {
 /// Checks what the overrides name before any is used: bones of the body, axes among [`AXES`], limits
 /// keyed `bone:axis` on an axis the bone keeps. Each was skipped without a word (a `[dofs]` axis
 /// spelled `Yaw` took every DoF from its bone; a limit on an axis `[dofs]` leaves out put it back).
-fn check_overrides(ov: &Overrides, by_name: &dyn Fn(&str) -> Result<usize, String>) -> Result<(), String> {
+fn check_overrides(ov: &Overrides, by_name: &dyn Fn(&str, &str) -> Result<usize, String>) -> Result<(), String> {
     let axis = |key: &str, a: &str| {
-        if AXES.contains(&a) { Ok(()) } else { Err(format!("{key}: `{a}` is not an axis (they are {})", AXES.join(", "))) }
+        if AXES.contains(&a) { Ok(()) } else { Err(format!("`{key}`: `{a}` is not an axis (they are {})", AXES.join(", "))) }
     };
     for (bone, axes) in &ov.dofs {
-        let key = format!("`dofs.\"{bone}\"`");
-        by_name(bone).map_err(|e| format!("{key}: {e}"))?;
+        let key = format!("dofs.\"{bone}\"");
+        by_name(&key, bone)?;
         for a in axes {
             axis(&key, a)?;
         }
     }
     for joint in ov.limits.keys() {
-        let key = format!("`limits.\"{joint}\"`");
+        let key = format!("limits.\"{joint}\"");
         let Some((bone, a)) = joint.rsplit_once(':') else {
-            return Err(format!("{key}: a limit is keyed `bone:axis`, the axis one of {}", AXES.join(", ")));
+            return Err(format!("`{key}`: a limit is keyed `bone:axis`, the axis one of {}", AXES.join(", ")));
         };
-        by_name(bone).map_err(|e| format!("{key}: {e}"))?;
+        by_name(&key, bone)?;
         axis(&key, a)?;
         if ov.dofs.get(bone).is_some_and(|kept| !kept.iter().any(|k| k == a)) {
-            return Err(format!("{key}: `dofs.\"{bone}\"` leaves the {a} axis out"));
+            return Err(format!("`{key}`: `dofs.\"{bone}\"` leaves the {a} axis out"));
         }
     }
     for bone in &ov.translate {
-        by_name(bone).map_err(|e| format!("`translate`: {e}"))?;
+        by_name("translate", bone)?;
     }
     Ok(())
 }
@@ -436,11 +436,12 @@ pub fn build(
     }
     limbs.sort_by_key(|l| l.path[0]);
 
-    let by_name = |n: &str| -> Result<usize, String> {
+    // The body bone `n` that profile key `key` names.
+    let by_name = |key: &str, n: &str| -> Result<usize, String> {
         body.iter()
             .copied()
             .find(|&b| rig.bones[b].name == n)
-            .ok_or_else(|| format!("no body bone named `{n}`"))
+            .ok_or_else(|| format!("`{key}`: no body bone named `{n}`"))
     };
     check_overrides(ov, &by_name)?;
     let mid_y = pos(root).y;
@@ -464,7 +465,7 @@ pub fn build(
         feet.clear();
         foot_limbs.clear();
         for n in names {
-            let b = by_name(n).map_err(|e| format!("`feet`: {e}"))?;
+            let b = by_name("feet", n)?;
             let p = lowest_point(&[b]).unwrap_or_else(|| Point3::from(pos(b)));
             feet.push((b, p));
             if let Some(i) = limbs.iter().position(|l| l.path.contains(&b)) {
@@ -532,7 +533,7 @@ pub fn build(
         head = if h.is_empty() {
             None
         } else {
-            Some(by_name(h).map_err(|e| format!("`head`: {e}"))?)
+            Some(by_name("head", h)?)
         };
     }
     // Tails and arms.
@@ -575,7 +576,7 @@ pub fn build(
     }
     let mut manipulators: Vec<usize> = arms.iter().map(|a| a.1).collect();
     if let Some(names) = &ov.manipulators {
-        manipulators = names.iter().map(|n| by_name(n).map_err(|e| format!("`manipulators`: {e}"))).collect::<Result<_, _>>()?;
+        manipulators = names.iter().map(|n| by_name("manipulators", n)).collect::<Result<_, _>>()?;
     }
 
     // Roles of moving bones.
@@ -630,14 +631,14 @@ pub fn build(
     }
     role.remove(&root);
     if let Some(names) = &ov.animated {
-        let keep: Vec<usize> = names.iter().map(|n| by_name(n).map_err(|e| format!("`animated`: {e}"))).collect::<Result<_, _>>()?;
+        let keep: Vec<usize> = names.iter().map(|n| by_name("animated", n)).collect::<Result<_, _>>()?;
         role.retain(|b, _| keep.contains(b));
         for b in keep {
             role.entry(b).or_insert(Role::Spine);
         }
     }
     for n in &ov.at_rest {
-        role.remove(&by_name(n).map_err(|e| format!("`at_rest`: {e}"))?);
+        role.remove(&by_name("at_rest", n)?);
     }
 
     // Axes per moving bone: leg axes for legs, the character frame's elsewhere.

@@ -694,12 +694,16 @@ pub fn read_document(
     // A skeleton below an unevenly scaled node: the tree turns its bones rigidly, but the file scales
     // their turns unevenly, so the clip exported onto the model would not be the motion retargeted
     // (a Fox under a scale of [1, 2, 1] kept its feet 12 cm in the air in every frame).
-    for &node in &bones_nodes {
+    // The nearest ancestor of a node that is a bone (its parent bone), if any.
+    let bone_above = |node: usize| {
         let mut up = parent[node];
         while let Some(a) = up.filter(|&a| bone_of[a].is_none()) {
             up = parent[a];
         }
-        let (None, Some(q)) = (up, parent[node]) else { continue };
+        up
+    };
+    for &node in &bones_nodes {
+        let (None, Some(q)) = (bone_above(node), parent[node]) else { continue };
         let s = rest_world[q].fixed_view::<3, 3>(0, 0).into_owned().svd(false, false).singular_values;
         if s.max() - s.min() > 1e-3 * s.max() {
             return Err(fail(GltfProblem::BadTransform(format!(
@@ -763,13 +767,7 @@ pub fn read_document(
     };
     let mut bones = Vec::with_capacity(bones_nodes.len());
     for &node in &bones_nodes {
-        let mut p = parent[node];
-        while let Some(a) = p {
-            if bone_of[a].is_some() {
-                break;
-            }
-            p = parent[a];
-        }
+        let p = bone_above(node);
         let rest = to_char_iso(&rest_world[node]).ok_or_else(|| {
             let det = rest_world[node].fixed_view::<3, 3>(0, 0).determinant();
             fail(GltfProblem::BadTransform(if det < 0.0 {

@@ -220,7 +220,7 @@ impl HumanClip {
     }
 
     /// A warning when the file's frame rate is below [`SLOWEST_MOCAP_FPS`]: most often a `Frame Time`
-    /// written in milliseconds (8.333333 for 120 fps made a 10-second clip last 20 minutes).
+    /// written in milliseconds (8.333333 for 120 fps made a clip of 149 frames last 21 minutes).
     pub fn frame_rate_warning(&self) -> Option<String> {
         (self.source_fps < SLOWEST_MOCAP_FPS).then(|| {
             let seconds = 1.0 / self.source_fps;
