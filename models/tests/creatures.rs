@@ -373,9 +373,9 @@ fn problem(path: &Path) -> (String, GltfProblem) {
 #[test]
 fn a_small_hand_made_rig_imports() {
     let d = tmp("good");
-    let p = rig(&d, "ok.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |_| {});
+    let p = rig(&d, "ok.gltf", 4, [0.25; 4], [0, 1, 2, 3], |_| {});
     let c = load(&p);
-    // Four bones: the tree has a link per bone (and their DoF links); the rest pose is the nodes'.
+    // Four bones that deform the mesh: the tree has a link per bone (and their DoF links); the rest pose is the nodes'.
     for k in 0..4 {
         let l = c.tree.link_index(&format!("bone{k}")).unwrap();
         let fk = c
@@ -411,13 +411,14 @@ fn of_several_skins_the_one_that_deforms_the_most_vertices_is_used() {
     let c = load(&rig_with("small.gltf", 2, 0));
     let used: Vec<_> = c.rig.skins.iter().map(|s| (s.name.as_str(), s.vertices, s.used)).collect();
     assert_eq!(used, [("big", 3, false), ("small", 6, true)]);
-    assert!(c.tree.link_index("bone1").is_some() && c.tree.link_index("bone2").is_none(), "the tree is the small skin's");
+    let bone = |c: &Creature, name: &str| c.rig.bones.iter().any(|b| b.name == name);
+    assert!(bone(&c, "bone1") && !bone(&c, "bone2"), "the creature is the small skin's");
     assert!(c.rig.warnings.iter().any(|w| w.contains("2 skins") && w.contains("`small`")), "{:?}", c.rig.warnings);
     // 9 against 6: the first skin wins again.
     let c = load(&rig_with("big.gltf", 2, 2));
     let used: Vec<_> = c.rig.skins.iter().map(|s| (s.name.as_str(), s.vertices, s.used)).collect();
     assert_eq!(used, [("big", 9, true), ("small", 6, false)]);
-    assert!(c.tree.link_index("bone3").is_some());
+    assert!(bone(&c, "bone3"));
     // One skin: no warning about skins.
     let c = load(&rig(&d, "one.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |_| {}));
     assert!(c.rig.warnings.iter().all(|w| !w.contains("skins")), "{:?}", c.rig.warnings);
@@ -770,7 +771,7 @@ fn a_creature_of_no_plausible_size_is_warned_of() {
 #[test]
 fn bones_of_one_name_are_told_apart_by_their_node() {
     let d = tmp("shared-names");
-    let path = rig(&d, "twins.gltf", 4, [0.5, 0.5, 0.0, 0.0], [0, 1, 0, 0], |v| {
+    let path = rig(&d, "twins.gltf", 4, [0.25; 4], [0, 1, 2, 3], |v| {
         v["nodes"][2]["name"] = serde_json::json!("Leg");
         v["nodes"][3]["name"] = serde_json::json!("Leg");
     });
@@ -1388,5 +1389,117 @@ fn the_creatures_own_clips_trip_the_ufr_detectors_only_where_their_meshes_do() {
         // Not blind either: the contacts and capsules lie inside the flesh, so they miss a toe or a claw
         // under the ground, but not most of the frames where the mesh is.
         assert!(2 * total(|s| s.caught) >= total(|s| s.mesh_below), "{file}: most of the mesh's penetrations unseen");
+    }
+}
+
+// ---- Bones that deform nothing -----------------------------------------------------------------
+
+/// `src` (a `.glb`) with bones added to its skin, written to `dst`: each `(parent, name, offset)` is a
+/// node `name` at `offset` (the parent's units and axes) under the node `parent`, deforming no vertex,
+/// as a prop socket or an exporter's `_end` leaf bone is.
+fn with_bones(src: &Path, dst: &Path, add: &[(String, String, [f32; 3])]) {
+    let bytes = std::fs::read(src).unwrap();
+    let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let mut v: serde_json::Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let mut bin = bytes[20 + json_len + 8..20 + json_len + 8 + u32_at(20 + json_len)].to_vec();
+    let ibm = v["skins"][0]["inverseBindMatrices"].as_u64().unwrap() as usize;
+    let acc = v["accessors"][ibm].clone();
+    let view = &v["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let count = acc["count"].as_u64().unwrap() as usize;
+    let mut mats: Vec<Matrix4<f32>> = (0..count)
+        .map(|k| Matrix4::from_iterator((0..16).map(|e| f32::from_le_bytes(bin[start + 64 * k + 4 * e..][..4].try_into().unwrap()))))
+        .collect();
+    for (parent, name, offset) in add {
+        let nodes = v["nodes"].as_array().unwrap();
+        let p = nodes.iter().position(|n| n["name"] == parent.as_str()).unwrap_or_else(|| panic!("no node {parent}"));
+        let n = nodes.len();
+        let joints = v["skins"][0]["joints"].as_array().unwrap();
+        let slot = joints.iter().position(|j| j.as_u64() == Some(p as u64)).unwrap_or_else(|| panic!("{parent} is no joint"));
+        // The bone's bind pose is its parent's moved by `offset`, so its inverse is the parent's after -offset.
+        mats.push(Matrix4::new_translation(&-Vector3::from(*offset)) * mats[slot]);
+        v["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": name, "translation": offset}));
+        let kids = &mut v["nodes"][p]["children"];
+        if kids.is_null() {
+            *kids = serde_json::json!([]);
+        }
+        kids.as_array_mut().unwrap().push(serde_json::json!(n));
+        v["skins"][0]["joints"].as_array_mut().unwrap().push(serde_json::json!(n));
+    }
+    while bin.len() % 16 != 0 {
+        bin.push(0);
+    }
+    let at = bin.len();
+    mats.iter().for_each(|m| m.as_slice().iter().for_each(|x| bin.extend(x.to_le_bytes())));
+    let views = v["bufferViews"].as_array().unwrap().len();
+    v["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": at, "byteLength": 64 * mats.len()}));
+    let accs = v["accessors"].as_array().unwrap().len();
+    v["accessors"].as_array_mut().unwrap().push(serde_json::json!({"bufferView": views, "componentType": 5126, "count": mats.len(), "type": "MAT4"}));
+    v["skins"][0]["inverseBindMatrices"] = serde_json::json!(accs);
+    v["buffers"][0]["byteLength"] = serde_json::json!(bin.len());
+    let mut json = serde_json::to_vec(&v).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut out = Vec::new();
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    for x in [0x4654_6C67u32, 2, total as u32, json.len() as u32, 0x4E4F_534A] {
+        out.extend(x.to_le_bytes());
+    }
+    out.extend(&json);
+    for x in [bin.len() as u32, 0x004E_4942] {
+        out.extend(x.to_le_bytes());
+    }
+    out.extend(&bin);
+    std::fs::write(dst, out).unwrap();
+}
+
+/// Bones that deform no vertex (a prop socket under a paw, the `_end` bone an exporter adds at every
+/// leaf) are no part of the body: they took a paw's foot away (the Fox stood on three legs, its dataset
+/// 99 % UFR), or made every leg a limb whose tip has no flesh to stand on.
+#[test]
+fn bones_that_deform_nothing_leave_the_body_plan_as_it_was() {
+    let Some(dir) = creatures() else { return };
+    let d = tmp("props");
+    for file in ["Fox/Fox.glb", "Quaternius_TRex/t-rex.glb"] {
+        let src = dir.join(file);
+        let plain = load(&src);
+        let g = gltf::Gltf::open(&src).unwrap();
+        let skin: Vec<gltf::Node> = g.skins().next().unwrap().joints().collect();
+        let is_joint = |n: &gltf::Node| skin.iter().any(|j| j.index() == n.index());
+        // Blender's leaf bones: one past every joint without joint children, a bone's length further on.
+        let mut ends: Vec<(String, String, [f32; 3])> = skin
+            .iter()
+            .filter(|j| !j.children().any(|c| is_joint(&c)))
+            .map(|j| {
+                let t = Vector3::from(j.transform().decomposed().0).norm();
+                (j.name().unwrap().to_owned(), format!("{}_leaf", j.name().unwrap()), [0.0, t, 0.0])
+            })
+            .collect();
+        assert!(ends.len() >= 6, "{file}: {} leaves", ends.len());
+        let mut cases = vec![("leaf-ends", ends.clone())];
+        if file.starts_with("Fox") {
+            // A 1 cm prop socket under the right front paw, and two more under the others.
+            ends.truncate(0);
+            for paw in ["b_RightHand_08", "b_LeftHand_011", "b_LeftFoot02_018"] {
+                ends.push((paw.to_owned(), format!("{paw}_prop"), [0.0, 1.0, 0.0]));
+            }
+            cases.push(("props", ends));
+        }
+        for (what, add) in cases {
+            let out = d.join(format!("{what}-{}.glb", file.replace('/', "-")));
+            with_bones(&src, &out, &add);
+            let c = load(&out);
+            let (a, b) = (plain.morphology.names(&plain.tree), c.morphology.names(&c.tree));
+            assert_eq!(b.feet, a.feet, "{file} {what}");
+            assert_eq!(b.head, a.head, "{file} {what}");
+            assert_eq!(b.manipulators, a.manipulators, "{file} {what}");
+            assert_eq!(c.plan.tails, plain.plan.tails, "{file} {what}");
+            assert_eq!(c.tree.dof_names(), plain.tree.dof_names(), "{file} {what}");
+            for (_, name, _) in &add {
+                assert!(c.plan.helpers.contains(name), "{file} {what}: {name} not among {:?}", c.plan.helpers);
+            }
+        }
     }
 }

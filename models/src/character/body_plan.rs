@@ -146,7 +146,7 @@ pub struct Overrides {
 pub struct BodyPlan {
     /// The bone that is the tree's root link.
     pub body_root: String,
-    /// Helper bones (outside the body): not DoFs.
+    /// Helper bones (outside the body, or deforming nothing below them): not DoFs.
     pub helpers: Vec<String>,
     /// Moving bones and their roles ([`Role::label`]).
     pub roles: BTreeMap<String, &'static str>,
@@ -233,10 +233,15 @@ pub fn build(
             children[p].push(i);
         }
     }
+    // Vertices each bone and the bones below it deform. A bone below which nothing deforms (a prop
+    // socket, an exporter's `_end` leaf bone) has no flesh to stand or reach with: it is no part of the
+    // body, as a non-deforming helper is not, and would otherwise end a limb in place of the paw.
+    let mut flesh: Vec<usize> = rig.bones.iter().map(|b| b.deforms).collect();
     let mut size = vec![1usize; nb];
     for i in (0..nb).rev() {
         if let Some(p) = rig.bones[i].parent {
             size[p] += size[i];
+            flesh[p] += flesh[i];
         }
     }
     // Body root: down from the largest top-level bone past bones that deform little and have one large child.
@@ -249,7 +254,7 @@ pub fn build(
         let big: Vec<usize> = children[root]
             .iter()
             .copied()
-            .filter(|&c| size[c] > 2)
+            .filter(|&c| size[c] > 2 && flesh[c] > 0)
             .collect();
         if big.len() == 1 && rig.bones[root].deforms * 20 <= total_vertices {
             root = big[0];
@@ -261,7 +266,7 @@ pub fn build(
     let mut stack = vec![root];
     while let Some(b) = stack.pop() {
         in_body[b] = true;
-        stack.extend(&children[b]);
+        stack.extend(children[b].iter().filter(|&&c| flesh[c] > 0));
     }
     let body: Vec<usize> = (0..nb).filter(|&i| in_body[i]).collect();
     let pos0 = |b: usize| rig.bones[b].rest.translation.vector;

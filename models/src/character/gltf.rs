@@ -17,7 +17,9 @@
 //!   deforming ones (a foot bone driven by IK, hanging off the root) become fixed links under the end of
 //!   the body chain nearest to them, where the file's clips hold them, and the vertices they deform most
 //!   count as that bone's (see [`super::helpers`]).
-//!   Ancestors of the body root fold into the root pose.
+//!   Ancestors of the body root fold into the root pose. Bones below which no vertex deforms (prop
+//!   sockets, an exporter's `_end` leaf bones) are helpers too: they would end a limb where it has no
+//!   flesh to stand on.
 //! - **Joints.** A moving bone becomes up to three revolute DoFs about axes fixed in its rest frame and
 //!   applied in the order yaw, pitch, roll: links `bone:yaw`, `bone:pitch` and finally `bone` (the link
 //!   carrying the geometry), joints `bone:yaw`, `bone:pitch`, `bone:roll` (only the axes it keeps).
