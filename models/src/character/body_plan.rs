@@ -89,12 +89,24 @@ impl Role {
 /// The three axis names, in the order their DoFs are applied.
 pub const AXES: [&str; 3] = ["yaw", "pitch", "roll"];
 
+/// Default pitch range (±°) of a leg's first joint (hip, shoulder) in a creature without clips.
+///
+/// Dogs' legs swing through about 110° at the shoulder and the hip and fold through 120–165° at the
+/// elbow, stifle, carpus and tarsus (goniometry of Labrador retrievers: Jaegger, Marcellin-Little and
+/// Levine, Am. J. Vet. Res. 63, 2002); the Fox's and the T-Rex's own clips turn these joints 105–110°
+/// one way. A bind pose stands anywhere in that range, and which way a joint folds is not known from
+/// it, so each side gets most of the range. Narrower (±45° and ±60°), the Fox without its clips could
+/// not crouch to its standing height and the T-Rex's dataset slid in a third of its frames.
+pub const LEG_SWING_DEG: f32 = 75.0;
+/// Default pitch range (±°) of a leg's further joints (elbow, knee, ankle, wrist); see [`LEG_SWING_DEG`].
+pub const LEG_FOLD_DEG: f32 = 100.0;
+
 /// Default limits (rad) of a bone of `role` with no keyframes, per axis (`None`: no DoF).
 pub fn default_limits(role: Role) -> [Option<(f32, f32)>; 3] {
     let d = |deg: f32| Some((-deg.to_radians(), deg.to_radians()));
     match role {
-        Role::Leg { first: true } => [d(10.0), d(45.0), d(20.0)],
-        Role::Leg { first: false } => [None, d(60.0), None],
+        Role::Leg { first: true } => [d(10.0), d(LEG_SWING_DEG), d(20.0)],
+        Role::Leg { first: false } => [None, d(LEG_FOLD_DEG), None],
         Role::Arm { first: true } => [d(45.0), d(45.0), d(45.0)],
         Role::Arm { first: false } => [None, d(75.0), None],
         Role::Head => [d(40.0), d(30.0), None],
