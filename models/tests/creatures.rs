@@ -1542,3 +1542,25 @@ fn legged_creatures_without_clips_make_clean_datasets() {
         assert!(rates.ufr <= 0.005, "{file} without clips: UFR {:.3} % ({rates:?})", 100.0 * rates.ufr);
     }
 }
+
+/// A leg whose joints cannot bend to the standing height names the joints at their limits (it said
+/// only "cannot place the foot … IK error 1.6 mm", leaving the user to guess it was the limits).
+#[test]
+fn a_leg_limited_too_narrowly_to_stand_names_the_joints_at_their_limits() {
+    let Some(dir) = creatures() else { return };
+    let d = tmp("narrow-leg");
+    std::fs::copy(dir.join("Fox/Fox.glb"), d.join("Fox.glb")).unwrap();
+    std::fs::write(
+        d.join("Fox.profile.toml"),
+        "[limits]\n\"b_RightUpperArm_06:pitch\" = [-0.05, 0.05]\n\"b_RightForeArm_07:pitch\" = [-0.05, 0.05]\n\"b_RightHand_08:pitch\" = [-0.05, 0.05]\n",
+    )
+    .unwrap();
+    let c = load(&d.join("Fox.glb"));
+    let cfg = ace_models::dataset::DatasetConfig { frames: 10, ..Default::default() };
+    let Err(e) = ace_models::dataset::generate(&c.tree, &c.morphology, &cfg, &mut |_| {}) else {
+        panic!("a leg that cannot bend made a dataset");
+    };
+    let msg = e.to_string();
+    assert!(msg.contains("leg ending in `b_RightHand_08`: cannot place the foot under its standing position"), "{msg}");
+    assert!(msg.contains("at their limits: b_RightUpperArm_06:yaw, b_RightUpperArm_06:pitch, b_RightForeArm_07:pitch, b_RightHand_08:pitch") && msg.contains("(widen them to let the leg bend further)"), "{msg}");
+}

@@ -165,11 +165,25 @@ pub fn nominal_stance(
         let target = root.inverse_transform_point(&Point3::new(leg.nominal.x, leg.nominal.y, 0.0));
         let r = leg.chain.solve(tree, &mut q, &target, IK_TOL, 300, &mut scratch);
         if r.error > 1e-3 {
+            // Most often the leg's joints are limited too narrowly to bend that far: name those at a limit.
+            let stuck: Vec<String> = leg
+                .chain
+                .active_dofs()
+                .filter(|&d| {
+                    tree.limits(d).is_some_and(|l| (q[d] - l.lower).abs() < 1e-3 || (q[d] - l.upper).abs() < 1e-3)
+                })
+                .map(|d| tree.dof_joint(d).name.clone())
+                .collect();
+            let at_limits = if stuck.is_empty() {
+                String::new()
+            } else {
+                format!("; at their limits: {} (widen them to let the leg bend further)", stuck.join(", "))
+            };
             return Err(leg_error(
                 tree,
                 leg.foot,
                 format!(
-                    "cannot place the foot under its standing position at body height {h0:.3} m (IK error {:.1} mm)",
+                    "cannot place the foot under its standing position at body height {h0:.3} m (IK error {:.1} mm){at_limits}",
                     r.error * 1e3
                 ),
             ));
