@@ -43,6 +43,7 @@
 //! ```toml
 //! scale = 0.01                       # metres per file unit
 //! forward = "+z"                     # the file axis the creature faces
+//! up = "+y"                          # the file axis that points up ("+z": exported with z up)
 //! animated = ["b_Neck_04", "b_Head_05"]   # the bones that move (replaces the analysis)
 //! at_rest = ["b_Tail01_012"]         # bones held at rest
 //! [dofs]                             # bone = the axes it turns about
@@ -241,8 +242,11 @@ pub struct Profile {
     /// glTF creatures only: metres per file unit (replaces the unit detection).
     pub scale: Option<f32>,
     /// glTF creatures only: the file axis the creature faces (`"+z"`, the glTF convention, `"-z"`,
-    /// `"+x"` or `"-x"`).
-    pub forward: Option<crate::character::gltf::Forward>,
+    /// `"+x"`, `"-x"`, `"+y"` or `"-y"`; `"-y"`, Blender's front, when `up` is along z).
+    pub forward: Option<crate::character::gltf::Axis>,
+    /// glTF creatures only: the file axis that points up (`"+y"`, the glTF convention; `"+z"` for a
+    /// file exported with Blender's own axes).
+    pub up: Option<crate::character::gltf::Axis>,
     /// glTF creatures only: the bones that move (replaces the analysis).
     pub animated: Option<Vec<String>>,
     /// glTF creatures only: bones held at rest.
@@ -342,6 +346,9 @@ impl Profile {
                 );
             }
         }
+        if let Err(valid) = self.facing() {
+            return bad("forward".into(), format!("\"{}\"", self.forward.map_or("+z", |a| a.label())), &valid);
+        }
         if let Some(s) = self.scale {
             let (lo, hi) = PROFILE_SCALE_RANGE;
             if !(lo..=hi).contains(&s) {
@@ -353,6 +360,11 @@ impl Profile {
             }
         }
         Ok(())
+    }
+
+    /// The creature's axes in its file: `up` and `forward`, or glTF's.
+    pub fn facing(&self) -> Result<crate::character::gltf::Facing, String> {
+        crate::character::gltf::Facing::new(self.forward, self.up)
     }
 
     /// Reads a profile file (a regular file of UTF-8 text: [`crate::input::read_text`]).
@@ -395,6 +407,7 @@ impl Profile {
         let key = [
             ("scale", self.scale.is_some()),
             ("forward", self.forward.is_some()),
+            ("up", self.up.is_some()),
             ("animated", self.animated.is_some()),
             ("at_rest", !self.at_rest.is_empty()),
             ("dofs", !self.dofs.is_empty()),

@@ -1564,3 +1564,48 @@ fn a_leg_limited_too_narrowly_to_stand_names_the_joints_at_their_limits() {
     assert!(msg.contains("leg ending in `b_RightHand_08`: cannot place the foot under its standing position"), "{msg}");
     assert!(msg.contains("at their limits: b_RightUpperArm_06:yaw, b_RightUpperArm_06:pitch, b_RightForeArm_07:pitch, b_RightHand_08:pitch") && msg.contains("(widen them to let the leg bend further)"), "{msg}");
 }
+
+/// A creature exported with z up (Blender's own axes: up +z, facing -y) lies in the glTF frame. It was
+/// read standing on its side, its head the only foot and its legs arms, without a word. It now gets a
+/// warning naming the axis that stands it up, and with `up = "+z"` in its profile it is the creature
+/// it is with y up: the same feet, head, joints and rest pose.
+#[test]
+fn a_creature_exported_with_z_up_is_warned_of_and_stands_with_its_profiles_up() {
+    let Some(dir) = creatures() else { return };
+    let d = tmp("z-up");
+    let plain = load(&dir.join("Fox/Fox.glb"));
+    let lying = d.join("Fox.glb");
+    // A node above the scene turning +y (glTF's up) to +z and +z (its front) to -y.
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    rewrite_glb(&dir.join("Fox/Fox.glb"), &lying, |v, _| {
+        let n = v["nodes"].as_array().unwrap().len();
+        let roots = v["scenes"][0]["nodes"].clone();
+        v["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "ZUp", "rotation": [h, 0.0, 0.0, h], "children": roots}));
+        v["scenes"][0]["nodes"] = serde_json::json!([n]);
+    });
+    let c = load(&lying);
+    assert!(c.morphology.feet.len() < 2, "{:?}", c.morphology.names(&c.tree).feet);
+    let warning = "stands on 4: if it lies in the file (exported with z up), set `up` in its profile";
+    assert!(c.tree.warnings.iter().any(|w| w.contains("with `up = \"+z\"` it stands on 4") && w.ends_with(warning)), "{:?}", c.tree.warnings);
+
+    std::fs::write(d.join("Fox.profile.toml"), "up = \"+z\"\n").unwrap();
+    let c = load(&lying);
+    let (a, b) = (plain.morphology.names(&plain.tree), c.morphology.names(&c.tree));
+    assert_eq!((&b.feet, &b.head), (&a.feet, &a.head));
+    assert_eq!(c.tree.dof_names(), plain.tree.dof_names());
+    assert!(c.tree.warnings.iter().all(|w| !w.contains("`up")), "{:?}", c.tree.warnings);
+    let rest = |c: &Creature| c.tree.forward_kinematics(&c.tree.neutral_pose(nalgebra::Isometry3::identity()));
+    for (l, (p, q)) in rest(&plain).iter().zip(rest(&c)).enumerate() {
+        assert!((p.translation.vector - q.translation.vector).norm() < 1e-4, "{}: {p} against {q}", plain.tree.links[l].name);
+    }
+
+    // Up and forward along one axis cannot describe a creature.
+    std::fs::write(d.join("Fox.profile.toml"), "up = \"+z\"\nforward = \"-z\"\n").unwrap();
+    let Err(CharacterError::Profile(e)) = load_creature(&lying) else { panic!("a profile facing up was read") };
+    let msg = e.to_string();
+    assert!(msg.contains("Fox.profile.toml") && msg.contains("`forward` = \"-z\": `up` = \"+z\" is along the same axis"), "{msg}");
+
+    // A creature without legs stands on no feet whichever way is up, and is not told to turn.
+    let snake = load(&dir.join("Quaternius_Snake/Snake.glb"));
+    assert!(snake.tree.warnings.iter().all(|w| !w.contains("`up")), "{:?}", snake.tree.warnings);
+}

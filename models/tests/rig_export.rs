@@ -10,7 +10,7 @@ use common::{creatures, khronos_validate};
 use std::path::{Path, PathBuf};
 
 use ace_models::character::clips::clip_poses;
-use ace_models::character::gltf::{Forward, open, polar_rotation, read};
+use ace_models::character::gltf::{Facing, open, polar_rotation, read};
 use ace_models::character::{Creature, load_creature};
 use ace_models::export::{ExportProblem, RigClipOptions, rig_clip_glb, write_rig_clip};
 use ace_models::kinematics::CharacterPose;
@@ -496,7 +496,7 @@ fn round_trip(c: &Creature, path: &Path, clip: usize, out: &Path) -> (f32, f32) 
     let poses = clip_poses(c, clip, FPS);
     let target = out.join(format!("clip{clip}.glb"));
     write_rig_clip(&target, c, &poses, FPS, &RigClipOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-    let rig = read(&target, Some(c.scale), Forward::default()).unwrap_or_else(|e| panic!("{e}"));
+    let rig = read(&target, Some(c.scale), Facing::default()).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(rig.to_character, c.rig.to_character);
     assert_eq!(rig.bones.len(), c.rig.bones.len());
     assert_eq!(rig.animations.len(), 1);

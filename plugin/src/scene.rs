@@ -39,7 +39,8 @@
 //!   last pose stays where it is.
 //!
 //! The scene is shown as authored: y up, facing the file's forward axis, in the file's units (scale
-//! the entity to resize it). A URDF character's links face +x instead.
+//! the entity to resize it; rotate it to stand up a creature whose profile sets another `up`). A URDF
+//! character's links face +x instead.
 
 use std::collections::HashMap;
 

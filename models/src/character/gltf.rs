@@ -5,8 +5,9 @@
 //!
 //! Decisions, documented once:
 //! - **Frame.** glTF is y up with the model facing +z; the character frame is z up facing +x. A point
-//!   `(x, y, z)` of the file becomes `(z, x, y)` (a proper rotation). The profile's `forward` names
-//!   another facing axis of the file.
+//!   `(x, y, z)` of the file becomes `(z, x, y)` (a proper rotation). The profile's `up` and
+//!   `forward` name other axes of the file ([`Facing`]); a creature that stands on fewer than two feet
+//!   as the file says, but on more with another axis up, is read with a warning naming that axis.
 //! - **Units.** glTF says metres, but files are authored at many scales: after the armature's own
 //!   transforms, a creature whose largest extent exceeds [`MAX_PLAUSIBLE_SIZE`] is read as centimetres
 //!   (then millimetres), with a warning. The profile's `scale` (metres per file unit) overrides this.
@@ -301,36 +302,89 @@ pub struct Rig {
     pub warnings: Vec<String>,
 }
 
-/// How the file's axes map to the character frame: which file axis the creature faces.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-pub enum Forward {
-    /// +z (the glTF convention).
-    #[default]
-    #[serde(rename = "+z")]
-    PlusZ,
-    #[serde(rename = "-z")]
-    MinusZ,
+/// An axis of the file, with its sign: the profile's `forward` and `up`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Axis {
     #[serde(rename = "+x")]
     PlusX,
     #[serde(rename = "-x")]
     MinusX,
+    #[serde(rename = "+y")]
+    PlusY,
+    #[serde(rename = "-y")]
+    MinusY,
+    #[serde(rename = "+z")]
+    PlusZ,
+    #[serde(rename = "-z")]
+    MinusZ,
 }
 
-impl Forward {
-    /// Rotation from the file frame (y up) to the character frame (z up, facing +x).
+impl Axis {
+    /// All six, in the order a search for a lying creature's up tries them.
+    pub const ALL: [Axis; 6] = [Axis::PlusY, Axis::PlusZ, Axis::MinusZ, Axis::PlusX, Axis::MinusX, Axis::MinusY];
+
+    /// The unit vector of the axis in file coordinates.
+    pub fn vector(self) -> Vector3<f32> {
+        match self {
+            Axis::PlusX => Vector3::x(),
+            Axis::MinusX => -Vector3::x(),
+            Axis::PlusY => Vector3::y(),
+            Axis::MinusY => -Vector3::y(),
+            Axis::PlusZ => Vector3::z(),
+            Axis::MinusZ => -Vector3::z(),
+        }
+    }
+
+    /// As a profile writes it (`"+z"`).
+    pub fn label(self) -> &'static str {
+        match self {
+            Axis::PlusX => "+x",
+            Axis::MinusX => "-x",
+            Axis::PlusY => "+y",
+            Axis::MinusY => "-y",
+            Axis::PlusZ => "+z",
+            Axis::MinusZ => "-z",
+        }
+    }
+}
+
+/// How the file's axes map to the character frame: which file axes point up and the way the creature
+/// faces. glTF says +y up, facing +z ([`Facing::default`]); a file exported with z up (Blender's own
+/// axes) lies on its back or side unless its profile says `up = "+z"`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Facing {
+    pub forward: Axis,
+    pub up: Axis,
+}
+
+impl Default for Facing {
+    fn default() -> Facing {
+        Facing { forward: Axis::PlusZ, up: Axis::PlusY }
+    }
+}
+
+impl Facing {
+    /// `up` (glTF's +y when `None`) with `forward`, which defaults to glTF's +z, or to -y (Blender's
+    /// front) when up is along z. Fails when the two are parallel.
+    pub fn new(forward: Option<Axis>, up: Option<Axis>) -> Result<Facing, String> {
+        let up = up.unwrap_or(Axis::PlusY);
+        let forward = forward.unwrap_or(if matches!(up, Axis::PlusZ | Axis::MinusZ) { Axis::MinusY } else { Axis::PlusZ });
+        if forward.vector().dot(&up.vector()) != 0.0 {
+            return Err(format!(
+                "`up` = \"{}\" is along the same axis; the creature faces along an axis perpendicular to up",
+                up.label()
+            ));
+        }
+        Ok(Facing { forward, up })
+    }
+
+    /// Rotation from the file frame to the character frame (z up, facing +x).
     pub fn to_character(self) -> Rotation3<f32> {
-        // Rows: character x, y, z in file coordinates. Up is file +y; left = up × forward.
-        let f = match self {
-            Forward::PlusZ => Vector3::z(),
-            Forward::MinusZ => -Vector3::z(),
-            Forward::PlusX => Vector3::x(),
-            Forward::MinusX => -Vector3::x(),
-        };
-        let up = Vector3::y();
-        let left = up.cross(&f);
+        // Rows: character x, y, z in file coordinates; left = up × forward.
+        let (f, up) = (self.forward.vector(), self.up.vector());
         Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
             f.transpose(),
-            left.transpose(),
+            up.cross(&f).transpose(),
             up.transpose(),
         ]))
     }
@@ -370,10 +424,10 @@ fn unique_names(doc: &::gltf::Document, warnings: &mut Vec<String>) -> Vec<Strin
 }
 
 /// Reads the file and the bones of its main skin. `scale` (metres per file unit) overrides the
-/// unit detection; `forward` says which file axis the creature faces.
-pub fn read(path: &Path, scale: Option<f32>, forward: Forward) -> Result<Rig, GltfError> {
+/// unit detection; `facing` says which file axes point up and forward.
+pub fn read(path: &Path, scale: Option<f32>, facing: Facing) -> Result<Rig, GltfError> {
     let (document, buffers) = open(path)?;
-    read_document(&document, &buffers, path, scale, forward)
+    read_document(&document, &buffers, path, scale, facing)
 }
 
 /// [`read`] for a document already opened (see [`open`], [`open_bytes`]); `path` names the file in
@@ -383,7 +437,7 @@ pub fn read_document(
     buffers: &[Vec<u8>],
     path: &Path,
     scale: Option<f32>,
-    forward: Forward,
+    facing: Facing,
 ) -> Result<Rig, GltfError> {
     let fail = |p: GltfProblem| p.in_file(path);
     let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
@@ -716,7 +770,7 @@ pub fn read_document(
             ))));
         }
     }
-    let to_character = forward.to_character();
+    let to_character = facing.to_character();
     // Units.
     let mut bb_min = Vector3::repeat(f32::INFINITY);
     let mut bb_max = Vector3::repeat(f32::NEG_INFINITY);

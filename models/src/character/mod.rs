@@ -59,7 +59,15 @@ pub fn creature_from_document(
     path: &Path,
     profile: &Profile,
 ) -> Result<Creature, CharacterError> {
-    let rig = gltf::read_document(doc, buffers, path, profile.scale, profile.forward.unwrap_or_default())?;
+    let profile_error = |problem: ProfileProblem| ProfileError {
+        file: profile.source.clone().unwrap_or_else(|| path.display().to_string()),
+        problem,
+    };
+    let facing = profile.facing().map_err(|valid| {
+        let value = format!("\"{}\"", profile.forward.map_or("+z", |a| a.label()));
+        profile_error(ProfileProblem::BadValue { key: "forward".into(), value, valid })
+    })?;
+    let rig = gltf::read_document(doc, buffers, path, profile.scale, facing)?;
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -75,13 +83,17 @@ pub fn creature_from_document(
         translate: profile.translate.clone(),
     };
     let (mut tree, mut morphology, plan) =
-        body_plan::build(&rig, &name, &ov).map_err(|p| ProfileError {
-            file: profile
-                .source
-                .clone()
-                .unwrap_or_else(|| path.display().to_string()),
-            problem: ProfileProblem::Body(p),
-        })?;
+        body_plan::build(&rig, &name, &ov).map_err(|p| profile_error(ProfileProblem::Body(p)))?;
+    if profile.up.is_none() && morphology.feet.len() < 2 {
+        if let Some((up, feet)) = stands_up(doc, buffers, path, profile, &name, &ov) {
+            tree.warnings.push(format!(
+                "with +y up, as glTF says, the creature stands on {} feet; with `up = \"{}\"` it stands on {feet}: \
+                 if it lies in the file (exported with z up), set `up` in its profile",
+                morphology.feet.len(),
+                up.label()
+            ));
+        }
+    }
     tree.source = Some(path.to_path_buf());
     profile.apply_rest_pose(&mut tree)?;
     profile.apply_tip_offsets(&tree, &mut morphology)?;
@@ -92,4 +104,26 @@ pub fn creature_from_document(
         scale: rig.scale,
         rig,
     })
+}
+
+/// The other file axis that, taken as up, gives the creature the most feet (at least two), and how
+/// many: a creature that lies in its file stands on none or one.
+fn stands_up(
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    profile: &Profile,
+    name: &str,
+    ov: &body_plan::Overrides,
+) -> Option<(gltf::Axis, usize)> {
+    gltf::Axis::ALL[1..]
+        .iter()
+        .filter_map(|&up| {
+            let facing = gltf::Facing::new(profile.forward, Some(up)).ok()?;
+            let rig = gltf::read_document(doc, buffers, path, profile.scale, facing).ok()?;
+            let (_, morphology, _) = body_plan::build(&rig, name, ov).ok()?;
+            Some((up, morphology.feet.len()))
+        })
+        .filter(|&(_, feet)| feet >= 2)
+        .max_by_key(|&(up, feet)| (feet, std::cmp::Reverse(gltf::Axis::ALL.iter().position(|&a| a == up))))
 }
