@@ -92,6 +92,10 @@ impl Style {
     fn font(&self) -> TextStyle<'static> {
         (FONT, self.text).into_font().color(&TEXT)
     }
+    /// How many tick labels an axis `pixels` long holds without crowding (one per 1.8 text heights).
+    fn ticks_in(&self, pixels: u32) -> usize {
+        (pixels / self.px(1.8)).max(2) as usize
+    }
     /// Width of the data lines.
     fn stroke(&self) -> u32 {
         if self.text > 12.0 { 2 } else { 1 }
@@ -296,7 +300,7 @@ impl LineChart {
     {
         let beside = st.px(if self.y_label.is_empty() { 3.6 } else { 5.0 });
         let mut chart = builder(area, st, if self.x_label.is_empty() { 1.6 } else { 3.0 }, beside).build_cartesian_2d(x, y)?;
-        let y_labels = (chart.plotting_area().dim_in_pixel().1 / st.px(1.8)).max(2) as usize;
+        let y_labels = st.ticks_in(chart.plotting_area().dim_in_pixel().1);
         mesh(&mut chart.configure_mesh(), st)
             .x_desc(&self.x_label)
             .y_desc(&self.y_label)
@@ -475,9 +479,11 @@ impl Chart for BarChart {
         let named = self.groups.iter().any(|g| !g.is_empty());
         let beside = st.px(if self.y_label.is_empty() { 3.6 } else { 5.0 });
         let mut chart = builder(&area, &st, if named { 1.6 } else { 0.3 }, beside).build_cartesian_2d(x, lo..hi)?;
+        let y_labels = st.ticks_in(chart.plotting_area().dim_in_pixel().1);
         mesh(&mut chart.configure_mesh(), &st)
             .disable_x_mesh()
             .y_desc(&self.y_label)
+            .y_labels(y_labels)
             .x_label_formatter(&|v| self.groups.get((v / SLOT) as usize).cloned().unwrap_or_default())
             .y_label_formatter(&|v| format_value(*v))
             .draw()?;
@@ -485,16 +491,21 @@ impl Chart for BarChart {
         let font = st.font();
         for g in 0..self.groups.len() {
             for (s, series) in self.series.iter().enumerate() {
+                let x0 = SLOT * g as i32 + SLOT / 10 + s as i32 * bar_w;
+                let room = chart.backend_coord(&(x0 + bar_w, 0.0)).0 - chart.backend_coord(&(x0, 0.0)).0;
                 let Some(&v) = series.values.get(g).filter(|v| v.is_finite()) else {
+                    // No value (a dataset has no L_fea): said, so that it does not read as zero.
+                    if series.values.len() > g && area.estimate_text_size("n/a", &font)?.0 as i32 <= room - 2 {
+                        let text = Text::new("n/a", (x0 + bar_w / 2, 0.0), font.pos(Pos::new(HPos::Center, VPos::Bottom)));
+                        chart.draw_series(std::iter::once(text))?;
+                    }
                     continue;
                 };
-                let x0 = SLOT * g as i32 + SLOT / 10 + s as i32 * bar_w;
                 let mut bar = Rectangle::new([(x0, 0.0), (x0 + bar_w, v)], series.color.rgb().filled());
                 bar.set_margin(0, 0, 1, 1);
                 chart.draw_series(std::iter::once(bar))?;
                 // The value above the bar (below a negative one) when it fits.
                 let label = format_value(v);
-                let room = chart.backend_coord(&(x0 + bar_w, v)).0 - chart.backend_coord(&(x0, v)).0;
                 if area.estimate_text_size(&label, &font)?.0 as i32 <= room - 2 {
                     let up = if v >= 0.0 { VPos::Bottom } else { VPos::Top };
                     let text = Text::new(label, (x0 + bar_w / 2, v), font.pos(Pos::new(HPos::Center, up)));
@@ -763,7 +774,37 @@ mod tests {
         let (n_top, n_bottom) = (second.clone().map(|p| p.1).min().unwrap(), second.map(|p| p.1).max().unwrap());
         assert!(n_top + 1 >= l_bottom && n_bottom > l_bottom + 10, "the negative bar hangs below zero");
         assert!(dark(&img, (hx0, h_top - 25, hx1 - hx0, 24)) > 20, "its value above the bar");
+        // The NaN's slot, right of the negative bar in group two, says "n/a" just above the zero line
+        // (it was blank, read as zero).
+        let negative_x0 = low.iter().filter(|p| p.0 > hx1 + 5).map(|p| p.0).min().unwrap();
+        let slot = (negative_x0 + (hx1 - hx0) + (hx1 - hx0) / 2 - 20, h_bottom - 20, 40, 19);
+        assert!(dark(&img, slot) > 10, "n/a in {slot:?}");
         render(BarChart::new("none", "", vec![]), 300, 200);
+    }
+
+    /// A bar chart as short as an `ace eval` panel labels its value axis without the labels running
+    /// into each other (plotters' default of ten crowded them into one column of digits).
+    #[test]
+    fn bar_value_labels_leave_room_between_them() {
+        let chart = BarChart::new("L_fea", "", vec![String::new()]).with_series("a", vec![0.0953]).with_series("b", vec![0.185]);
+        let (w, h) = (900, 230);
+        let img = render(chart, w, h);
+        // Rows of dark pixels left of the axis (the tick labels), in runs; runs must be apart.
+        let rows: Vec<bool> = (0..h).map(|y| dark(&img, (0, y, 60, 1)) > 0).collect();
+        let mut runs: Vec<(u32, u32)> = Vec::new();
+        for (y, &on) in rows.iter().enumerate() {
+            let y = y as u32;
+            match runs.last_mut() {
+                Some(r) if on && r.1 + 1 == y => r.1 = y,
+                _ if on => runs.push((y, y)),
+                _ => {}
+            }
+        }
+        let labels: Vec<_> = runs.iter().filter(|r| r.0 > 60).collect();
+        assert!(labels.len() >= 3, "{runs:?}");
+        for pair in labels.windows(2) {
+            assert!(pair[1].0 - pair[0].1 >= 6, "tick labels {:?} and {:?} nearly touch: {runs:?}", pair[0], pair[1]);
+        }
     }
 
     #[test]
