@@ -162,6 +162,19 @@ impl Morphology {
                 seen.push((l, role));
             }
         }
+        for &w in &self.wheels {
+            let turns = tree.links[w].joint.as_ref().is_some_and(|j| {
+                j.dof.is_some() && matches!(j.kind, JointKind::Continuous | JointKind::Revolute)
+            });
+            if !turns {
+                return Err(bad(
+                    "wheels",
+                    w,
+                    "its joint does not turn (fixed, prismatic or none): a wheel turns on a continuous or revolute joint"
+                        .into(),
+                ));
+            }
+        }
         for &a in &self.feet {
             if let Some(&b) = self.feet.iter().find(|&&b| b != a && tree.is_descendant(b, a)) {
                 return Err(bad(

@@ -657,6 +657,8 @@ fn profile_mistakes_are_refused_naming_the_key() {
     refused("[tip_offsets]\nfl_shank = [0.0, 0.0, -0.1]", "tip_offsets.\"fl_shank\"", "[0.0, 0.0, -0.1]", "not an end effector");
     refused("[rest_pose]\nfl_knee = 100.0", "rest_pose.\"fl_knee\"", "100", "outside the joint's limits [-1.39, 1.15]");
     refused("[rest_pose]\nfl_knee = -1.4", "rest_pose.\"fl_knee\"", "-1.4", "outside the joint's limits");
+    // A wheel on a fixed joint was accepted and never turned (the wheel's joint has no DoF to spin).
+    refused(r#"wheels = ["gripper_tip"]"#, "wheels", "\"gripper_tip\"", "its joint does not turn");
 
     // At the limits, and roles given consistently, they are read.
     for toml in [
