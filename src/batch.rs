@@ -147,7 +147,7 @@ pub fn run(b: &BatchArgs) -> Result<()> {
     // Fails early on a checkpoint that cannot be read or does not fit the character.
     let first = Networks::load(&dir, a.backend)?;
     first.check_character(&tree, &morph)?;
-    crate::retarget::warn_on_other_character_file(first.record(), &urdf)?;
+    crate::retarget::warn_about_checkpoint(first.record(), &urdf)?;
     drop(first);
     let opts = import_options(a.mapping.as_deref())?;
 

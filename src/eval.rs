@@ -141,7 +141,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         Some(d) => d.clone(),
         None => retarget::default_checkpoint(&args.character)?,
     };
-    retarget::warn_on_other_character_file(&ace::models::checkpoint::ace::read_record(&dir)?, &character)?;
+    retarget::warn_about_checkpoint(&ace::models::checkpoint::ace::read_record(&dir)?, &character)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out/eval").join(&tree.name));
     // (The human clip folder is read too, but only for `.bvh` files, which eval never writes.)
     let mut outputs = Outputs::new();

@@ -189,9 +189,10 @@ pub fn character_file_warning(record: &AceRecord, character: &Path) -> Result<Op
     Ok(record.character_file_difference(&FileRecord::of(&character.display().to_string(), &bytes)))
 }
 
-/// Prints [`character_file_warning`] on stderr when there is one.
-pub fn warn_on_other_character_file(record: &AceRecord, character: &Path) -> Result<()> {
-    if let Some(w) = character_file_warning(record, character)? {
+/// Prints on stderr what a user should know of the checkpoint before its results: that its training
+/// stopped early ([`AceRecord::unfinished`]), and [`character_file_warning`].
+pub fn warn_about_checkpoint(record: &AceRecord, character: &Path) -> Result<()> {
+    for w in record.unfinished().into_iter().chain(character_file_warning(record, character)?) {
         eprintln!("warning: {w}");
     }
     Ok(())
@@ -223,7 +224,7 @@ pub fn run(a: &RetargetArgs) -> Result<()> {
     }
     let mut retargeter = Networks::load(&dir, a.backend)?;
     retargeter.check_character(&tree, &morph)?;
-    warn_on_other_character_file(retargeter.record(), &urdf)?;
+    warn_about_checkpoint(retargeter.record(), &urdf)?;
     retargeter.set_cleanup(a.cleanup);
     let clip = HumanClip::from_bvh_file(&a.clip, &import_options(a.mapping.as_deref())?)?;
     for w in clip.warnings() {

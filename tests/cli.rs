@@ -794,6 +794,33 @@ fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
     assert!(!dir.join("eval").exists());
 }
 
+/// A checkpoint whose training stopped early (Ctrl-C, a job's time limit) ran in `ace retarget` as if
+/// finished; the retarget now says how far it got and how to go on, and a finished one says nothing.
+#[test]
+fn a_part_trained_checkpoint_is_warned_of() {
+    let dir = tmp("part-trained");
+    let _ = std::fs::remove_dir_all(&dir);
+    let ck = dir.join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    for e in std::fs::read_dir(root().join("assets/checkpoints/spot")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), ck.join(e.file_name())).unwrap();
+    }
+    let glb = dir.join("walk.glb");
+    let retarget = || {
+        let out = ace(&["retarget", "assets/motions/walk.bvh", "--character", "spot", "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(!retarget().contains("stopped early"));
+    let mut record: Value = serde_json::from_slice(&std::fs::read(ck.join("ace.json")).unwrap()).unwrap();
+    let steps = record["config"]["steps"].as_u64().unwrap();
+    record["step"] = serde_json::json!(1200);
+    std::fs::write(ck.join("ace.json"), serde_json::to_vec_pretty(&record).unwrap()).unwrap();
+    let err = retarget();
+    assert!(err.contains(&format!("warning: the checkpoint's generator trained 1200 of its {steps} steps: its training stopped early")), "{err}");
+}
+
 #[test]
 fn inspect_reports_the_body_plans_of_rigged_glb_creatures() {
     let Some(dir) = shared("creatures") else { return };

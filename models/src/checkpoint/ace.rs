@@ -453,6 +453,19 @@ impl AceRecord {
         serde_json::from_value(self.provenance.get("character_file")?.clone()).ok()
     }
 
+    /// Says how far the generator's training got when it stopped before the steps its configuration
+    /// asks for (interrupted, or out of time); `None` when it ran them all. Such a checkpoint runs, but
+    /// its networks are part-trained.
+    pub fn unfinished(&self) -> Option<String> {
+        (self.step < self.config.steps).then(|| {
+            format!(
+                "the checkpoint's generator trained {} of its {} steps: its training stopped early, and the same \
+                 `ace train` run again on the checkpoint resumes it",
+                self.step, self.config.steps
+            )
+        })
+    }
+
     /// How `file`, the record of a character file ([`FileRecord::of`] its bytes, named by its path),
     /// differs from the one the checkpoint was trained with ([`other_character_file`]); `None` when it
     /// is that file or the checkpoint does not record one.
