@@ -794,12 +794,10 @@ fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
     run_ok(&["retarget", "assets/motions/walk.bvh", "--character", urdf.to_str().unwrap(), "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
 }
 
-/// A checkpoint trained on a folder of one clip holds none out: `ace eval` said none of its "0
-/// held-out clips" was in the folder it was trained on.
-#[test]
-fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
-    let dir = tmp("eval-none-held-out");
-    let _ = std::fs::remove_dir_all(&dir);
+/// A copy of the shipped Spot checkpoint in `dir/ck` (`dir` emptied first) with `edit` applied to its
+/// `ace.json`.
+fn spot_checkpoint_edited(dir: &Path, edit: impl FnOnce(&mut Value)) -> PathBuf {
+    let _ = std::fs::remove_dir_all(dir);
     let ck = dir.join("ck");
     std::fs::create_dir_all(&ck).unwrap();
     for e in std::fs::read_dir(root().join("assets/checkpoints/spot")).unwrap() {
@@ -807,8 +805,17 @@ fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
         std::fs::copy(e.path(), ck.join(e.file_name())).unwrap();
     }
     let mut record: Value = serde_json::from_slice(&std::fs::read(ck.join("ace.json")).unwrap()).unwrap();
-    record["human_split"]["held_out"] = serde_json::json!([]);
+    edit(&mut record);
     std::fs::write(ck.join("ace.json"), serde_json::to_vec_pretty(&record).unwrap()).unwrap();
+    ck
+}
+
+/// A checkpoint trained on a folder of one clip holds none out: `ace eval` said none of its "0
+/// held-out clips" was in the folder it was trained on.
+#[test]
+fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
+    let dir = tmp("eval-none-held-out");
+    let ck = spot_checkpoint_edited(&dir, |record| record["human_split"]["held_out"] = serde_json::json!([]));
     let out = ace(&["eval", "--character", "spot", "--checkpoint", ck.to_str().unwrap(), "--out", dir.join("eval").to_str().unwrap(), "--seconds", "2"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains(&format!("{}: the checkpoint holds out no clips", ck.display())), "{err}");
@@ -820,25 +827,19 @@ fn eval_of_a_checkpoint_that_holds_out_no_clips_says_so() {
 #[test]
 fn a_part_trained_checkpoint_is_warned_of() {
     let dir = tmp("part-trained");
-    let _ = std::fs::remove_dir_all(&dir);
-    let ck = dir.join("ck");
-    std::fs::create_dir_all(&ck).unwrap();
-    for e in std::fs::read_dir(root().join("assets/checkpoints/spot")).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), ck.join(e.file_name())).unwrap();
-    }
     let glb = dir.join("walk.glb");
-    let retarget = || {
+    let retarget = |ck: &Path| {
         let out = ace(&["retarget", "assets/motions/walk.bvh", "--character", "spot", "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
-    assert!(!retarget().contains("stopped early"));
-    let mut record: Value = serde_json::from_slice(&std::fs::read(ck.join("ace.json")).unwrap()).unwrap();
-    let steps = record["config"]["steps"].as_u64().unwrap();
-    record["step"] = serde_json::json!(1200);
-    std::fs::write(ck.join("ace.json"), serde_json::to_vec_pretty(&record).unwrap()).unwrap();
-    let err = retarget();
+    let mut steps = 0;
+    let ck = spot_checkpoint_edited(&dir, |record| {
+        steps = record["config"]["steps"].as_u64().unwrap();
+        record["step"] = serde_json::json!(1200);
+    });
+    assert!(!retarget(&root().join("assets/checkpoints/spot")).contains("stopped early"));
+    let err = retarget(&ck);
     assert!(err.contains(&format!("warning: the checkpoint's generator trained 1200 of its {steps} steps: its training stopped early")), "{err}");
 }
 
