@@ -41,6 +41,10 @@ pub struct CheckpointAsset {
     /// The character file it was trained with (its path then, size and checksum), when training
     /// recorded it.
     pub character_file: Option<FileRecord>,
+    /// Set when the generator's training stopped before its configured steps
+    /// ([`ace_models::checkpoint::ace::AceRecord::unfinished`]): the checkpoint runs, part-trained.
+    /// The loader logs it as a warning.
+    pub unfinished: Option<String>,
 }
 
 impl CheckpointAsset {
@@ -105,7 +109,11 @@ impl AssetLoader for CheckpointLoader {
             .map_err(|e| AceAssetError::Import { path: path.clone(), message: e.to_string() })?;
         let character = retargeter.character().clone();
         let character_file = retargeter.record().character_file();
-        Ok(CheckpointAsset { files: Arc::new(files), character, character_file })
+        let unfinished = retargeter.record().unfinished().map(|w| format!("checkpoint {}: {w}", dir.display()));
+        if let Some(w) = &unfinished {
+            bevy::log::warn!("{w}");
+        }
+        Ok(CheckpointAsset { files: Arc::new(files), character, character_file, unfinished })
     }
 
     fn extensions(&self) -> &[&str] {

@@ -408,6 +408,22 @@ fn a_checkpoint_from_another_asset_source_reads_its_files_from_that_source() {
     assert_eq!(checkpoint.character_file_difference(characters.get(&hound_glb).unwrap()), None);
     let w = checkpoint.character_file_difference(characters.get(&hound_gltf).unwrap()).expect("the .gltf is another file");
     assert!(w.contains("creatures/hound.gltf is not the character file") && w.contains("checkpoints/hound"), "{w}");
+
+    // A checkpoint whose training stopped early loads and says so (the loader logs it); the shipped
+    // one, trained to the end, does not.
+    assert_eq!(checkpoint.unfinished, None);
+    let part = custom.join("checkpoints/hound-part");
+    std::fs::create_dir_all(&part).unwrap();
+    for f in ["ace.json", "config.json", "prior.safetensors", "generator.safetensors"] {
+        std::fs::copy(custom.join("checkpoints/hound").join(f), part.join(f)).unwrap();
+    }
+    let mut record: serde_json::Value = serde_json::from_slice(&std::fs::read(part.join("ace.json")).unwrap()).unwrap();
+    record["step"] = 300.into();
+    std::fs::write(part.join("ace.json"), serde_json::to_vec(&record).unwrap()).unwrap();
+    let part: Handle<CheckpointAsset> = server.load("custom://checkpoints/hound-part/ace.json");
+    update_until(&mut app, |_| matches!(server.load_state(&part), LoadState::Loaded));
+    let w = app.world().resource::<Assets<CheckpointAsset>>().get(&part).unwrap().unfinished.clone().expect("part-trained");
+    assert!(w.starts_with("checkpoint checkpoints/hound-part: the checkpoint's generator trained 300 of its"), "{w}");
 }
 
 /// A live source blends its two frames around a time by the time's fraction between them, keeps the
