@@ -1614,3 +1614,58 @@ fn a_creature_exported_with_z_up_is_warned_of_and_stands_with_its_profiles_up() 
     let snake = load(&dir.join("Quaternius_Snake/Snake.glb"));
     assert!(snake.tree.warnings.iter().all(|w| !w.contains("`up")), "{:?}", snake.tree.warnings);
 }
+
+/// A vertex's influences may come in several sets (`JOINTS_1`/`WEIGHTS_1` beside the first four), as
+/// exporters write them for vertices of more than four bones. Only the first set was read: the hound
+/// with each vertex's heaviest bone moved to the second set stood on its forearms and shins, its neck
+/// the head. Every set is read now, and the creature is the one it was.
+#[test]
+fn a_second_set_of_joints_and_weights_is_read() {
+    let d = tmp("second-weights");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
+    let out = d.join("hound.glb");
+    std::fs::copy(src.with_file_name("hound.profile.toml"), d.join("hound.profile.toml")).unwrap();
+    rewrite_glb(&src, &out, |v, bin| {
+        let prim = &v["meshes"][0]["primitives"][0]["attributes"];
+        let (ja, wa) = (prim["JOINTS_0"].as_u64().unwrap() as usize, prim["WEIGHTS_0"].as_u64().unwrap() as usize);
+        let at = |acc: usize| {
+            let view = v["accessors"][acc]["bufferView"].as_u64().unwrap() as usize;
+            v["bufferViews"][view]["byteOffset"].as_u64().unwrap_or(0) as usize
+        };
+        assert_eq!((v["accessors"][ja]["componentType"].as_u64(), v["accessors"][wa]["componentType"].as_u64()), (Some(5121), Some(5126)));
+        let (j0, w0, n) = (at(ja), at(wa), v["accessors"][ja]["count"].as_u64().unwrap() as usize);
+        let (mut j1, mut w1) = (Vec::new(), Vec::new());
+        for i in 0..n {
+            let w: Vec<f32> = (0..4).map(|k| f32::from_le_bytes(bin[w0 + 16 * i + 4 * k..][..4].try_into().unwrap())).collect();
+            let top = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
+            // The heaviest influence moves to the second set, its slot in the first zeroed.
+            j1.extend([bin[j0 + 4 * i + top], 0, 0, 0]);
+            w1.extend([w[top], 0.0, 0.0, 0.0].iter().flat_map(|x| x.to_le_bytes()));
+            bin[w0 + 16 * i + 4 * top..][..4].copy_from_slice(&0f32.to_le_bytes());
+        }
+        for (data, component, key) in [(j1, 5121, "JOINTS_1"), (w1, 5126, "WEIGHTS_1")] {
+            while bin.len() % 4 != 0 {
+                bin.push(0);
+            }
+            let views = v["bufferViews"].as_array().unwrap().len();
+            v["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len()}));
+            bin.extend(&data);
+            let accs = v["accessors"].as_array().unwrap().len();
+            v["accessors"].as_array_mut().unwrap().push(serde_json::json!({"bufferView": views, "componentType": component, "count": n, "type": "VEC4"}));
+            v["meshes"][0]["primitives"][0]["attributes"][key] = serde_json::json!(accs);
+        }
+    });
+    let (plain, c) = (load(&src), load(&out));
+    let (a, b) = (plain.morphology.names(&plain.tree), c.morphology.names(&c.tree));
+    assert_eq!((&b.feet, &b.head, &c.plan.tails), (&a.feet, &a.head, &plain.plan.tails));
+    assert_eq!(c.tree.dof_names(), plain.tree.dof_names());
+    let sorted = |w: &[(usize, f32)]| {
+        let mut w = w.to_vec();
+        w.sort_by_key(|x| x.0);
+        w
+    };
+    assert_eq!(c.rig.vertices.len(), plain.rig.vertices.len());
+    for ((p, w), (q, u)) in c.rig.vertices.iter().zip(&plain.rig.vertices) {
+        assert!((p - q).norm() < 1e-6 && sorted(w) == sorted(u), "{p} {w:?} against {q} {u:?}");
+    }
+}

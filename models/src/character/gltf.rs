@@ -679,11 +679,18 @@ pub fn read_document(
         }
         for (pi, p) in mesh.primitives().enumerate() {
             let r = p.reader(get);
-            let (Some(pos), Some(js), Some(ws)) =
-                (r.read_positions(), r.read_joints(0), r.read_weights(0))
-            else {
+            let Some(pos) = r.read_positions() else {
                 continue;
             };
+            // Every set of four influences (`JOINTS_n`, `WEIGHTS_n`): exporters write a second set for
+            // vertices of more than four, where the heaviest may be.
+            let mut sets: Vec<(Vec<[u16; 4]>, Vec<[f32; 4]>)> = Vec::new();
+            while let (Some(j), Some(w)) = (r.read_joints(sets.len() as u32), r.read_weights(sets.len() as u32)) {
+                sets.push((j.into_u16().collect(), w.into_f32().collect()));
+            }
+            if sets.is_empty() {
+                continue;
+            }
             let bad = |vertex: usize, what: String| {
                 fail(GltfProblem::BadVertex {
                     mesh: mesh.index(),
@@ -692,11 +699,11 @@ pub fn read_document(
                     what,
                 })
             };
-            for (vi, ((v, j), w)) in pos.zip(js.into_u16()).zip(ws.into_f32()).enumerate() {
-                let mut inf = Vec::with_capacity(4);
+            for (vi, v) in pos.enumerate() {
+                let mut inf = Vec::with_capacity(4 * sets.len());
                 let mut total = 0.0;
-                for k in 0..4 {
-                    let (jk, wk) = (j[k] as usize, w[k]);
+                let influences = sets.iter().filter_map(|(j, w)| Some((j.get(vi)?, w.get(vi)?)));
+                for (jk, wk) in influences.flat_map(|(j, w)| (0..4).map(move |k| (j[k] as usize, w[k]))) {
                     if !wk.is_finite() || wk < 0.0 {
                         return Err(bad(
                             vi,
