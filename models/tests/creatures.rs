@@ -1669,3 +1669,48 @@ fn a_second_set_of_joints_and_weights_is_read() {
         assert!((p - q).norm() < 1e-6 && sorted(w) == sorted(u), "{p} {w:?} against {q} {u:?}");
     }
 }
+
+/// Uneven scale within the skeleton or on the skinned mesh's node, as refused above the skeleton: the
+/// hound bound with its hips scaled [1.1, 0.9, 1.25] was read, and its exported clip stretched its
+/// shins by up to 23 % as they swung (UFR 0 %); its mesh node scaled [1, 1, 1.3] the same. Uniform
+/// scales are units, and read.
+#[test]
+fn a_bone_or_skinned_mesh_scaled_unevenly_in_the_bind_pose_is_refused() {
+    let d = tmp("uneven-bind");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
+    let node = |v: &serde_json::Value, name: &str| v["nodes"].as_array().unwrap().iter().position(|n| n["name"] == name).unwrap();
+    // The hips scaled, the skin bound where the nodes now stand (inverse bind matrices from their worlds).
+    let bound_scaled = |name: &str, s: [f32; 3]| {
+        let scaled = d.join(format!("{name}-nodes.glb"));
+        rewrite_glb(&src, &scaled, |v, _| {
+            let h = node(v, "Hips");
+            v["nodes"][h]["scale"] = serde_json::json!(s);
+        });
+        let (_, worlds) = node_worlds(&scaled);
+        let out = d.join(name);
+        rewrite_glb(&scaled, &out, |v, bin| {
+            let mesh = node(v, "HoundMesh");
+            let acc = &v["accessors"][v["skins"][0]["inverseBindMatrices"].as_u64().unwrap() as usize];
+            let view = &v["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+            let at = view["byteOffset"].as_u64().unwrap_or(0) as usize + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+            for (k, j) in v["skins"][0]["joints"].as_array().unwrap().iter().enumerate() {
+                let ibm = worlds[j.as_u64().unwrap() as usize].try_inverse().unwrap() * worlds[mesh];
+                for (e, x) in ibm.as_slice().iter().enumerate() {
+                    bin[at + 64 * k + 4 * e..][..4].copy_from_slice(&x.to_le_bytes());
+                }
+            }
+        });
+        out
+    };
+    let (msg, p) = problem(&bound_scaled("hips.glb", [1.1, 0.9, 1.25]));
+    assert!(matches!(p, GltfProblem::BadTransform(_)) && msg.contains("joint `Hips` scales unevenly in its bind pose (by 1.250, 1.100 and 0.900") && msg.ends_with("and export again"), "{msg}");
+    load(&bound_scaled("hips-uniform.glb", [1.2, 1.2, 1.2]));
+
+    let mesh_scaled = d.join("mesh.glb");
+    rewrite_glb(&src, &mesh_scaled, |v, _| {
+        let m = node(v, "HoundMesh");
+        v["nodes"][m]["scale"] = serde_json::json!([1.0, 1.0, 1.3]);
+    });
+    let (msg, _) = problem(&mesh_scaled);
+    assert!(msg.contains("(`HoundMesh`), the skinned mesh's, scales unevenly (by 1.300, 1.000 and 1.000"), "{msg}");
+}

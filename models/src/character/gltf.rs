@@ -765,15 +765,36 @@ pub fn read_document(
         }
         up
     };
+    let uneven = |m: &Matrix4<f32>| {
+        let s = m.fixed_view::<3, 3>(0, 0).into_owned().svd(false, false).singular_values;
+        // (A zero scale is no rotation at all, which the bones' check below reports.)
+        (s.max() - s.min() > 1e-3 * s.max() && s.min() > 1e-6 * s.max()).then_some(s)
+    };
+    let apply = "the bones would not turn as they do in the file: apply the scale in the modelling tool (in Blender, \
+                 Apply › Scale) and export again";
     for &node in &bones_nodes {
         let (None, Some(q)) = (bone_above(node), parent[node]) else { continue };
-        let s = rest_world[q].fixed_view::<3, 3>(0, 0).into_owned().svd(false, false).singular_values;
-        if s.max() - s.min() > 1e-3 * s.max() {
+        if let Some(s) = uneven(&rest_world[q]) {
             return Err(fail(GltfProblem::BadTransform(format!(
-                "node {q} (`{}`), above the skeleton, scales unevenly (by {:.3}, {:.3} and {:.3} along its axes); the bones \
-                 would not turn as they do in the file: apply the scale in the modelling tool (in Blender, Apply › Scale) \
-                 and export again",
+                "node {q} (`{}`), above the skeleton, scales unevenly (by {:.3}, {:.3} and {:.3} along its axes); {apply}",
                 names[q], s[0], s[1], s[2]
+            ))));
+        }
+    }
+    // The same for the skinned mesh's node and within the skeleton: a bone whose bind pose scales
+    // unevenly (the hound's hips by [1.1, 0.9, 1.25] stretched its shins by 23 % as they swung).
+    let skinned = doc.nodes().find(|nd| nd.mesh().is_some() && nd.skin().map(|s| s.index()) == Some(skin_index));
+    if let Some((nd, s)) = skinned.and_then(|nd| Some((nd.index(), uneven(&mesh_world)?))) {
+        return Err(fail(GltfProblem::BadTransform(format!(
+            "node {nd} (`{}`), the skinned mesh's, scales unevenly (by {:.3}, {:.3} and {:.3} along its axes); {apply}",
+            names[nd], s[0], s[1], s[2]
+        ))));
+    }
+    for &node in &bones_nodes {
+        if let Some(s) = uneven(&rest_world[node]) {
+            return Err(fail(GltfProblem::BadTransform(format!(
+                "joint `{}` scales unevenly in its bind pose (by {:.3}, {:.3} and {:.3} along its axes); {apply}",
+                names[node], s[0], s[1], s[2]
             ))));
         }
     }
