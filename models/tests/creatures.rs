@@ -1714,3 +1714,44 @@ fn a_bone_or_skinned_mesh_scaled_unevenly_in_the_bind_pose_is_refused() {
     let (msg, _) = problem(&mesh_scaled);
     assert!(msg.contains("(`HoundMesh`), the skinned mesh's, scales unevenly (by 1.300, 1.000 and 1.000"), "{msg}");
 }
+
+/// A clip that moves a bone through a control node above it (Rigify's and Maya's controls: a node
+/// that is no joint of the skin) was read as if the bone stood still, without a word: its joint ranges
+/// and `--include-clips` missed that motion. The import now says which nodes it does not read.
+#[test]
+fn clips_moving_bones_through_nodes_that_are_no_joints_are_warned_of() {
+    let Some(dir) = creatures() else { return };
+    let d = tmp("controls");
+    let out = d.join("Fox.glb");
+    rewrite_glb(&dir.join("Fox/Fox.glb"), &out, |v, _| {
+        let nodes = v["nodes"].as_array().unwrap();
+        let neck = nodes.iter().position(|n| n["name"] == "b_Neck_04").unwrap();
+        let parent = nodes.iter().position(|n| n["children"].as_array().is_some_and(|c| c.iter().any(|c| c == neck))).unwrap();
+        let ctrl = nodes.len();
+        // The control takes the neck's transform and its channels; the neck stands at identity under it.
+        let mut control = serde_json::json!({"name": "b_Neck_04_CTRL", "children": [neck]});
+        for key in ["translation", "rotation", "scale"] {
+            if let Some(x) = v["nodes"][neck].as_object_mut().unwrap().remove(key) {
+                control[key] = x;
+            }
+        }
+        v["nodes"].as_array_mut().unwrap().push(control);
+        for c in v["nodes"][parent]["children"].as_array_mut().unwrap() {
+            if *c == neck {
+                *c = ctrl.into();
+            }
+        }
+        for a in v["animations"].as_array_mut().unwrap() {
+            for ch in a["channels"].as_array_mut().unwrap() {
+                if ch["target"]["node"] == neck {
+                    ch["target"]["node"] = ctrl.into();
+                }
+            }
+        }
+    });
+    let c = load(&out);
+    let warned: Vec<_> = c.tree.warnings.iter().filter(|w| w.contains("node(s) that carry bones but are no joints of the skin (b_Neck_04_CTRL)")).collect();
+    assert_eq!(warned.len(), 3, "one per clip: {:?}", c.tree.warnings);
+    assert!(warned[0].starts_with("animation 0 (`Survey`) moves 1 node(s)"), "{warned:?}");
+    assert!(load(&dir.join("Fox/Fox.glb")).tree.warnings.iter().all(|w| !w.contains("no joints of the skin")));
+}

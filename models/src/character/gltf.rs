@@ -888,6 +888,18 @@ pub fn read_document(
         })
         .collect();
 
+    // Nodes that are no joint of the skin but carry some of its bones (a control above a bone, an
+    // armature object): their channels move the skeleton, and the import reads joints' channels only.
+    let mut carries_bones = vec![false; n];
+    for &b in &bones_nodes {
+        let mut up = parent[b];
+        while let Some(a) = up {
+            if bone_of[a].is_none() {
+                carries_bones[a] = true;
+            }
+            up = parent[a];
+        }
+    }
     // Clips: every rotation keyframe of every bone.
     let mut clip_rotations = vec![Vec::new(); bones.len()];
     let mut animations = Vec::new();
@@ -897,8 +909,16 @@ pub fn read_document(
         let mut duration = 0.0f32;
         let mut channels = 0;
         let mut tracks = Vec::new();
+        let mut unread: Vec<&str> = Vec::new();
         for ch in a.channels() {
             channels += 1;
+            let target = ch.target().node().index();
+            if carries_bones[target]
+                && ch.target().property() != ::gltf::animation::Property::MorphTargetWeights
+                && !unread.contains(&names[target].as_str())
+            {
+                unread.push(&names[target]);
+            }
             let r = ch.reader(get);
             if let Some(t) = r.read_inputs() {
                 for time in t {
@@ -973,6 +993,16 @@ pub fn read_document(
                 times,
                 values,
             });
+        }
+        if !unread.is_empty() {
+            warnings.push(format!(
+                "animation {} (`{name}`) moves {} node(s) that carry bones but are no joints of the skin ({}): only \
+                 joints' channels are read, so the clip's joint ranges and `--include-clips` miss that motion; make \
+                 them joints of the skin, or bake their motion onto the bones",
+                a.index(),
+                unread.len(),
+                unread.join(", ")
+            ));
         }
         animations.push(AnimationInfo {
             name,
