@@ -659,6 +659,10 @@ fn profile_mistakes_are_refused_naming_the_key() {
     refused("[rest_pose]\nfl_knee = -1.4", "rest_pose.\"fl_knee\"", "-1.4", "outside the joint's limits");
     // A wheel on a fixed joint was accepted and never turned (the wheel's joint has no DoF to spin).
     refused(r#"wheels = ["gripper_tip"]"#, "wheels", "\"gripper_tip\"", "its joint does not turn");
+    // Nor does a sliding one (Stretch's lift).
+    let p = Profile::from_toml(r#"wheels = ["lift"]"#, "stretch.profile.toml").unwrap();
+    let e = Morphology::with_profile(&KinematicTree::from_urdf_file(&characters().join("stretch.urdf")).unwrap(), &p).unwrap_err();
+    assert!(e.to_string().starts_with("stretch.profile.toml: `wheels` = \"lift\": its joint does not turn"), "{e}");
 
     // At the limits, and roles given consistently, they are read.
     for toml in [

@@ -76,6 +76,7 @@ fn body_plans_of_the_shared_creatures() {
     assert_eq!(n.head.as_deref(), Some("b_Head_05"));
     assert!(n.manipulators.is_empty(), "{:?}", n.manipulators);
     assert_eq!(fox.plan.tails, ["b_Tail03_014"]);
+    assert_eq!(fox.plan.body_root, "b_Hip_01");
     assert_eq!(fox.rig.animations.len(), 3);
     // The file is authored in centimetres: read as such, a fox of about 1.5 m nose to tail.
     assert!((fox.scale - 0.01).abs() < 1e-6);

@@ -1444,6 +1444,30 @@ pub fn fit_capsule(points: &[Point3<f32>], along: Option<Vector3<f32>>) -> Optio
 mod tests {
     use super::*;
 
+    /// Every facing of a file turns its forward axis to the character's +x and its up axis to +z, as a
+    /// proper rotation; parallel ones are refused.
+    #[test]
+    fn each_facing_turns_forward_to_x_and_up_to_z() {
+        for up in Axis::ALL {
+            for forward in Axis::ALL {
+                let Ok(f) = Facing::new(Some(forward), Some(up)) else {
+                    assert_eq!(forward.vector().dot(&up.vector()).abs(), 1.0, "{forward:?} {up:?} refused");
+                    continue;
+                };
+                let r = f.to_character();
+                assert!((r * forward.vector() - Vector3::x()).norm() < 1e-6, "{forward:?} {up:?}");
+                assert!((r * up.vector() - Vector3::z()).norm() < 1e-6, "{forward:?} {up:?}");
+                assert!((r.matrix().determinant() - 1.0).abs() < 1e-6);
+            }
+        }
+        // The defaults: glTF's, and Blender's front when up is along z.
+        assert_eq!(Facing::new(None, None), Ok(Facing { forward: Axis::PlusZ, up: Axis::PlusY }));
+        assert_eq!(Facing::new(None, Some(Axis::MinusZ)).map(|f| f.forward), Ok(Axis::MinusY));
+        assert_eq!(Facing::new(None, Some(Axis::PlusX)).map(|f| f.forward), Ok(Axis::PlusZ));
+        let labels: Vec<&str> = Axis::ALL.iter().map(|a| a.label()).collect();
+        assert_eq!(labels, ["+y", "+z", "-z", "+x", "-x", "-y"]);
+    }
+
     /// The bundled hound with its JSON edited by `edit`, as a `.glb`'s bytes.
     fn edited_hound(edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
         let glb = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb")).unwrap();
