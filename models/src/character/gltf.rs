@@ -1466,6 +1466,16 @@ mod tests {
         assert_eq!(Facing::new(None, Some(Axis::PlusX)).map(|f| f.forward), Ok(Axis::PlusZ));
         let labels: Vec<&str> = Axis::ALL.iter().map(|a| a.label()).collect();
         assert_eq!(labels, ["+y", "+z", "-z", "+x", "-x", "-y"]);
+        // Each axis is the one its label names (the checks above hold for any consistent relabelling).
+        for a in Axis::ALL {
+            let (sign, letter) = a.label().split_at(1);
+            let unit = match letter {
+                "x" => Vector3::x(),
+                "y" => Vector3::y(),
+                _ => Vector3::z(),
+            };
+            assert_eq!(a.vector(), if sign == "-" { -unit } else { unit }, "{a:?}");
+        }
     }
 
     /// The bundled hound with its JSON edited by `edit`, as a `.glb`'s bytes.
