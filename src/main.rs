@@ -41,9 +41,9 @@ struct TrainOpts {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Summarise a BVH clip or a URDF character.
+    /// Summarise a BVH clip, a URDF character or a rigged glTF creature.
     Inspect {
-        /// A `.bvh` or `.urdf` file.
+        /// A `.bvh`, `.urdf`, `.glb` or `.gltf` file.
         file: PathBuf,
         /// Print JSON instead of text.
         #[arg(long)]

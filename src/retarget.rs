@@ -337,7 +337,8 @@ pub fn retarget_and_score(
     Ok(Retargeted { human, motion, report, flags })
 }
 
-/// Fails when `rig` asks for something only a rigged glTF creature has and `character` is a URDF.
+/// Fails when `rig` asks for something only a rigged glTF creature has and `character` is a URDF, or
+/// when a file a creature's model reads beside it is missing and the model is to be written whole.
 pub fn check_rig_options(character: &Path, rig: &RigClipOptions) -> Result<()> {
     if !is_gltf(character) && (rig.keep_animations || rig.animation_only) {
         let flag = if rig.keep_animations { "--keep-animations" } else { "--animation-only" };
@@ -346,6 +347,21 @@ pub fn check_rig_options(character: &Path, rig: &RigClipOptions) -> Result<()> {
              {} is a URDF robot",
             character.display()
         );
+    }
+    // The model written with the clip embeds the files it reads beside it: one missing (a texture left
+    // behind when the model was copied) failed only when the output was written, after the whole clip.
+    if is_gltf(character) && !rig.animation_only {
+        for f in ace::models::character::gltf::external_files(character).unwrap_or_default() {
+            if let Err(e) = std::fs::metadata(&f) {
+                bail!(
+                    "{}: cannot read {}, a file of the model ({e}); the clip is written onto the model with its \
+                     files embedded: put the file back beside the model, or pass --animation-only to write the \
+                     skeleton and the clip alone",
+                    character.display(),
+                    f.display()
+                );
+            }
+        }
     }
     Ok(())
 }

@@ -794,6 +794,40 @@ fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
     run_ok(&["retarget", "assets/motions/walk.bvh", "--character", urdf.to_str().unwrap(), "--checkpoint", ck.to_str().unwrap(), "--out", glb.to_str().unwrap()]);
 }
 
+/// A creature whose model names a texture image that is not beside it (left behind when the model was
+/// copied) retargeted the whole clip and then failed writing the output, naming the staged temporary.
+/// It is refused before any work, saying what is missing and how to go on; `--animation-only` writes
+/// the clip without the model's files.
+#[test]
+fn a_creature_missing_an_image_beside_it_is_refused_before_the_retarget() {
+    let dir = tmp("missing-image");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let glb = std::fs::read(root().join("assets/creatures/hound.glb")).unwrap();
+    let n = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: Value = serde_json::from_slice(&glb[20..20 + n]).unwrap();
+    let bin_len = u32::from_le_bytes(glb[20 + n..24 + n].try_into().unwrap()) as usize;
+    std::fs::write(dir.join("hound.bin"), &glb[28 + n..28 + n + bin_len]).unwrap();
+    json["buffers"][0]["uri"] = "hound.bin".into();
+    json["images"] = serde_json::json!([{"uri": "fur.png"}]);
+    let model = dir.join("hound.gltf");
+    std::fs::write(&model, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::copy(root().join("assets/creatures/hound.profile.toml"), dir.join("hound.profile.toml")).unwrap();
+    let out = dir.join("walk.glb");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["retarget", "assets/motions/walk.bvh", "--character", model.to_str().unwrap(), "--checkpoint", "assets/checkpoints/hound", "--out", out.to_str().unwrap()];
+        args.extend(extra);
+        ace(&args)
+    };
+    let o = run(&[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains(&format!("cannot read {}, a file of the model", dir.join("fur.png").display())) && err.contains("--animation-only"), "{err}");
+    assert!(!err.contains("ace-tmp") && !out.exists(), "{err}");
+    let o = run(&["--animation-only"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.exists());
+}
+
 /// A copy of the shipped Spot checkpoint in `dir/ck` (`dir` emptied first) with `edit` applied to its
 /// `ace.json`.
 fn spot_checkpoint_edited(dir: &Path, edit: impl FnOnce(&mut Value)) -> PathBuf {
