@@ -742,3 +742,27 @@ fn a_robot_held_to_a_slow_top_speed_walks_at_it_where_a_person_walks() {
     };
     assert_eq!(rig("crab", &fixed).speed_scale, 0.5);
 }
+
+/// A leg whose foot can hardly leave its foothold is refused saying what stops it: the message listed
+/// every possible cause (joint limits, a collision, the ground) and left the user to guess. Spot
+/// standing with its knees at their limit (a profile's rest pose) cannot step: the foot cannot reach
+/// the footholds around it without bending the knee further.
+#[test]
+fn a_leg_that_cannot_step_names_what_stops_it() {
+    use ace_models::morphology::Profile;
+    let path = manifest().join("../assets/characters/spot.urdf");
+    let legs = ["fl", "fr", "rl", "rr"];
+    let toml: String = std::iter::once("[rest_pose]\n".to_string())
+        .chain(legs.iter().map(|l| format!("{l}_hip_y = 1.0\n{l}_knee = -1.39\n")))
+        .collect();
+    let profile = Profile::from_toml(&toml, "spot.profile.toml").unwrap();
+    let mut tree = KinematicTree::from_urdf_file(&path).unwrap();
+    profile.apply_rest_pose(&mut tree).unwrap();
+    let morph = Morphology::with_profile(&tree, &profile).unwrap();
+    let Err(e) = generate(&tree, &morph, &DatasetConfig { frames: 10, ..DatasetConfig::default() }, &mut |_| {}) else {
+        panic!("Spot with its knees at their limit made a dataset");
+    };
+    let msg = e.to_string();
+    assert!(msg.contains("leg ending in `fl_foot`: the foot can hardly move from its nominal foothold"), "{msg}");
+    assert!(msg.contains("most often the foot cannot reach it within the leg's joint limits (24 of 48 footholds just beyond it)"), "{msg}");
+}

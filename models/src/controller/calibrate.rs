@@ -30,6 +30,8 @@
 //! - **Swing height**: [`super::LegConfig::swing_height`] × the leg length, lowered until the lifted foot
 //!   is reachable with the body at its lowest.
 
+use std::collections::BTreeMap;
+
 use nalgebra::{Isometry3, Point3, Vector2};
 use rand::SeedableRng;
 
@@ -324,16 +326,36 @@ pub fn step_radii(
         }
     }
     if best.worst < 0.03 {
-        let leg = legs
-            .iter()
-            .min_by(|a, b| (a.r_max / a.length).total_cmp(&(b.r_max / b.length)))
+        let i = (0..legs.len())
+            .min_by(|&a, &b| (legs[a].r_max / legs[a].length).total_cmp(&(legs[b].r_max / legs[b].length)))
             .expect("legs");
+        let leg = &legs[i];
+        // What stops it: the obstacles just beyond its step radius, over the directions and postures tried.
+        let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
+        let r = leg.r_max / 0.9 + 0.02 * leg.length;
+        let mut seen: BTreeMap<Blocker, usize> = BTreeMap::new();
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::FRAC_PI_4;
+            let p = leg.nominal + Vector2::new(a.cos(), a.sin()) * r;
+            for (h, pitch, roll) in postures(best.height, best.tilt) {
+                let root = tilted_root(h, pitch, roll);
+                let foot = Point3::new(p.x, p.y, leg.sole);
+                if let Some(o) = leg_pose_blocker(tree, proxies, &scene, nominal_q, leg, &root, &foot, dip_tol, &mut scratch) {
+                    *seen.entry(o).or_default() += 1;
+                }
+            }
+        }
+        let tries = 8 * postures(best.height, best.tilt).len();
+        let most = seen.into_iter().max_by_key(|&(_, n)| n);
+        let stopped = most.map_or(String::new(), |(o, n)| {
+            format!(": most often {} ({n} of {tries} footholds just beyond it)", o.describe(tree))
+        });
         return Err(leg_error(
             tree,
             leg.foot,
             format!(
                 "the foot can hardly move from its nominal foothold (step radius {:.1} mm) without leaving its \
-                 joint limits, colliding with the body or another leg, or sinking into the ground",
+                 joint limits, colliding with the body or another leg, or sinking into the ground{stopped}",
                 leg.r_max * 1e3
             ),
         ));
@@ -590,6 +612,44 @@ fn leg_pose_ok(
     dip_tol: f32,
     scratch: &mut ChainScratch,
 ) -> bool {
+    leg_pose_blocker(tree, proxies, scene, nominal_q, leg, root, foot, dip_tol, scratch).is_none()
+}
+
+/// What keeps a leg from a foothold in a posture ([`leg_pose_blocker`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Blocker {
+    /// The foot cannot reach it within the leg's joint limits.
+    Reach,
+    /// Link `.0` of the leg collides with link `.1`.
+    Collision(usize, usize),
+    /// Link `.0` of the leg goes below the ground.
+    Ground(usize),
+}
+
+impl Blocker {
+    fn describe(self, tree: &KinematicTree) -> String {
+        let name = |l: usize| &tree.links[l].name;
+        match self {
+            Blocker::Reach => "the foot cannot reach it within the leg's joint limits".into(),
+            Blocker::Collision(a, b) => format!("`{}` collides with `{}`", name(a), name(b)),
+            Blocker::Ground(l) => format!("`{}` goes below the ground", name(l)),
+        }
+    }
+}
+
+/// Why the leg cannot put its foot at `foot` with the root at `root`, or `None` when it can.
+#[allow(clippy::too_many_arguments)]
+fn leg_pose_blocker(
+    tree: &KinematicTree,
+    proxies: &Proxies,
+    scene: &Scene,
+    nominal_q: &[f32],
+    leg: &Leg,
+    root: &Isometry3<f32>,
+    foot: &Point3<f32>,
+    dip_tol: f32,
+    scratch: &mut ChainScratch,
+) -> Option<Blocker> {
     let mut q = nominal_q.to_vec();
     if leg
         .chain
@@ -597,7 +657,7 @@ fn leg_pose_ok(
         .error
         > REACHED
     {
-        return false;
+        return Some(Blocker::Reach);
     }
     let mut links = Vec::new();
     leg_poses(tree, scene, leg, &q, &mut links);
@@ -609,24 +669,28 @@ fn leg_pose_ok(
                 continue;
             }
             if boxes.iter().any(|x| scene.boxes[b].iter().any(|y| x.overlaps(y, 0.0))) {
-                return false;
+                return Some(Blocker::Collision(a, b));
             }
         }
     }
     // Nothing below the ground: `dip_tol` of slack for the foot's own geometry, none for the rest of the
     // leg. Boxes of meshes on the foot's body are left out (their corners dip although the mesh does
     // not); the foot point stands for them.
-    leg.links.iter().all(|&l| {
-        let foot_body = proxies.body[l] == proxies.body[leg.foot];
-        let pose = root * links[l];
-        tree.links[l].extent_geometry().iter().all(|g| {
-            if foot_body && matches!(g.shape, Shape::Mesh { .. }) {
-                return true;
-            }
-            g.aabb(&pose)
-                .is_none_or(|b| b.min.z > if foot_body { -dip_tol } else { 0.0 })
+    leg.links
+        .iter()
+        .copied()
+        .find(|&l| {
+            let foot_body = proxies.body[l] == proxies.body[leg.foot];
+            let pose = root * links[l];
+            !tree.links[l].extent_geometry().iter().all(|g| {
+                if foot_body && matches!(g.shape, Shape::Mesh { .. }) {
+                    return true;
+                }
+                g.aabb(&pose)
+                    .is_none_or(|b| b.min.z > if foot_body { -dip_tol } else { 0.0 })
+            })
         })
-    })
+        .map(Blocker::Ground)
 }
 
 /// Lowest z of the geometry on the foot's rigid body (boxes of meshes left out) with the root at `root`.
