@@ -1756,3 +1756,32 @@ fn clips_moving_bones_through_nodes_that_are_no_joints_are_warned_of() {
     assert!(warned[0].starts_with("animation 0 (`Survey`) moves 1 node(s)"), "{warned:?}");
     assert!(load(&dir.join("Fox/Fox.glb")).tree.warnings.iter().all(|w| !w.contains("no joints of the skin")));
 }
+
+/// A skinned mesh shown with a morph target weighted by default (valid glTF) was read as its base mesh
+/// without a word, though a player shows the other shape; a warning now says so. Weighted 0, nothing
+/// is said.
+#[test]
+fn morph_targets_weighted_by_default_are_warned_of() {
+    let d = tmp("morphs");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/creatures/hound.glb");
+    let with_weight = |name: &str, w: f32| {
+        let out = d.join(name);
+        rewrite_glb(&src, &out, |v, bin| {
+            let n = v["accessors"][v["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize]["count"].as_u64().unwrap() as usize;
+            while bin.len() % 4 != 0 {
+                bin.push(0);
+            }
+            let views = v["bufferViews"].as_array().unwrap().len();
+            v["bufferViews"].as_array_mut().unwrap().push(serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": 12 * n}));
+            bin.extend(std::iter::repeat_n(0u8, 12 * n));
+            let accs = v["accessors"].as_array().unwrap().len();
+            v["accessors"].as_array_mut().unwrap().push(serde_json::json!({"bufferView": views, "componentType": 5126, "count": n, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0]}));
+            v["meshes"][0]["primitives"][0]["targets"] = serde_json::json!([{"POSITION": accs}]);
+            v["meshes"][0]["weights"] = serde_json::json!([w]);
+        });
+        load(&out)
+    };
+    let warned = |c: &Creature| c.rig.warnings.iter().any(|w| w.contains("morph targets weighted by default"));
+    assert!(warned(&with_weight("shown.glb", 1.0)));
+    assert!(!warned(&with_weight("unweighted.glb", 0.0)));
+}

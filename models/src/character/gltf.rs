@@ -602,6 +602,22 @@ pub fn read_document(
         ))));
     }
 
+    // Morph targets weighted by default change the shape a player shows; the import reads the base mesh.
+    let morphed: Vec<String> = doc
+        .nodes()
+        .filter(|nd| nd.skin().map(|s| s.index()) == Some(skin_index))
+        .filter_map(|nd| {
+            let weights = nd.weights().or_else(|| nd.mesh()?.weights())?;
+            weights.iter().any(|w| *w != 0.0).then(|| names[nd.index()].clone())
+        })
+        .collect();
+    if !morphed.is_empty() {
+        warnings.push(format!(
+            "the skinned mesh of {} is shown with morph targets weighted by default; the creature's geometry is \
+             read from the base mesh, without them",
+            morphed.join(", ")
+        ));
+    }
     // Rest pose: the bind pose (module docs). `rebound[i]`: node i's rest world matrix is not its
     // node transforms' (a joint moved to its bind pose, or a node below one).
     let mesh_world = doc
