@@ -359,9 +359,7 @@ impl Profile {
                 );
             }
         }
-        if let Err(valid) = self.facing() {
-            return bad("forward".into(), format!("\"{}\"", self.forward.map_or("+z", |a| a.label())), &valid);
-        }
+        self.facing()?;
         if let Some(s) = self.scale {
             let (lo, hi) = PROFILE_SCALE_RANGE;
             if !(lo..=hi).contains(&s) {
@@ -375,9 +373,13 @@ impl Profile {
         Ok(())
     }
 
-    /// The creature's axes in its file: `up` and `forward`, or glTF's.
-    pub fn facing(&self) -> Result<crate::character::gltf::Facing, String> {
-        crate::character::gltf::Facing::new(self.forward, self.up)
+    /// The creature's axes in its file: `up` and `forward`, or glTF's; parallel ones are a bad `forward`.
+    pub fn facing(&self) -> Result<crate::character::gltf::Facing, ProfileProblem> {
+        crate::character::gltf::Facing::new(self.forward, self.up).map_err(|valid| ProfileProblem::BadValue {
+            key: "forward".into(),
+            value: format!("\"{}\"", self.forward.map_or("+z", |a| a.label())),
+            valid,
+        })
     }
 
     /// Reads a profile file (a regular file of UTF-8 text: [`crate::input::read_text`]).

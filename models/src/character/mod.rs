@@ -63,10 +63,7 @@ pub fn creature_from_document(
         file: profile.source.clone().unwrap_or_else(|| path.display().to_string()),
         problem,
     };
-    let facing = profile.facing().map_err(|valid| {
-        let value = format!("\"{}\"", profile.forward.map_or("+z", |a| a.label()));
-        profile_error(ProfileProblem::BadValue { key: "forward".into(), value, valid })
-    })?;
+    let facing = profile.facing().map_err(profile_error)?;
     let rig = gltf::read_document(doc, buffers, path, profile.scale, facing)?;
     let name = path
         .file_stem()

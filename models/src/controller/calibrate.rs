@@ -426,7 +426,7 @@ fn radius(
             let foot = Point3::new(p.x, p.y, leg.sole);
             poses.iter().all(|&(h, pitch, roll)| {
                 let root = tilted_root(h, pitch, roll);
-                leg_pose_ok(tree, proxies, scene, nominal_q, leg, &root, &foot, dip_tol, scratch)
+                leg_pose_blocker(tree, proxies, scene, nominal_q, leg, &root, &foot, dip_tol, scratch).is_none()
             })
         })
     };
@@ -598,23 +598,6 @@ fn leg_poses(tree: &KinematicTree, scene: &Scene, leg: &Leg, q: &[f32], out: &mu
     }
 }
 
-/// Whether the leg reaches the world point `foot` with the root at `root`, within joint limits, clear
-/// of the rest of the body at the nominal pose and above the ground.
-#[allow(clippy::too_many_arguments)]
-fn leg_pose_ok(
-    tree: &KinematicTree,
-    proxies: &Proxies,
-    scene: &Scene,
-    nominal_q: &[f32],
-    leg: &Leg,
-    root: &Isometry3<f32>,
-    foot: &Point3<f32>,
-    dip_tol: f32,
-    scratch: &mut ChainScratch,
-) -> bool {
-    leg_pose_blocker(tree, proxies, scene, nominal_q, leg, root, foot, dip_tol, scratch).is_none()
-}
-
 /// What keeps a leg from a foothold in a posture ([`leg_pose_blocker`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Blocker {
@@ -637,7 +620,9 @@ impl Blocker {
     }
 }
 
-/// Why the leg cannot put its foot at `foot` with the root at `root`, or `None` when it can.
+/// Why the leg cannot put its foot at the world point `foot` with the root at `root` (within joint
+/// limits, clear of the rest of the body at the nominal pose and above the ground), or `None` when it
+/// can.
 #[allow(clippy::too_many_arguments)]
 fn leg_pose_blocker(
     tree: &KinematicTree,
