@@ -828,6 +828,22 @@ fn a_creature_missing_an_image_beside_it_is_refused_before_the_retarget() {
     assert!(out.exists());
 }
 
+/// `ace eval --baselines --runs` naming a file failed only once the clips were read and the first
+/// baseline was to train; it is refused before any work.
+#[test]
+fn eval_runs_naming_a_file_is_refused_before_any_work() {
+    let dir = tmp("runs-file");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let runs = dir.join("runs.txt");
+    std::fs::write(&runs, "notes").unwrap();
+    let out = ace(&["eval", "--character", "spot", "--baselines", "--quick", "--runs", runs.to_str().unwrap(), "--out", dir.join("eval").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains(&format!("{}: refusing to write there: it is a file", runs.display())), "{err}");
+    assert!(!err.contains("importing") && !dir.join("eval").exists(), "{err}");
+    assert_eq!(std::fs::read_to_string(&runs).unwrap(), "notes");
+}
+
 /// A copy of the shipped Spot checkpoint in `dir/ck` (`dir` emptied first) with `edit` applied to its
 /// `ace.json`.
 fn spot_checkpoint_edited(dir: &Path, edit: impl FnOnce(&mut Value)) -> PathBuf {
