@@ -262,6 +262,15 @@ pub fn ace(args: &TrainArgs) -> Result<()> {
     let device = cfg.device.device();
     let prior = PriorCheckpoint::load_for(&dir, device, &tree, &morph)
         .with_context(|| format!("{} needs a motion prior: run `ace train-prior` first", dir.display()))?;
+    if prior.step < prior.config.steps {
+        eprintln!(
+            "warning: the motion prior in {} trained {} of its {} steps: its training stopped early, and the \
+             generator learns on it as it is; the same `ace train-prior` run again on the checkpoint finishes it",
+            dir.display(),
+            prior.step,
+            prior.config.steps
+        );
+    }
     let data_cfg = prior_dataset_config(&prior).map_err(|e| anyhow::anyhow!("{e}; pass --dataset"))?;
     let set = dataset(&tree, &morph, &urdf, args.dataset.as_deref(), &data_cfg)?;
     if set.mean != prior.stats.mean || set.std != prior.stats.std {

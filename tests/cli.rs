@@ -844,6 +844,35 @@ fn eval_runs_naming_a_file_is_refused_before_any_work() {
     assert_eq!(std::fs::read_to_string(&runs).unwrap(), "notes");
 }
 
+/// `ace train` on a prior whose training stopped early learned on it without a word; it now warns,
+/// and says nothing on a prior trained to the end.
+#[test]
+fn train_warns_of_a_part_trained_prior() {
+    let dir = tmp("part-trained-prior");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
+    std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
+    std::fs::write(&ace_cfg, TINY_ACE).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    run_ok(&["--threads", "1", "train-prior", "--character", "crab", "--frames", "3000", "--config", &s(&prior_cfg), "--checkpoint", &s(&ck)]);
+    let train = || ace(&["--threads", "1", "train", "--character", "crab", "--config", &s(&ace_cfg), "--checkpoint", &s(&ck), "--humans", "assets/motions"]);
+    let out = train();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !err.contains("stopped early"), "{err}");
+    // As an interrupted `ace train-prior` leaves it: fewer steps done than configured.
+    for f in ["ace.json", "generator.safetensors", "discriminator.safetensors"] {
+        std::fs::remove_file(ck.join(f)).unwrap();
+    }
+    let mut record: Value = serde_json::from_slice(&std::fs::read(ck.join("config.json")).unwrap()).unwrap();
+    record["step"] = 60.into();
+    std::fs::write(ck.join("config.json"), serde_json::to_vec_pretty(&record).unwrap()).unwrap();
+    let out = train();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: the motion prior in") && err.contains("trained 60 of its 120 steps: its training stopped early"), "{err}");
+}
+
 /// A copy of the shipped Spot checkpoint in `dir/ck` (`dir` emptied first) with `edit` applied to its
 /// `ace.json`.
 fn spot_checkpoint_edited(dir: &Path, edit: impl FnOnce(&mut Value)) -> PathBuf {
