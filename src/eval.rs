@@ -153,11 +153,11 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     // it, nor a file of the character, checked before any work.
     let runs = args.runs.clone().unwrap_or_else(|| baselines::default_runs(&tree.name, args.quick));
     if args.baselines {
-        // A file named by `--runs` failed only when the first baseline was trained, after the clips were read.
-        outputs.check_dir(&runs)?;
         for (_, slug) in baselines::BASELINES {
             outputs.check_dir(&runs.join(slug))?;
         }
+        // A file named by `--runs` failed only when the first baseline was trained, after the clips were read.
+        outputs.check_dir(&runs)?;
     }
     let mut args = args.clone();
     if args.quick {
