@@ -151,6 +151,9 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
         )));
     }
     let bytes = crate::input::read_regular(path, crate::input::MAX_MESH_BYTES).map_err(|e| err(format!("cannot read the file: {e}")))?;
+    if ext == "dae" {
+        check_collada_unit(&bytes).map_err(err)?;
+    }
     let mut warnings = Vec::new();
     let loader = Loader::default();
     // The Collada reader panics on some malformed files (an index past its array): caught, so that
@@ -172,6 +175,22 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
     // Parse errors end in `(FILE:LINE:COLUMN)`; the file is named already.
     .map_err(|e| err(e.to_string().replace(&format!("({file}:"), "(line ")))?;
     Ok((scene, warnings))
+}
+
+/// A Collada file's `<unit meter="…">` (metres per unit) must be a positive number: the reader scales
+/// by it as it is, so a negative one mirrored the mesh and zero flattened it, without a word.
+fn check_collada_unit(bytes: &[u8]) -> Result<(), String> {
+    let text = String::from_utf8_lossy(&bytes[..bytes.len().min(1 << 16)]);
+    let Some(tag) = text.find("<unit").map(|i| &text[i..]).and_then(|t| t.split('>').next()) else {
+        return Ok(());
+    };
+    let Some(value) = tag.split("meter=").nth(1).and_then(|v| v.trim_start().get(1..)).and_then(|v| v.split(['"', '\'']).next()) else {
+        return Ok(());
+    };
+    match value.trim().parse::<f32>() {
+        Ok(m) if m.is_finite() && m > 0.0 => Ok(()),
+        _ => Err(format!("`<unit meter=\"{value}\">`: a unit is a positive number of metres")),
+    }
 }
 
 fn extension(path: &Path) -> String {
@@ -376,6 +395,12 @@ mod tests {
         std::fs::write(&bad, text.replace("<p>0 0 3 0", "<p>0 0 9 0")).unwrap();
         let e = read_mesh(&bad).unwrap_err();
         assert_eq!(e.file, bad.display().to_string());
+        // A unit that is not a positive length mirrored or flattened the mesh without a word.
+        for unit in ["-1", "0", "nan", "ten"] {
+            std::fs::write(&bad, text.replace("meter=\"0.1\"", &format!("meter=\"{unit}\""))).unwrap();
+            let e = read_mesh(&bad).unwrap_err();
+            assert_eq!(e.problem, format!("`<unit meter=\"{unit}\">`: a unit is a positive number of metres"), "{unit}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
