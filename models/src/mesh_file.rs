@@ -155,6 +155,9 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
         check_collada_unit(&bytes).map_err(err)?;
     }
     let mut warnings = Vec::new();
+    if ext == "stl" {
+        warnings.extend(binary_stl_count_mismatch(&bytes).map(|w| format!("{file}: {w}")));
+    }
     let loader = Loader::default();
     // The Collada reader panics on some malformed files (an index past its array): caught, so that
     // such a file is reported like any other unreadable one.
@@ -175,6 +178,22 @@ fn load(path: &Path) -> Result<(Scene, Vec<String>), MeshError> {
     // Parse errors end in `(FILE:LINE:COLUMN)`; the file is named already.
     .map_err(|e| err(e.to_string().replace(&format!("({file}:"), "(line ")))?;
     Ok((scene, warnings))
+}
+
+/// For a binary STL whose header's triangle count disagrees with its length (a truncated download, a
+/// writer's bug), what it says: the reader goes by the length, so triangles may be missing.
+fn binary_stl_count_mismatch(bytes: &[u8]) -> Option<String> {
+    // An ASCII STL begins with `solid` and holds no NUL; a binary one's 80-byte header may begin so too.
+    let ascii = bytes.starts_with(b"solid") && !bytes.iter().take(1024).any(|&b| b == 0);
+    if ascii || bytes.len() < 84 {
+        return None;
+    }
+    // (A length that is no whole number of triangles the reader refuses.)
+    let count = u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize;
+    let held = (bytes.len() - 84) / 50;
+    (count != held && (bytes.len() - 84) % 50 == 0).then(|| {
+        format!("its header counts {count} triangles and the file holds {held}: it may be truncated; the {held} are read")
+    })
 }
 
 /// A Collada file's `<unit meter="…">` (metres per unit) must be a positive number: the reader scales
@@ -274,6 +293,27 @@ mod tests {
             b.extend_from_slice(&[0, 0]);
         }
         b
+    }
+
+    /// A binary STL whose header counts other triangles than it holds (a download cut at a triangle's
+    /// end) was read without a word; the reader goes by the file's length, and a warning says so.
+    #[test]
+    fn a_binary_stl_holding_fewer_triangles_than_its_header_counts_is_warned_of() {
+        let dir = tmp_dir("stl-count");
+        let tris = [[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]];
+        let whole = binary_stl(&tris);
+        let path = dir.join("part.stl");
+        std::fs::write(&path, &whole).unwrap();
+        assert!(read_mesh(&path).unwrap().warnings.is_empty());
+        let mut counted = whole.clone();
+        counted[80..84].copy_from_slice(&10u32.to_le_bytes());
+        std::fs::write(&path, &counted).unwrap();
+        let m = read_mesh(&path).unwrap();
+        assert_eq!(m.warnings, [format!("{}: its header counts 10 triangles and the file holds 2: it may be truncated; the 2 are read", path.display())]);
+        // Cut in the middle of the second triangle: refused, naming the file.
+        std::fs::write(&path, &whole[..84 + 50 + 20]).unwrap();
+        assert_eq!(read_mesh(&path).unwrap_err().file, path.display().to_string());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
