@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use ace::models::dataset::{DatasetConfig, MotionSet, OwnClipsConfig, check_budget, check_config, generate};
 use ace::models::kinematics::KinematicTree;
-use ace::models::metrics::{UfrConfig, ufr_episodes};
+use ace::models::metrics::{UfrConfig, percent, ufr_episodes};
 use ace::models::morphology::Morphology;
 use anyhow::{Context, Result};
 
@@ -51,16 +51,15 @@ pub fn unclean_warning(tree: &KinematicTree, morph: &Morphology, set: &MotionSet
     let end = sample.last().map_or(0, |e| e.end);
     let poses: Vec<_> = (0..end).map(|i| set.pose(i)).collect();
     let r = ufr_episodes(tree, morph, &poses, &sample, set.fps, &UfrConfig::for_character(tree, morph)).rates;
-    let pct = |x: f32| 100.0 * x;
     (r.ufr > UNCLEAN_DATASET_UFR).then(|| {
         format!(
-            "{:.0} % of the dataset's frames are unnatural by the UFR detectors (feet sliding {:.0} %, self-collision \
-             {:.0} %, in the ground {:.0} %): the controllers cannot move this body cleanly, and the prior would learn \
-             it. Check the body plan with `ace inspect` (feet {}), and the profile if there is one",
-            pct(r.ufr),
-            pct(r.sliding),
-            pct(r.self_collision),
-            pct(r.penetration),
+            "{} of the dataset's frames are unnatural by the UFR detectors (feet sliding {}, self-collision {}, in \
+             the ground {}): the controllers cannot move this body cleanly, and the prior would learn it. Check the \
+             body plan with `ace inspect` (feet {}), and the profile if there is one",
+            percent(r.ufr),
+            percent(r.sliding),
+            percent(r.self_collision),
+            percent(r.penetration),
             morph.names(tree).feet.join(", ")
         )
     })

@@ -272,6 +272,14 @@ fn tmp(name: &str) -> PathBuf {
     dir.join(name)
 }
 
+/// The folder [`tmp`]`(name)`, emptied and made.
+fn fresh(name: &str) -> PathBuf {
+    let dir = tmp(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 fn dataset(character: &str, frames: usize, seed: u64, out: &Path, extra: &[&str]) -> Output {
     let (frames, seed) = (frames.to_string(), seed.to_string());
     let mut args = vec!["dataset", "--character", character, "--frames", &frames, "--seed", &seed, "--out", out.to_str().unwrap()];
@@ -346,9 +354,7 @@ fn the_same_seed_gives_the_same_dataset_file() {
 #[test]
 fn an_unclean_dataset_is_warned_of() {
     let Some(fox) = shared("creatures/Fox/Fox.glb") else { return };
-    let dir = tmp("one-legged-fox");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("one-legged-fox");
     let copy = dir.join("Fox.glb");
     std::fs::copy(&fox, &copy).unwrap();
     let out = dataset(copy.to_str().unwrap(), 2000, 0, &dir.join("four.safetensors"), &[]);
@@ -571,9 +577,7 @@ fn tiny_checkpoint_with(dir: &Path, character: &str, ace_lines: &str) -> (PathBu
 
 #[test]
 fn train_prior_generates_its_dataset_with_the_given_settings_and_records_them() {
-    let dir = tmp("dataset-config");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("dataset-config");
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let (prior_cfg, ck) = (dir.join("prior.toml"), dir.join("ck"));
     std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
@@ -775,9 +779,7 @@ fn train_prior_train_and_retarget_write_a_valid_clip_and_trajectory() {
 /// checkpoint ran on it (the foot lock let that foot slide: UFR 12 %). The checkpoint records its feet.
 #[test]
 fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
-    let dir = tmp("profile-roles");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("profile-roles");
     let urdf = dir.join("spot.urdf");
     std::fs::copy(root().join("assets/characters/spot.urdf"), &urdf).unwrap();
     std::fs::write(dir.join("spot.profile.toml"), "feet = [\"fl_foot\", \"fr_foot\", \"rl_foot\"]\nmanipulators = [\"rr_foot\", \"gripper_tip\"]\n").unwrap();
@@ -800,14 +802,10 @@ fn a_profile_that_makes_a_foot_an_arm_is_refused_by_the_shipped_checkpoint() {
 /// the clip without the model's files.
 #[test]
 fn a_creature_missing_an_image_beside_it_is_refused_before_the_retarget() {
-    let dir = tmp("missing-image");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("missing-image");
     let glb = std::fs::read(root().join("assets/creatures/hound.glb")).unwrap();
-    let n = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let mut json: Value = serde_json::from_slice(&glb[20..20 + n]).unwrap();
-    let bin_len = u32::from_le_bytes(glb[20 + n..24 + n].try_into().unwrap()) as usize;
-    std::fs::write(dir.join("hound.bin"), &glb[28 + n..28 + n + bin_len]).unwrap();
+    let (mut json, bin) = glb_chunks(&glb);
+    std::fs::write(dir.join("hound.bin"), &glb[bin]).unwrap();
     json["buffers"][0]["uri"] = "hound.bin".into();
     json["images"] = serde_json::json!([{"uri": "fur.png"}]);
     let model = dir.join("hound.gltf");
@@ -832,9 +830,7 @@ fn a_creature_missing_an_image_beside_it_is_refused_before_the_retarget() {
 /// baseline was to train; it is refused before any work.
 #[test]
 fn eval_runs_naming_a_file_is_refused_before_any_work() {
-    let dir = tmp("runs-file");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("runs-file");
     let runs = dir.join("runs.txt");
     std::fs::write(&runs, "notes").unwrap();
     let out = ace(&["eval", "--character", "spot", "--baselines", "--quick", "--runs", runs.to_str().unwrap(), "--out", dir.join("eval").to_str().unwrap()]);
@@ -848,9 +844,7 @@ fn eval_runs_naming_a_file_is_refused_before_any_work() {
 /// and says nothing on a prior trained to the end.
 #[test]
 fn train_warns_of_a_part_trained_prior() {
-    let dir = tmp("part-trained-prior");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("part-trained-prior");
     let (prior_cfg, ace_cfg, ck) = (dir.join("prior.toml"), dir.join("ace.toml"), dir.join("ck"));
     std::fs::write(&prior_cfg, TINY_PRIOR).unwrap();
     std::fs::write(&ace_cfg, TINY_ACE).unwrap();
@@ -1049,28 +1043,31 @@ fn a_rigged_creature_trains_and_retargets_end_to_end() {
 
 /// A glTF binary with one byte in the middle of its first image changed: the same scene, another file.
 fn with_a_texture_byte_flipped(glb: &[u8]) -> Vec<u8> {
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let json: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let (json, bin) = glb_chunks(glb);
     let view = &json["bufferViews"][json["images"][0]["bufferView"].as_u64().unwrap() as usize];
     let (offset, len) = (view["byteOffset"].as_u64().unwrap_or(0) as usize, view["byteLength"].as_u64().unwrap() as usize);
     let mut out = glb.to_vec();
-    out[20 + json_len + 8 + offset + len / 2] ^= 0x10;
+    out[bin.start + offset + len / 2] ^= 0x10;
     out
+}
+
+/// A glTF binary's JSON and the byte range of its binary chunk's data.
+fn glb_chunks(glb: &[u8]) -> (Value, std::ops::Range<usize>) {
+    let n = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json: Value = serde_json::from_slice(&glb[20..20 + n]).unwrap();
+    let bin_len = glb.get(20 + n..24 + n).map_or(0, |b| u32::from_le_bytes(b.try_into().unwrap()) as usize);
+    (json, 28 + n..28 + n + bin_len)
 }
 
 /// Node names of a glTF binary.
 fn glb_node_names(glb: &Path) -> Vec<String> {
-    let bytes = std::fs::read(glb).unwrap();
-    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let json: Value = serde_json::from_slice(&bytes[20..20 + n]).unwrap();
+    let (json, _) = glb_chunks(&std::fs::read(glb).unwrap());
     json["nodes"].as_array().unwrap().iter().filter_map(|v| v["name"].as_str().map(String::from)).collect()
 }
 
 #[test]
 fn retarget_without_the_cleanup_or_the_human_writes_what_it_says() {
-    let dir = tmp("cli-retarget-flags");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("cli-retarget-flags");
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let write = |name: &str, extra: &[&str]| {
         let glb = dir.join(format!("{name}.glb"));
@@ -1198,9 +1195,7 @@ fn csv_numbers(path: &Path) -> Vec<Vec<f64>> {
 
 #[test]
 fn retarget_runs_the_networks_in_pure_rust_and_with_libtorch_alike() {
-    let dir = tmp("cli-retarget-backend");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh("cli-retarget-backend");
     let write = |name: &str, extra: &[&str]| {
         let glb = dir.join(format!("{name}.glb"));
         let out = glb.to_str().unwrap().to_string();

@@ -620,10 +620,8 @@ pub fn read_document(
     }
     // Rest pose: the bind pose (module docs). `rebound[i]`: node i's rest world matrix is not its
     // node transforms' (a joint moved to its bind pose, or a node below one).
-    let mesh_world = doc
-        .nodes()
-        .find(|nd| nd.mesh().is_some() && nd.skin().map(|s| s.index()) == Some(skin_index))
-        .map_or_else(Matrix4::identity, |nd| world[nd.index()]);
+    let skinned = doc.nodes().find(|nd| nd.mesh().is_some() && nd.skin().map(|s| s.index()) == Some(skin_index));
+    let mesh_world = skinned.as_ref().map_or_else(Matrix4::identity, |nd| world[nd.index()]);
     let mut rest_world = world.clone();
     let mut rebound = vec![false; n];
     for &i in &order {
@@ -799,7 +797,6 @@ pub fn read_document(
     }
     // The same for the skinned mesh's node and within the skeleton: a bone whose bind pose scales
     // unevenly (the hound's hips by [1.1, 0.9, 1.25] stretched its shins by 23 % as they swung).
-    let skinned = doc.nodes().find(|nd| nd.mesh().is_some() && nd.skin().map(|s| s.index()) == Some(skin_index));
     if let Some((nd, s)) = skinned.and_then(|nd| Some((nd.index(), uneven(&mesh_world)?))) {
         return Err(fail(GltfProblem::BadTransform(format!(
             "node {nd} (`{}`), the skinned mesh's, scales unevenly (by {:.3}, {:.3} and {:.3} along its axes); {apply}",

@@ -326,26 +326,23 @@ pub fn step_radii(
         }
     }
     if best.worst < 0.03 {
-        let i = (0..legs.len())
-            .min_by(|&a, &b| (legs[a].r_max / legs[a].length).total_cmp(&(legs[b].r_max / legs[b].length)))
+        let leg = legs
+            .iter()
+            .min_by(|a, b| (a.r_max / a.length).total_cmp(&(b.r_max / b.length)))
             .expect("legs");
-        let leg = &legs[i];
-        // What stops it: the obstacles just beyond its step radius, over the directions and postures tried.
+        // What stops it: the obstacles just beyond its step radius, over the footholds and postures tried.
         let scene = Scene::new(proxies, fk_root(tree, nominal_q), ignore);
-        let r = leg.r_max / 0.9 + 0.02 * leg.length;
+        let poses = postures(best.height, best.tilt);
         let mut seen: BTreeMap<Blocker, usize> = BTreeMap::new();
-        for k in 0..8 {
-            let a = k as f32 * std::f32::consts::FRAC_PI_4;
-            let p = leg.nominal + Vector2::new(a.cos(), a.sin()) * r;
-            for (h, pitch, roll) in postures(best.height, best.tilt) {
+        for foot in footholds(leg, leg.r_max / 0.9 + 0.02 * leg.length, None) {
+            for &(h, pitch, roll) in &poses {
                 let root = tilted_root(h, pitch, roll);
-                let foot = Point3::new(p.x, p.y, leg.sole);
                 if let Some(o) = leg_pose_blocker(tree, proxies, &scene, nominal_q, leg, &root, &foot, dip_tol, &mut scratch) {
                     *seen.entry(o).or_default() += 1;
                 }
             }
         }
-        let tries = 8 * postures(best.height, best.tilt).len();
+        let tries = 8 * poses.len();
         let most = seen.into_iter().max_by_key(|&(_, n)| n);
         let stopped = most.map_or(String::new(), |(o, n)| {
             format!(": most often {} ({n} of {tries} footholds just beyond it)", o.describe(tree))
@@ -420,10 +417,7 @@ fn radius(
         })
         .fold(0.6 * leg.length, f32::min);
     let ok = |r: f32, scratch: &mut ChainScratch| {
-        (0..8).all(|k| {
-            let a = k as f32 * std::f32::consts::FRAC_PI_4;
-            let p = leg.nominal + Vector2::new(a.cos() * r, a.sin() * lateral.unwrap_or(r));
-            let foot = Point3::new(p.x, p.y, leg.sole);
+        footholds(leg, r, lateral).all(|foot| {
             poses.iter().all(|&(h, pitch, roll)| {
                 let root = tilted_root(h, pitch, roll);
                 leg_pose_blocker(tree, proxies, scene, nominal_q, leg, &root, &foot, dip_tol, scratch).is_none()
@@ -446,6 +440,16 @@ fn radius(
         }
     }
     lo
+}
+
+/// The eight footholds around the leg's nominal one that [`radius`] tries: at `r` fore and aft and
+/// `lateral` (or `r`) to the sides, on the leg's sole.
+fn footholds(leg: &Leg, r: f32, lateral: Option<f32>) -> impl Iterator<Item = Point3<f32>> + '_ {
+    (0..8).map(move |k| {
+        let a = k as f32 * std::f32::consts::FRAC_PI_4;
+        let p = leg.nominal + Vector2::new(a.cos() * r, a.sin() * lateral.unwrap_or(r));
+        Point3::new(p.x, p.y, leg.sole)
+    })
 }
 
 /// Sets each leg's swing height (module docs).
